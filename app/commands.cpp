@@ -1,0 +1,18 @@
+#include "commands.hpp"
+
+#include <CLI/CLI.hpp>
+
+namespace cutsim::app {
+namespace {
+int g_exit = 0;
+}
+
+int exitCode() { return g_exit; }
+void setExitCode(int code) { g_exit = code; }
+
+void registerCommands(CLI::App& app) {
+    addDtCommand(app);
+    addMeshCommand(app);
+}
+
+} // namespace cutsim::app

@@ -1,0 +1,16 @@
+// Subcommands of the cutsim executable. Each add* function registers one subcommand; its
+// callback runs it and stores the exit code (bad input: message on stderr, code 1 or 2).
+#pragma once
+
+namespace CLI { class App; }
+
+namespace cutsim::app {
+
+void registerCommands(CLI::App& app);
+int exitCode();
+void setExitCode(int code);
+
+void addDtCommand(CLI::App& app);     // cmd_dt.cpp: time-step analysis of a mesh
+void addMeshCommand(CLI::App& app);   // cmd_mesh.cpp: mesh conversion and checks
+
+} // namespace cutsim::app

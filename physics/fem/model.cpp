@@ -1,0 +1,104 @@
+#include "fem/model.hpp"
+
+#include "fem/tet.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace cutsim {
+
+int Model::freeDofs() const {
+    int n = 0;
+    for (int i = 0; i < nodes(); ++i) n += invMass(i) > 0 ? 3 : 0;
+    return n;
+}
+
+Model buildModel(const TetMesh& mesh, const Material& material, ElementModel elementModel) {
+    if (!material.valid())
+        throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
+    Model m;
+    m.material = material;
+    m.elementModel = elementModel;
+    m.X = mesh.X;
+    m.tets = mesh.tets;
+    const int ne = mesh.elements();
+    m.DmInv.resize(9, ne);
+    m.volume.resize(ne);
+    m.fraction = Eigen::VectorXd::Ones(ne);
+    for (int e = 0; e < ne; ++e) {
+        Mat34 Xe;
+        for (int a = 0; a < 4; ++a) {
+            const int n = mesh.tets(a, e);
+            if (n < 0 || n >= mesh.nodes())
+                throw InputError(mesh.source, 0, "element " + std::to_string(e) + " refers to node " +
+                                                     std::to_string(n) + " which does not exist");
+            Xe.col(a) = mesh.X.col(n);
+        }
+        const Eigen::Matrix3d Dm = restShapeMatrix(Xe);
+        const double V = Dm.determinant() / 6.0;
+        if (!(V > 0))
+            throw InputError(mesh.source, 0, "element " + std::to_string(e) +
+                                                 (V < 0 ? " is inverted" : " has zero volume"));
+        const Eigen::Matrix3d inv = Dm.inverse();
+        std::copy(inv.data(), inv.data() + 9, m.DmInv.col(e).data());
+        m.volume(e) = V;
+    }
+    m.fixed.assign(mesh.nodes(), 0);
+    updateMasses(m);
+    buildIncidence(m);
+    return m;
+}
+
+void updateMasses(Model& m) {
+    m.mass = Eigen::VectorXd::Zero(m.nodes());
+    const double rho = m.material.rho;
+    for (int e = 0; e < m.elements(); ++e) {
+        const double me = rho * m.volume(e) * m.fraction(e) / 4.0;
+        for (int a = 0; a < 4; ++a) m.mass(m.tets(a, e)) += me;
+    }
+    m.invMass.resize(m.nodes());
+    for (int i = 0; i < m.nodes(); ++i)
+        m.invMass(i) = (m.fixed[i] || m.mass(i) <= 0) ? 0.0 : 1.0 / m.mass(i);
+}
+
+void fixNodes(Model& m, const std::vector<int>& nodes) {
+    for (int n : nodes) m.fixed.at(n) = 1;
+    updateMasses(m);
+}
+
+void buildIncidence(Model& m) {
+    m.nodeSlotStart.assign(m.nodes() + 1, 0);
+    for (int e = 0; e < m.elements(); ++e)
+        for (int a = 0; a < 4; ++a) ++m.nodeSlotStart[m.tets(a, e) + 1];
+    for (int i = 0; i < m.nodes(); ++i) m.nodeSlotStart[i + 1] += m.nodeSlotStart[i];
+    m.nodeSlots.resize(4 * m.elements());
+    std::vector<int> fill(m.nodeSlotStart.begin(), m.nodeSlotStart.end() - 1);
+    for (int e = 0; e < m.elements(); ++e)
+        for (int a = 0; a < 4; ++a) m.nodeSlots[fill[m.tets(a, e)]++] = 4 * e + a;
+}
+
+Eigen::SparseMatrix<double> assembleStiffness(const Model& m) {
+    std::vector<Eigen::Triplet<double>> trips;
+    trips.reserve(static_cast<size_t>(m.elements()) * 144);
+    for (int e = 0; e < m.elements(); ++e) {
+        const Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.volume(e) * m.fraction(e), m.material);
+        for (int a = 0; a < 4; ++a)
+            for (int b = 0; b < 4; ++b)
+                for (int i = 0; i < 3; ++i)
+                    for (int j = 0; j < 3; ++j)
+                        trips.emplace_back(3 * m.tets(a, e) + i, 3 * m.tets(b, e) + j, K(3 * a + i, 3 * b + j));
+    }
+    Eigen::SparseMatrix<double> K(3 * m.nodes(), 3 * m.nodes());
+    K.setFromTriplets(trips.begin(), trips.end());
+    return K;
+}
+
+TetMesh restMesh(const Model& m) {
+    TetMesh mesh;
+    mesh.X = m.X;
+    mesh.tets = m.tets;
+    mesh.source = "model";
+    return mesh;
+}
+
+} // namespace cutsim

@@ -1,0 +1,69 @@
+// The fixed part of a simulation: rest shape, elements, masses, material, boundary conditions.
+// Changes only at a topology change (a cut); the per-step data lives in State (fem/state.hpp).
+#pragma once
+
+#include "fem/material.hpp"
+#include "mesh/mesh.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+
+#include <cstdint>
+#include <vector>
+
+namespace cutsim {
+
+enum class ElementModel : std::uint8_t { Linear, Corotational };
+
+struct Model {
+    Material material;
+    ElementModel elementModel = ElementModel::Corotational;
+
+    // Nodes
+    Eigen::Matrix3Xd X;              // rest positions (3 x nNodes) [m]
+    Eigen::VectorXd mass;            // lumped nodal mass, row-sum lumping (nNodes) [kg]
+    Eigen::VectorXd invMass;         // 1/mass; 0 for fixed or massless nodes (nNodes) [1/kg]
+    std::vector<std::uint8_t> fixed; // 1 = position prescribed (nNodes)
+
+    // Elements
+    Eigen::Matrix4Xi tets;                  // node indices (4 x nElems)
+    Eigen::Matrix<double, 9, Eigen::Dynamic> DmInv; // inverse rest shape matrix, column-major (9 x nElems) [1/m]
+    Eigen::VectorXd volume;                 // rest volume of the (parent) element (nElems) [m^3]
+    Eigen::VectorXd fraction;               // share of the volume this element stands for (nElems) [-];
+                                            // 1 for an ordinary element, < 1 for a virtual element of a cut
+
+    // Loads and damping
+    Eigen::Vector3d gravity = Eigen::Vector3d::Zero(); // [m/s^2]
+    double massDamping = 0;                            // mass-proportional damping coefficient [1/s]
+
+    // Node -> incident element slots (CSR): slot s = 4*e + a means local node a of element e.
+    std::vector<int> nodeSlotStart;  // (nNodes + 1)
+    std::vector<int> nodeSlots;      // (4 * nElems)
+
+    int nodes() const { return static_cast<int>(X.cols()); }
+    int elements() const { return static_cast<int>(tets.cols()); }
+    int freeDofs() const;
+    Eigen::Matrix3d dmInv(int e) const { return Eigen::Map<const Eigen::Matrix3d>(DmInv.col(e).data()); }
+};
+
+// Builds a model from a mesh. Throws InputError for a zero-volume or inverted element.
+Model buildModel(const TetMesh& mesh, const Material& material,
+                 ElementModel elementModel = ElementModel::Corotational);
+
+// Recomputes lumped masses (rho V fraction / 4 per node) and inverse masses; call after changing
+// fixed nodes, fractions or the material.
+void updateMasses(Model& model);
+
+// Marks nodes as fixed (their inverse mass becomes 0).
+void fixNodes(Model& model, const std::vector<int>& nodes);
+
+// Rebuilds the node -> element incidence after elements changed.
+void buildIncidence(Model& model);
+
+// Assembled rest stiffness K (3n x 3n), each element scaled by its fraction. DOF 3i+k.
+Eigen::SparseMatrix<double> assembleStiffness(const Model& model);
+
+// The mesh this model was built from (rest positions), e.g. for output.
+TetMesh restMesh(const Model& model);
+
+} // namespace cutsim

@@ -1,0 +1,55 @@
+// Mesh containers and the input-error type shared by every reader.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cutsim {
+
+// Bad input (a mesh or scene file): the message names the file and line, or the key.
+class InputError : public std::runtime_error {
+public:
+    InputError(const std::string& file, long line, const std::string& what);
+    explicit InputError(const std::string& what) : std::runtime_error(what) {}
+};
+
+// A tetrahedral volume mesh.
+struct TetMesh {
+    Eigen::Matrix3Xd X;       // node positions (3 x nNodes) [m]
+    Eigen::Matrix4Xi tets;    // node indices of each tet, 0-based (4 x nTets)
+    std::vector<long> nodeIds; // id of each node in the source file (nNodes); empty if implicit
+    std::string source;       // file it was read from, for messages
+
+    int nodes() const { return static_cast<int>(X.cols()); }
+    int elements() const { return static_cast<int>(tets.cols()); }
+};
+
+// A triangle surface mesh.
+struct SurfaceMesh {
+    Eigen::Matrix3Xd V;       // vertex positions (3 x nVerts) [m]
+    Eigen::Matrix3Xi F;       // vertex indices of each triangle, 0-based (3 x nTris)
+    std::string source;
+
+    int vertices() const { return static_cast<int>(V.cols()); }
+    int faces() const { return static_cast<int>(F.cols()); }
+};
+
+// Signed volume of tet (a,b,c,d): det[b-a, c-a, d-a] / 6, positive when d sees abc counter-clockwise.
+double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                       const Eigen::Vector3d& c, const Eigen::Vector3d& d);
+double tetSignedVolume(const TetMesh& m, int e);
+
+// Boundary faces: faces used by exactly one tet, oriented outward (3 x nFaces).
+Eigen::Matrix3Xi boundaryFaces(const TetMesh& m);
+
+// Sum of tet volumes [m^3].
+double totalVolume(const TetMesh& m);
+
+// Volume enclosed by a closed, consistently oriented surface (divergence theorem) [m^3].
+double enclosedVolume(const SurfaceMesh& s);
+
+} // namespace cutsim

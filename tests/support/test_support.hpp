@@ -1,0 +1,24 @@
+// Shared helpers for tests: paths to data and small generated meshes.
+#pragma once
+
+#include "mesh/mesh.hpp"
+
+#include <string>
+
+namespace cutsim::test {
+
+// Path of a file in the third-party data folder, e.g. data("tet/sofa_liver.msh").
+std::string data(const std::string& rel);
+// Path of a file in the source tree, e.g. source("assets/scenes/demo.json").
+std::string source(const std::string& rel);
+// A fresh empty temporary directory for this test.
+std::string tempDir();
+
+// Regular box [0,lx]x[0,ly]x[0,lz] split into nx*ny*nz cubes of 6 tets each (Kuhn split,
+// conforming across cubes), all positively oriented.
+TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz);
+
+// Runs the cutsim executable with the given arguments; returns its exit code, fills out/err.
+int runCutsim(const std::string& args, std::string* out = nullptr, std::string* err = nullptr);
+
+} // namespace cutsim::test
