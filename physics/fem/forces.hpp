@@ -1,0 +1,35 @@
+// Internal forces of linear and corotational tets (METHOD.md sec. 1, thesis eq. 2.41).
+// Hot loops are free functions over an index range: gather, compute, scatter-free.
+#pragma once
+
+#include "fem/state.hpp"
+
+namespace cutsim {
+
+// Elastic force of elements [begin, end) into state.fe; alpha (nullable, nElems) scales each
+// element's force (per-element damping factor alpha_e, thesis eq. 3.16). Counts inverted elements
+// into *inverted. Updates state.rot (corotational).
+void elementForces(const Model& model, State& state, const double* alpha, int begin, int end, int* inverted);
+
+// Nodal force of nodes [begin, end): sum of incident element forces + gravity + fExt.
+void gatherForces(const Model& model, State& state, int begin, int end);
+
+// Both stages over all elements and nodes on all threads; fills state.f and state.flags.inverted.
+void computeForces(const Model& model, State& state, const double* alpha = nullptr);
+
+// Rotation of F (polar decomposition, det > 0) by the quaternion iteration of Mueller et al. 2016,
+// warm-started from q (x,y,z,w coefficients, updated in place).
+Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, double* q, int maxIter = 20);
+
+// Elastic energy 1/2 V (lambda tr(e)^2 + 2 mu e:e) with e = sym(R^T F) - I [J].
+double elasticEnergy(const Model& model, const State& state);
+// 1/2 sum m v^2 [J] (free nodes).
+double kineticEnergy(const Model& model, const State& state);
+// -sum m g.x [J].
+double gravityEnergy(const Model& model, const State& state);
+
+// Number of threads used by the parallel loops (0 = all cores).
+void setThreads(int n);
+int threads();
+
+} // namespace cutsim

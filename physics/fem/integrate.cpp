@@ -1,0 +1,214 @@
+#include "fem/integrate.hpp"
+
+#include "fem/forces.hpp"
+#include "fem/tet.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace cutsim {
+
+Integrator parseIntegrator(const std::string& name) {
+    if (name == "symplectic_euler") return Integrator::SymplecticEuler;
+    if (name == "central_difference") return Integrator::CentralDifference;
+    if (name == "newmark") return Integrator::Newmark;
+    if (name == "backward_euler") return Integrator::BackwardEuler;
+    throw InputError("unknown integrator '" + name +
+                     "' (symplectic_euler, central_difference, newmark, backward_euler)");
+}
+
+const char* integratorName(Integrator i) {
+    switch (i) {
+    case Integrator::SymplecticEuler: return "symplectic_euler";
+    case Integrator::CentralDifference: return "central_difference";
+    case Integrator::Newmark: return "newmark";
+    case Integrator::BackwardEuler: return "backward_euler";
+    }
+    return "?";
+}
+
+Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt) {
+    Eigen::VectorXd a(dtCritElem.size());
+    for (Eigen::Index e = 0; e < a.size(); ++e) {
+        const double r = dtCritElem(e) / dt;
+        a(e) = r >= 1 ? 1.0 : r * r;  // thesis eq. 3.16: damp only elements faster than dt
+    }
+    return a;
+}
+
+// Backward Euler, linearised about the current rotations (Baraff & Witkin 1998 with the
+// corotational tangent R K R^T): (M (1 + c dt) + dt^2 K_R) v+ = M v + dt f(x), x+ = x + dt v+.
+struct ImplicitWorkspace {
+    std::vector<int> dofMap;                  // global DOF -> free DOF, or -1 (3 nNodes)
+    Eigen::SparseMatrix<double> A;            // system matrix on free DOFs
+    std::vector<int> slot;                    // per element 144 entries -> index in A.valuePtr(), -1 if fixed
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+    int nElems = -1, nNodes = -1;
+
+    void build(const Model& m) {
+        nElems = m.elements();
+        nNodes = m.nodes();
+        dofMap.assign(3 * nNodes, -1);
+        int nf = 0;
+        for (int i = 0; i < nNodes; ++i)
+            if (m.invMass(i) > 0)
+                for (int k = 0; k < 3; ++k) dofMap[3 * i + k] = nf++;
+        std::vector<Eigen::Triplet<double>> trips;
+        for (int i = 0; i < nf; ++i) trips.emplace_back(i, i, 0.0);
+        for (int e = 0; e < nElems; ++e)
+            for (int r = 0; r < 12; ++r)
+                for (int c = 0; c < 12; ++c) {
+                    const int gi = dofMap[3 * m.tets(r / 3, e) + r % 3], gj = dofMap[3 * m.tets(c / 3, e) + c % 3];
+                    if (gi >= 0 && gj >= 0) trips.emplace_back(gi, gj, 0.0);
+                }
+        A.resize(nf, nf);
+        A.setFromTriplets(trips.begin(), trips.end());
+        A.makeCompressed();
+        slot.assign(static_cast<size_t>(nElems) * 144, -1);
+        for (int e = 0; e < nElems; ++e)
+            for (int r = 0; r < 12; ++r)
+                for (int c = 0; c < 12; ++c) {
+                    const int gi = dofMap[3 * m.tets(r / 3, e) + r % 3], gj = dofMap[3 * m.tets(c / 3, e) + c % 3];
+                    if (gi < 0 || gj < 0) continue;
+                    // column-major: find row gi in column gj
+                    const int* rows = A.innerIndexPtr();
+                    int lo = A.outerIndexPtr()[gj], hi = A.outerIndexPtr()[gj + 1];
+                    const int* p = std::lower_bound(rows + lo, rows + hi, gi);
+                    slot[static_cast<size_t>(e) * 144 + r * 12 + c] = static_cast<int>(p - rows);
+                }
+        solver.analyzePattern(A);
+    }
+
+    void step(const Model& m, State& s, double dt) {
+        if (nElems != m.elements() || nNodes != m.nodes()) build(m);
+        computeForces(m, s);
+        const double c = m.massDamping;
+        double* val = A.valuePtr();
+        std::fill(val, val + A.nonZeros(), 0.0);
+        for (int i = 0; i < nNodes; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const int d = dofMap[3 * i + k];
+                if (d >= 0) A.coeffRef(d, d) += m.mass(i) * (1 + c * dt);
+            }
+        const bool corot = m.elementModel == ElementModel::Corotational;
+        for (int e = 0; e < nElems; ++e) {
+            Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.volume(e) * m.fraction(e), m.material);
+            if (corot) {
+                const Eigen::Quaterniond q(s.rot(3, e), s.rot(0, e), s.rot(1, e), s.rot(2, e));
+                const Eigen::Matrix3d R = q.toRotationMatrix();
+                for (int a = 0; a < 4; ++a)
+                    for (int b = 0; b < 4; ++b)
+                        K.block<3, 3>(3 * a, 3 * b) = R * K.block<3, 3>(3 * a, 3 * b) * R.transpose();
+            }
+            const int* sl = &slot[static_cast<size_t>(e) * 144];
+            for (int r = 0; r < 12; ++r)
+                for (int cc = 0; cc < 12; ++cc)
+                    if (sl[r * 12 + cc] >= 0) val[sl[r * 12 + cc]] += dt * dt * K(r, cc);
+        }
+        Eigen::VectorXd rhs(A.rows());
+        for (int i = 0; i < nNodes; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const int d = dofMap[3 * i + k];
+                if (d >= 0) rhs(d) = m.mass(i) * s.v(k, i) + dt * s.f(k, i);
+            }
+        solver.factorize(A);
+        if (solver.info() != Eigen::Success) throw std::runtime_error("backward Euler: factorisation failed");
+        const Eigen::VectorXd vNew = solver.solve(rhs);
+        for (int i = 0; i < nNodes; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const int d = dofMap[3 * i + k];
+                s.v(k, i) = d >= 0 ? vNew(d) : 0.0;
+            }
+        s.x += dt * s.v;
+    }
+};
+
+Stepper::Stepper() = default;
+Stepper::~Stepper() = default;
+Stepper::Stepper(Stepper&&) noexcept = default;
+Stepper& Stepper::operator=(Stepper&&) noexcept = default;
+void Stepper::reset() { implicit_.reset(); }
+
+void checkFinite(const Model& m, State& s) {
+    int bad = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (!s.x.col(i).allFinite() || !s.v.col(i).allFinite()) ++bad;
+    s.flags.nonFinite = bad;
+}
+
+void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
+    const double dt = opt.dt, c = m.massDamping;
+    const double* alpha = opt.alphaElem ? opt.alphaElem->data() : nullptr;
+    const int n = m.nodes();
+    s.flags = {};
+    switch (opt.integrator) {
+    case Integrator::SymplecticEuler: {
+        computeForces(m, s, alpha);
+        // damping taken implicitly so it never limits the step: v = (v + dt a) / (1 + c dt)
+        const double damp = 1.0 / (1.0 + c * dt);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; ++i) {
+            const double w = m.invMass(i);
+            if (w == 0) { s.v.col(i).setZero(); continue; }
+            s.v.col(i) = (s.v.col(i) + dt * w * s.f.col(i)) * damp;
+            s.x.col(i) += dt * s.v.col(i);
+        }
+        break;
+    }
+    case Integrator::CentralDifference: {
+        // v_{n+1/2} = ((1 - c dt/2) v_{n-1/2} + dt a_n) / (1 + c dt/2); the first step is a half step.
+        computeForces(m, s, alpha);
+        const double h = s.started ? dt : 0.5 * dt;
+        const double cm = 1.0 - 0.5 * c * h, cp = 1.0 / (1.0 + 0.5 * c * h);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; ++i) {
+            const double w = m.invMass(i);
+            if (w == 0) { s.v.col(i).setZero(); continue; }
+            s.v.col(i) = (cm * s.v.col(i) + h * w * s.f.col(i)) * cp;
+            s.x.col(i) += dt * s.v.col(i);
+        }
+        s.started = true;
+        break;
+    }
+    case Integrator::Newmark: {
+        // Explicit Newmark (beta = 0, gamma = 1/2) with the damping factor alpha on the
+        // acceleration (thesis eqs. 3.11-3.12); mass damping centred like the velocity update.
+        if (!s.started) {
+            computeForces(m, s, alpha);
+            for (int i = 0; i < n; ++i) s.a.col(i) = m.invMass(i) * s.f.col(i);
+            s.started = true;
+        }
+        const double al = opt.alpha;
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; ++i) {
+            if (m.invMass(i) == 0) continue;
+            s.x.col(i) += dt * s.v.col(i) + 0.5 * dt * dt * al * (s.a.col(i) - c * s.v.col(i));
+        }
+        computeForces(m, s, alpha);
+        const double cm = 1.0 - 0.5 * c * dt, cp = 1.0 / (1.0 + 0.5 * c * dt);
+#pragma omp parallel for schedule(static)
+        for (int i = 0; i < n; ++i) {
+            const double w = m.invMass(i);
+            if (w == 0) { s.v.col(i).setZero(); s.a.col(i).setZero(); continue; }
+            const Eigen::Vector3d aNew = w * s.f.col(i);
+            s.v.col(i) = (cm * s.v.col(i) + 0.5 * dt * al * (s.a.col(i) + aNew)) * cp;
+            s.a.col(i) = aNew;
+        }
+        break;
+    }
+    case Integrator::BackwardEuler: {
+        if (!implicit_) implicit_ = std::make_unique<ImplicitWorkspace>();
+        implicit_->step(m, s, dt);
+        break;
+    }
+    }
+    s.time += dt;
+    ++s.steps;
+    checkFinite(m, s);
+}
+
+} // namespace cutsim

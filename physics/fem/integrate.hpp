@@ -1,0 +1,57 @@
+// Time integration. The stages of one step, in this order (DESIGN.md convention 3):
+//   1. contact   (tools; applied as fExt by the caller before step())
+//   2. forces    computeForces: element stage, then node gather
+//   3. integrate velocity and position update of the chosen scheme; fixed nodes stay put
+//   4. checks    non-finite values and inverted elements into state.flags
+#pragma once
+
+#include "fem/state.hpp"
+
+#include <memory>
+#include <string>
+
+namespace cutsim {
+
+enum class Integrator {
+    SymplecticEuler,    // v += dt a(x); x += dt v                         (METHOD.md sec. 2)
+    CentralDifference,  // half-step velocities, centred damping            (thesis eq. 3.5-3.8)
+    Newmark,            // explicit Newmark beta=0, gamma=1/2, damping factor alpha (eqs. 3.11-3.12)
+    BackwardEuler,      // implicit reference, linearised corotational, sparse LDL^T
+};
+
+Integrator parseIntegrator(const std::string& name);   // throws InputError on an unknown name
+const char* integratorName(Integrator i);
+
+struct StepOptions {
+    Integrator integrator = Integrator::SymplecticEuler;
+    double dt = 1e-4;                  // time step [s]
+    double alpha = 1.0;                // Newmark's global damping factor on the acceleration, (0, 1]
+    const Eigen::VectorXd* alphaElem = nullptr; // per-element factor alpha_e (nElems), scales element
+                                       // forces; (dt_crit_e / dt)^2 where dt > dt_crit_e (eq. 3.16)
+};
+
+// Per-element damping factors for a step dt from per-element critical steps (thesis eq. 3.16).
+Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt);
+
+struct ImplicitWorkspace;  // sparse pattern and factorisation of the backward-Euler system
+
+// Advances a state by one step. Owns the implicit workspace when the scheme needs one;
+// call reset() after a topology change.
+class Stepper {
+public:
+    Stepper();
+    ~Stepper();
+    Stepper(Stepper&&) noexcept;
+    Stepper& operator=(Stepper&&) noexcept;
+
+    void step(const Model& model, State& state, const StepOptions& opt);
+    void reset();
+
+private:
+    std::unique_ptr<ImplicitWorkspace> implicit_;
+};
+
+// Checks positions and velocities for non-finite values (state.flags.nonFinite).
+void checkFinite(const Model& model, State& state);
+
+} // namespace cutsim

@@ -1,0 +1,38 @@
+// The changing part of a simulation: positions, velocities, forces, per-element rotations.
+#pragma once
+
+#include "fem/model.hpp"
+
+#include <Eigen/Core>
+
+namespace cutsim {
+
+// Numerical trouble seen in the last step (DESIGN.md, error tier 3). Reset at every step.
+struct StepFlags {
+    int nonFinite = 0;          // nodes with a non-finite position or velocity
+    int inverted = 0;           // elements with det F <= 0
+    int firstInverted = -1;     // one inverted element, for messages
+    bool ok() const { return nonFinite == 0 && inverted == 0; }
+};
+
+struct State {
+    Eigen::Matrix3Xd x;         // current positions (3 x nNodes) [m]
+    Eigen::Matrix3Xd v;         // velocities (3 x nNodes) [m/s]; at half steps for central differences
+    Eigen::Matrix3Xd f;         // total nodal force of the last evaluation (3 x nNodes) [N]
+    Eigen::Matrix3Xd a;         // acceleration from f, Newmark's a_n (3 x nNodes) [m/s^2]
+    Eigen::Matrix3Xd fExt;      // applied nodal forces, besides gravity (3 x nNodes) [N]
+    Eigen::Matrix4Xd rot;       // element rotation as quaternion coeffs (x,y,z,w), warm start (4 x nElems)
+    Eigen::Matrix<double, 12, Eigen::Dynamic> fe; // elastic force per element and local node (12 x nElems) [N]
+    double time = 0;            // simulated time [s]
+    long steps = 0;             // steps taken
+    bool started = false;       // integrator history (a, half-step v) initialised
+    StepFlags flags;
+};
+
+// A state at rest in the model's rest shape.
+State makeState(const Model& model);
+
+// Resizes per-element arrays after the model's elements changed (new elements start unrotated).
+void resizeState(const Model& model, State& state);
+
+} // namespace cutsim

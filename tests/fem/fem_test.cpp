@@ -1,0 +1,320 @@
+// Element, force and integrator tests with values derived by hand (DESIGN.md convention 7).
+#include "fem/forces.hpp"
+#include "fem/integrate.hpp"
+#include "fem/tet.hpp"
+#include "test_support.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+#include <gtest/gtest.h>
+
+#include <random>
+
+using namespace cutsim;
+
+namespace {
+
+TetMesh unitTet() {
+    TetMesh m;
+    m.X.resize(3, 4);
+    m.X << 0, 1, 0, 0,
+           0, 0, 1, 0,
+           0, 0, 0, 1;
+    m.tets.resize(4, 1);
+    m.tets << 0, 1, 2, 3;
+    return m;
+}
+
+Eigen::VectorXd flat(const Eigen::Matrix3Xd& x) { return Eigen::Map<const Eigen::VectorXd>(x.data(), x.size()); }
+
+// Exact critical step over free DOFs by a dense eigen-solve (independent of physics/timestep).
+double denseCriticalDt(const Model& m) {
+    const Eigen::MatrixXd K = Eigen::MatrixXd(assembleStiffness(m));
+    std::vector<int> dofs;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0)
+            for (int k = 0; k < 3; ++k) dofs.push_back(3 * i + k);
+    const int nf = static_cast<int>(dofs.size());
+    Eigen::MatrixXd A(nf, nf);
+    for (int r = 0; r < nf; ++r)
+        for (int c = 0; c < nf; ++c)
+            A(r, c) = K(dofs[r], dofs[c]) / std::sqrt(m.mass(dofs[r] / 3) * m.mass(dofs[c] / 3));
+    const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(A, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+    return 2.0 / std::sqrt(lmax);
+}
+
+} // namespace
+
+// K for the unit right tet with E = 2.5, nu = 0.25 (lambda = mu = 1): entries by hand from
+// K_ab = V [lambda g_a g_b^T + mu g_b g_a^T + mu (g_a.g_b) I], V = 1/6,
+// g0 = (-1,-1,-1), g1 = e_x, g2 = e_y, g3 = e_z.
+TEST(Tet, StiffnessOfUnitTetByHand) {
+    Material mat{2.5, 0.25, 1.0};
+    ASSERT_NEAR(mat.lambda(), 1.0, 1e-14);
+    ASSERT_NEAR(mat.mu(), 1.0, 1e-14);
+    const TetMesh t = unitTet();
+    const Mat34 g = shapeGradients(restShapeMatrix(t.X).inverse());
+    const Mat12 K = elementStiffness(g, 1.0 / 6.0, mat);
+    const double V = 1.0 / 6.0;
+    EXPECT_NEAR(K(3, 3), V * 3.0, 1e-14);         // K_11,xx = V (lambda + 2 mu)
+    EXPECT_NEAR(K(4, 4), V * 1.0, 1e-14);         // K_11,yy = V mu
+    EXPECT_NEAR(K(0, 0), V * 5.0, 1e-14);         // K_00,xx = V (lambda + mu + 3 mu)
+    EXPECT_NEAR(K(0, 1), V * 2.0, 1e-14);         // K_00,xy = V (lambda + mu)
+    EXPECT_NEAR(K(3, 7), V * 1.0, 1e-14);         // K_12,xy = V lambda
+    EXPECT_NEAR(K(4, 6), V * 1.0, 1e-14);         // K_12,yx = V mu
+    EXPECT_NEAR(K(3, 6), 0.0, 1e-14);             // K_12,xx = V mu (g1.g2) = 0
+    EXPECT_NEAR(K(0, 3), -V * 3.0, 1e-14);        // K_01,xx = V (-lambda - mu - mu)
+    // Symmetric, rows sum to zero (translation is free), diagonal formula of eqs. 4.3-4.10.
+    EXPECT_NEAR((K - K.transpose()).norm(), 0.0, 1e-14);
+    for (int r = 0; r < 12; ++r) EXPECT_NEAR(K.row(r).reshaped(3, 4).rowwise().sum().norm(), 0.0, 1e-13);
+    EXPECT_NEAR((elementStiffnessDiagonal(g, V, mat) - K.diagonal()).norm(), 0.0, 1e-14);
+}
+
+// For small displacements the corotational force is -K u; the linear force is -K u exactly.
+TEST(Forces, MatchStiffnessTimesDisplacement) {
+    TetMesh t = unitTet();
+    t.X.col(3) << 0.2, 0.1, 0.9;
+    for (auto em : {ElementModel::Linear, ElementModel::Corotational}) {
+        Model m = buildModel(t, Material{}, em);
+        State s = makeState(m);
+        std::mt19937 rng(3);
+        std::uniform_real_distribution<double> U(-1, 1);
+        Eigen::Matrix3Xd u(3, 4);
+        for (int i = 0; i < 12; ++i) u.data()[i] = 1e-6 * U(rng);
+        s.x = m.X + u;
+        computeForces(m, s);
+        const Eigen::VectorXd Ku = Eigen::MatrixXd(assembleStiffness(m)) * flat(u);
+        const double rel = (flat(s.f) + Ku).norm() / Ku.norm();
+        EXPECT_LT(rel, em == ElementModel::Linear ? 1e-8 : 1e-5);  // round-off of X + u at |u| = 1e-6
+    }
+}
+
+// A rigid rotation (and translation) produces no corotational force; the linear model does.
+TEST(Forces, RigidRotationGivesZeroCorotationalForce) {
+    const TetMesh box = test::boxMesh(1, 0.5, 0.3, 3, 2, 2);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    for (auto em : {ElementModel::Corotational, ElementModel::Linear}) {
+        Model m = buildModel(box, Material{}, em);
+        State s = makeState(m);
+        s.x = (R * m.X).colwise() + Eigen::Vector3d(0.3, -2, 5);
+        // a few evaluations let the warm-started rotation converge, as in a run
+        for (int k = 0; k < 3; ++k) computeForces(m, s);
+        const double fmax = s.f.colwise().norm().maxCoeff();
+        if (em == ElementModel::Corotational) {
+            EXPECT_LT(fmax, 1e-9 * m.material.E);
+            EXPECT_LT(elasticEnergy(m, s), 1e-18);
+        } else {
+            EXPECT_GT(fmax, 1e-3 * m.material.E * 0.01);  // linear elasticity sees rotation as strain
+        }
+    }
+}
+
+// Patch test: any affine field gives zero force at interior nodes, and forces balance overall.
+TEST(Forces, PatchTest) {
+    const TetMesh box = test::boxMesh(1, 1, 1, 4, 4, 4);
+    Eigen::Matrix3d A;
+    A << 1.02, 0.01, -0.03,
+         0.00, 0.97, 0.02,
+         0.01, 0.04, 1.05;
+    const Eigen::Matrix3d Rot = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0, 1, 1).normalized()).toRotationMatrix();
+    for (auto em : {ElementModel::Linear, ElementModel::Corotational}) {
+        Model m = buildModel(box, Material{}, em);
+        State s = makeState(m);
+        s.x = ((em == ElementModel::Corotational ? Rot * A : A) * m.X).colwise() + Eigen::Vector3d(0.1, 0.2, 0.3);
+        for (int k = 0; k < 3; ++k) computeForces(m, s);
+        const double scale = s.f.colwise().norm().maxCoeff();
+        ASSERT_GT(scale, 1.0);
+        int interior = 0;
+        for (int i = 0; i < m.nodes(); ++i) {
+            const Eigen::Vector3d X = m.X.col(i);
+            if ((X.array() > 1e-9).all() && (X.array() < 1 - 1e-9).all()) {
+                EXPECT_LT(s.f.col(i).norm(), 1e-10 * scale) << "node " << i;
+                ++interior;
+            }
+        }
+        EXPECT_EQ(interior, 27);
+        EXPECT_LT(s.f.rowwise().sum().norm(), 1e-10 * scale);
+    }
+}
+
+// Row-sum lumping: every tet gives rho V / 4 to its nodes; gravity gives total weight.
+TEST(Model, LumpedMassAndGravity) {
+    const TetMesh box = test::boxMesh(0.2, 0.1, 0.1, 4, 2, 2);
+    Model m = buildModel(box, Material{30e3, 0.3, 1100});
+    EXPECT_NEAR(m.mass.sum(), 1100 * 0.002, 1e-12);
+    m.gravity << 0, 0, -9.81;
+    State s = makeState(m);
+    computeForces(m, s);
+    EXPECT_NEAR(s.f.row(2).sum(), -9.81 * 1100 * 0.002, 1e-10);
+    EXPECT_NEAR(s.f.row(0).sum(), 0.0, 1e-12);
+}
+
+// Zero and inverted elements are refused by index.
+TEST(Model, RejectsDegenerateElements) {
+    TetMesh t = unitTet();
+    t.X.col(3) << 0.3, 0.3, 0.0;  // flat
+    try {
+        buildModel(t, Material{});
+        FAIL() << "zero volume accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("element 0 has zero volume"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(buildModel(unitTet(), Material{30e3, 0.5, 1000}), InputError);
+}
+
+// The explicit schemes are stable below 2/sqrt(lambda_max(M^-1 K)) and unstable above it:
+// an undamped run at 0.9 of the exact limit keeps its energy bounded for 10^4 steps, at 1.05 it
+// blows up. This proves both the integrators and the limit.
+class StabilityLimit : public ::testing::TestWithParam<Integrator> {};
+
+TEST_P(StabilityLimit, BoundedBelowDivergentAbove) {
+    const TetMesh box = test::boxMesh(0.1, 0.04, 0.04, 5, 2, 2);
+    Model m = buildModel(box, Material{}, ElementModel::Linear);
+    std::vector<int> fixedNodes;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
+    fixNodes(m, fixedNodes);
+    const double dtCrit = denseCriticalDt(m);
+    for (double frac : {0.9, 1.05}) {
+        State s = makeState(m);
+        std::mt19937 rng(7);
+        std::normal_distribution<double> N;
+        for (int i = 0; i < m.nodes(); ++i)
+            if (m.invMass(i) > 0) s.v.col(i) << N(rng), N(rng), N(rng);
+        s.v *= 1e-4;
+        Stepper stepper;
+        StepOptions opt{GetParam(), frac * dtCrit};
+        const double E0 = kineticEnergy(m, s);
+        double Emax = 0, EmaxEarly = 0;
+        for (int k = 0; k < 10000; ++k) {
+            stepper.step(m, s, opt);
+            const double E = kineticEnergy(m, s) + elasticEnergy(m, s);
+            if (!std::isfinite(E) || E > 1e6 * E0) { Emax = E; break; }
+            Emax = std::max(Emax, E);
+            if (k < 1000) EmaxEarly = Emax;
+        }
+        if (frac < 1) {
+            EXPECT_TRUE(s.flags.ok());
+            // discrete energy oscillates with the top mode but does not grow
+            EXPECT_LT(Emax, 10 * E0);
+            EXPECT_LT(Emax, 1.05 * EmaxEarly);
+        } else {
+            EXPECT_TRUE(!std::isfinite(Emax) || Emax > 1e6 * E0) << "no blow-up at 1.05 dt_crit";
+        }
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Explicit, StabilityLimit,
+                         ::testing::Values(Integrator::SymplecticEuler, Integrator::CentralDifference,
+                                           Integrator::Newmark),
+                         [](const auto& info) { return std::string(integratorName(info.param)); });
+
+// Newmark's damping factor alpha = (dt_crit/dt)^2 keeps a step above the limit stable (eq. 3.15).
+TEST(Newmark, AlphaStabilisesAboveLimit) {
+    const TetMesh box = test::boxMesh(0.1, 0.04, 0.04, 5, 2, 2);
+    Model m = buildModel(box, Material{}, ElementModel::Linear);
+    const double dtCrit = denseCriticalDt(m);
+    State s = makeState(m);
+    s.v.setRandom();
+    s.v *= 1e-4;
+    const double E0 = kineticEnergy(m, s);
+    Stepper stepper;
+    StepOptions opt{Integrator::Newmark, 1.5 * dtCrit};
+    opt.alpha = 0.95 / (1.5 * 1.5);
+    for (int k = 0; k < 5000; ++k) stepper.step(m, s, opt);
+    EXPECT_LT(kineticEnergy(m, s) + elasticEnergy(m, s), 10 * E0);
+}
+
+namespace {
+// Cantilever: length L along x, square section h, clamped at x = 0, under gravity -z.
+Model cantilever(int nx, int nyz, ElementModel em = ElementModel::Linear, int nz = 0) {
+    const double L = 1.0, h = 0.1;
+    Model m = buildModel(test::boxMesh(L, h, h, nx, nyz, nz > 0 ? nz : nyz), Material{1e8, 0.3, 1000}, em);
+    std::vector<int> clamp;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) < 1e-9) clamp.push_back(i);
+    fixNodes(m, clamp);
+    m.gravity << 0, 0, -9.81;
+    return m;
+}
+
+double meanTipDeflection(const Model& m, const Eigen::Matrix3Xd& x) {
+    double sum = 0;
+    int n = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) > 1.0 - 1e-9) { sum += x(2, i) - m.X(2, i); ++n; }
+    return sum / n;
+}
+
+// Static linear solve K u = f on free DOFs.
+Eigen::Matrix3Xd staticSolve(const Model& m) {
+    const Eigen::SparseMatrix<double> K = assembleStiffness(m);
+    std::vector<int> map(3 * m.nodes(), -1);
+    int nf = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0)
+            for (int k = 0; k < 3; ++k) map[3 * i + k] = nf++;
+    std::vector<Eigen::Triplet<double>> t;
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it)
+            if (map[it.row()] >= 0 && map[it.col()] >= 0) t.emplace_back(map[it.row()], map[it.col()], it.value());
+    Eigen::SparseMatrix<double> Kf(nf, nf);
+    Kf.setFromTriplets(t.begin(), t.end());
+    Eigen::VectorXd f(nf);
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (map[3 * i + k] >= 0) f(map[3 * i + k]) = m.mass(i) * m.gravity(k);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Kf);
+    const Eigen::VectorXd u = ldlt.solve(f);
+    Eigen::Matrix3Xd x = m.X;
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (map[3 * i + k] >= 0) x(k, i) += u(map[3 * i + k]);
+    return x;
+}
+} // namespace
+
+// Static tip deflection against Euler-Bernoulli q L^4 / (8 E I) plus Timoshenko shear
+// q L^2 / (2 kappa G A), kappa = 5/6: the 3D solution on a fine mesh is within a few percent.
+TEST(Cantilever, StaticDeflectionMatchesBeamTheory) {
+    const Model m = cantilever(100, 4, ElementModel::Linear, 16);  // 38400 tets, 16 through the depth
+    const double L = 1, h = 0.1, E = 1e8, G = E / 2.6, q = 1000 * 9.81 * h * h, I = h * h * h * h / 12;
+    const double beam = q * L * L * L * L / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * h * h);
+    const double tip = -meanTipDeflection(m, staticSolve(m));
+    RecordProperty("tip_over_beam", std::to_string(tip / beam));
+    EXPECT_NEAR(tip / beam, 1.0, 0.04) << "tip " << tip << " beam " << beam;
+}
+
+// Damped dynamics settle on the static solution: explicit corotational at 0.9 of its limit and
+// implicit backward Euler at a far larger step agree with the linear static solve.
+TEST(Cantilever, DynamicsSettleOnStaticSolution) {
+    Model m = cantilever(10, 2, ElementModel::Corotational);
+    m.massDamping = 40;
+    const double ref = meanTipDeflection(m, staticSolve(m));
+    const double dtCrit = denseCriticalDt(m);
+    {
+        State s = makeState(m);
+        Stepper st;
+        StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtCrit};
+        while (s.time < 0.6) st.step(m, s, opt);
+        EXPECT_NEAR(meanTipDeflection(m, s.x) / ref, 1.0, 0.01);
+    }
+    {
+        State s = makeState(m);
+        Stepper st;
+        StepOptions opt{Integrator::BackwardEuler, 100 * dtCrit};
+        while (s.time < 0.6) st.step(m, s, opt);
+        EXPECT_NEAR(meanTipDeflection(m, s.x) / ref, 1.0, 0.01);
+    }
+}
+
+// Non-finite values are flagged, not hidden.
+TEST(Stepper, FlagsNonFinite) {
+    Model m = buildModel(test::boxMesh(1, 1, 1, 1, 1, 1), Material{});
+    State s = makeState(m);
+    s.v(0, 3) = std::numeric_limits<double>::quiet_NaN();
+    Stepper st;
+    st.step(m, s, StepOptions{Integrator::SymplecticEuler, 1e-5});
+    EXPECT_GT(s.flags.nonFinite, 0);
+}
