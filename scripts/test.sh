@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Installs what is missing, builds Release, runs the unit tests, then the unit tests again
+# under AddressSanitizer + UBSan. Stress tests and benchmarks have their own commands (README).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh
+scripts/build.sh
+(cd build && ctest -L unit --output-on-failure -j"$(nproc)" --timeout 900)
+if [ "${CUTSIM_SKIP_SANITIZE:-0}" != 1 ]; then
+  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUTSIM_SANITIZE=ON -DCUTSIM_BENCH=OFF >/dev/null
+  cmake --build build-asan -j"$(nproc)"
+  (cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
+     ctest -L unit --output-on-failure -j"$(nproc)" --timeout 1800)
+fi
