@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "cmd_render.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -13,6 +14,8 @@ void setExitCode(int code) { g_exit = code; }
 void registerCommands(CLI::App& app) {
     addDtCommand(app);
     addMeshCommand(app);
+    addRunCommand(app);
+    addRenderCommand(app);
 }
 
 } // namespace cutsim::app

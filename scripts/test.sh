@@ -5,10 +5,10 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 scripts/build.sh
-(cd build && ctest -L unit --output-on-failure -j"$(nproc)" --timeout 900)
+(cd build && ctest -LE stress --output-on-failure -j"$(nproc)" --timeout 900)
 if [ "${CUTSIM_SKIP_SANITIZE:-0}" != 1 ]; then
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUTSIM_SANITIZE=ON -DCUTSIM_BENCH=OFF >/dev/null
   cmake --build build-asan -j"$(nproc)"
   (cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
-     ctest -L unit --output-on-failure -j"$(nproc)" --timeout 1800)
+     ctest -LE stress --output-on-failure -j"$(nproc)" --timeout 1800)
 fi

@@ -7,6 +7,10 @@
 
 namespace cutsim {
 
+// Below this many elements a step is a few tens of microseconds: a fork and barrier would cost
+// more than they save, and far more on a loaded machine.
+constexpr int kParallelElements = 8192;
+
 State makeState(const Model& m) {
     State s;
     s.x = m.X;
@@ -20,8 +24,8 @@ State makeState(const Model& m) {
 
 void resizeState(const Model& m, State& s) {
     const Eigen::Index old = s.rot.cols();
-    s.rot.conservativeResize(4, m.elements());
-    for (Eigen::Index e = old; e < m.elements(); ++e) s.rot.col(e) << 0, 0, 0, 1;
+    s.rot.conservativeResize(9, m.elements());
+    for (Eigen::Index e = old; e < m.elements(); ++e) s.rot.col(e) << 1, 0, 0, 0, 1, 0, 0, 0, 1;
     s.fe.resize(12, m.elements());
     const Eigen::Index oldN = s.x.cols();
     if (oldN != m.nodes()) {
@@ -36,32 +40,45 @@ void resizeState(const Model& m, State& s) {
     }
 }
 
-Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& A, double* qc, int maxIter) {
-    // Mueller, Bender, Chentanez, Macklin 2016, "A robust method to extract the rotational part of
-    // deformations": rotate q about omega until R's columns align with A's. A first-order
-    // quaternion update replaces the exact exponential: same fixed point, no trigonometry.
-    Eigen::Quaterniond q(qc[3], qc[0], qc[1], qc[2]);
+namespace {
+
+// Mueller, Bender, Chentanez, Macklin 2016, "A robust method to extract the rotational part of
+// deformations": rotate q about omega until R's columns align with A's. Slow (linear) but proper
+// for any A, including inverted ones.
+Eigen::Matrix3d muellerRotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d& Rprev) {
+    Eigen::Quaterniond q(Rprev);
     Eigen::Matrix3d R = q.toRotationMatrix();
-    for (int it = 0; it < maxIter; ++it) {
+    for (int it = 0; it < 50; ++it) {
         const Eigen::Vector3d num = R.col(0).cross(A.col(0)) + R.col(1).cross(A.col(1)) + R.col(2).cross(A.col(2));
         const double den = std::abs(R.col(0).dot(A.col(0)) + R.col(1).dot(A.col(1)) + R.col(2).dot(A.col(2))) + 1e-12;
         const Eigen::Vector3d w = num / den;
-        const double w2 = w.squaredNorm();
-        if (w2 < 1e-26) break;
-        // exp(w) as a quaternion; exact for large angles so convergence from a cold start is robust
-        const double ang = std::sqrt(w2);
-        Eigen::Quaterniond dq;
-        if (ang < 1e-4) {
-            dq = Eigen::Quaterniond(1.0, 0.5 * w.x(), 0.5 * w.y(), 0.5 * w.z());
-        } else {
-            const double s = std::sin(0.5 * ang) / ang;
-            dq = Eigen::Quaterniond(std::cos(0.5 * ang), s * w.x(), s * w.y(), s * w.z());
-        }
-        q = (dq * q).normalized();
+        const double ang = w.norm();
+        if (ang < 1e-12) break;
+        q = (Eigen::Quaterniond(Eigen::AngleAxisd(ang, w / ang)) * q).normalized();
         R = q.toRotationMatrix();
     }
-    qc[0] = q.x(); qc[1] = q.y(); qc[2] = q.z(); qc[3] = q.w();
     return R;
+}
+
+} // namespace
+
+Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
+    // Newton needs det F well away from 0: its first step divides by it.
+    const double scale = F.squaredNorm() / 3.0;
+    if (!(F.determinant() > 1e-6 * scale * std::sqrt(scale))) return muellerRotation(F, Rprev);
+    Eigen::Matrix3d X = F;
+    for (int it = 0; it < 30; ++it) {
+        // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
+        Eigen::Matrix3d C;
+        C.col(0) = X.col(1).cross(X.col(2));
+        C.col(1) = X.col(2).cross(X.col(0));
+        C.col(2) = X.col(0).cross(X.col(1));
+        const Eigen::Matrix3d Xn = 0.5 * (X + C / X.col(0).dot(C.col(0)));
+        const double d = (Xn - X).squaredNorm();
+        X = Xn;
+        if (d < 1e-16) break;  // quadratic convergence: the error of X is now ~d, i.e. round-off
+    }
+    return X;
 }
 
 void elementForces(const Model& m, State& s, const double* alpha, int begin, int end, int* inverted) {
@@ -77,7 +94,11 @@ void elementForces(const Model& m, State& s, const double* alpha, int begin, int
         const Eigen::Matrix3d F = Ds * DmInv;
         if (F.determinant() <= 0) ++inv;
         Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-        if (corot) R = extractRotation(F, s.rot.col(e).data(), 8);
+        if (corot) {
+            Eigen::Map<Eigen::Matrix3d> Rs(s.rot.col(e).data());
+            R = extractRotation(F, Rs);
+            Rs = R;
+        }
         // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
         // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
         const Eigen::Matrix3d H = R.transpose() * F - Eigen::Matrix3d::Identity();
@@ -109,7 +130,7 @@ void gatherForces(const Model& m, State& s, int begin, int end) {
 void computeForces(const Model& m, State& s, const double* alpha) {
     int inverted = 0;
     const int ne = m.elements(), nn = m.nodes();
-#pragma omp parallel reduction(+ : inverted)
+#pragma omp parallel reduction(+ : inverted) if (ne >= kParallelElements)
     {
         const int nt = omp_get_num_threads(), t = omp_get_thread_num();
         elementForces(m, s, alpha, static_cast<int>(static_cast<long>(ne) * t / nt),
@@ -131,8 +152,7 @@ double elasticEnergy(const Model& m, const State& s) {
         const Eigen::Matrix3d F = Ds * m.dmInv(e);
         Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
         if (m.elementModel == ElementModel::Corotational) {
-            double q[4] = {s.rot(0, e), s.rot(1, e), s.rot(2, e), s.rot(3, e)};
-            R = extractRotation(F, q);
+            R = extractRotation(F, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()));
         }
         const Eigen::Matrix3d H = R.transpose() * F - Eigen::Matrix3d::Identity();
         const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
@@ -157,5 +177,29 @@ double gravityEnergy(const Model& m, const State& s) {
 
 void setThreads(int n) { omp_set_num_threads(n > 0 ? n : omp_get_num_procs()); }
 int threads() { return omp_get_max_threads(); }
+
+} // namespace cutsim
+
+namespace cutsim {
+
+Eigen::VectorXd vonMisesStress(const Model& m, const State& s) {
+    const double lam = m.material.lambda(), mu = m.material.mu();
+    Eigen::VectorXd out(m.elements());
+    for (int e = 0; e < m.elements(); ++e) {
+        const int* n = m.tets.col(e).data();
+        Eigen::Matrix3d Ds;
+        Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
+        const Eigen::Matrix3d F = Ds * m.dmInv(e);
+        const Eigen::Matrix3d R = m.elementModel == ElementModel::Corotational
+                                      ? extractRotation(F, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()))
+                                      : Eigen::Matrix3d::Identity();
+        const Eigen::Matrix3d H = R.transpose() * F - Eigen::Matrix3d::Identity();
+        Eigen::Matrix3d sig = mu * (H + H.transpose());
+        sig.diagonal().array() += lam * H.trace();
+        const Eigen::Matrix3d dev = sig - sig.trace() / 3.0 * Eigen::Matrix3d::Identity();
+        out(e) = std::sqrt(1.5 * dev.squaredNorm());
+    }
+    return out;
+}
 
 } // namespace cutsim

@@ -17,9 +17,10 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 // Both stages over all elements and nodes on all threads; fills state.f and state.flags.inverted.
 void computeForces(const Model& model, State& state, const double* alpha = nullptr);
 
-// Rotation of F (polar decomposition, det > 0) by the quaternion iteration of Mueller et al. 2016,
-// warm-started from q (x,y,z,w coefficients, updated in place).
-Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, double* q, int maxIter = 20);
+// Rotation of the polar decomposition F = R S. Newton's iteration X <- (X + X^-T) / 2 (Higham
+// 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the quaternion
+// iteration of Mueller et al. 2016, warm-started from Rprev, which always returns a proper rotation.
+Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev);
 
 // Elastic energy 1/2 V (lambda tr(e)^2 + 2 mu e:e) with e = sym(R^T F) - I [J].
 double elasticEnergy(const Model& model, const State& state);
@@ -32,4 +33,9 @@ double gravityEnergy(const Model& model, const State& state);
 void setThreads(int n);
 int threads();
 
+} // namespace cutsim
+
+namespace cutsim {
+// Von Mises stress of each element from the corotated linear stress (nElems) [Pa].
+Eigen::VectorXd vonMisesStress(const Model& model, const State& state);
 } // namespace cutsim

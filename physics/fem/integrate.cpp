@@ -7,10 +7,14 @@
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 
 namespace cutsim {
+
+// Node loops are light: only worth threads on large meshes.
+constexpr int kParallelNodes = 16384;
 
 Integrator parseIntegrator(const std::string& name) {
     if (name == "symplectic_euler") return Integrator::SymplecticEuler;
@@ -98,8 +102,7 @@ struct ImplicitWorkspace {
         for (int e = 0; e < nElems; ++e) {
             Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.volume(e) * m.fraction(e), m.material);
             if (corot) {
-                const Eigen::Quaterniond q(s.rot(3, e), s.rot(0, e), s.rot(1, e), s.rot(2, e));
-                const Eigen::Matrix3d R = q.toRotationMatrix();
+                const Eigen::Map<const Eigen::Matrix3d> R(s.rot.col(e).data());
                 for (int a = 0; a < 4; ++a)
                     for (int b = 0; b < 4; ++b)
                         K.block<3, 3>(3 * a, 3 * b) = R * K.block<3, 3>(3 * a, 3 * b) * R.transpose();
@@ -140,17 +143,24 @@ void checkFinite(const Model& m, State& s) {
     s.flags.nonFinite = bad;
 }
 
+void Stepper::forces(const Model& m, State& s, const double* alpha) {
+    const auto t0 = std::chrono::steady_clock::now();
+    computeForces(m, s, alpha);
+    forceSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
+    forceSeconds_ = 0;
     const double dt = opt.dt, c = m.massDamping;
     const double* alpha = opt.alphaElem ? opt.alphaElem->data() : nullptr;
     const int n = m.nodes();
     s.flags = {};
     switch (opt.integrator) {
     case Integrator::SymplecticEuler: {
-        computeForces(m, s, alpha);
+        forces(m, s, alpha);
         // damping taken implicitly so it never limits the step: v = (v + dt a) / (1 + c dt)
         const double damp = 1.0 / (1.0 + c * dt);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             const double w = m.invMass(i);
             if (w == 0) { s.v.col(i).setZero(); continue; }
@@ -161,10 +171,10 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     }
     case Integrator::CentralDifference: {
         // v_{n+1/2} = ((1 - c dt/2) v_{n-1/2} + dt a_n) / (1 + c dt/2); the first step is a half step.
-        computeForces(m, s, alpha);
+        forces(m, s, alpha);
         const double h = s.started ? dt : 0.5 * dt;
         const double cm = 1.0 - 0.5 * c * h, cp = 1.0 / (1.0 + 0.5 * c * h);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             const double w = m.invMass(i);
             if (w == 0) { s.v.col(i).setZero(); continue; }
@@ -178,19 +188,19 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
         // Explicit Newmark (beta = 0, gamma = 1/2) with the damping factor alpha on the
         // acceleration (thesis eqs. 3.11-3.12); mass damping centred like the velocity update.
         if (!s.started) {
-            computeForces(m, s, alpha);
+            forces(m, s, alpha);
             for (int i = 0; i < n; ++i) s.a.col(i) = m.invMass(i) * s.f.col(i);
             s.started = true;
         }
         const double al = opt.alpha;
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             if (m.invMass(i) == 0) continue;
             s.x.col(i) += dt * s.v.col(i) + 0.5 * dt * dt * al * (s.a.col(i) - c * s.v.col(i));
         }
-        computeForces(m, s, alpha);
+        forces(m, s, alpha);
         const double cm = 1.0 - 0.5 * c * dt, cp = 1.0 / (1.0 + 0.5 * c * dt);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             const double w = m.invMass(i);
             if (w == 0) { s.v.col(i).setZero(); s.a.col(i).setZero(); continue; }

@@ -46,9 +46,14 @@ public:
 
     void step(const Model& model, State& state, const StepOptions& opt);
     void reset();
+    // Wall time of the force stage (element forces and gather) in the last step [s].
+    double lastForceSeconds() const { return forceSeconds_; }
 
 private:
+    void forces(const Model& model, State& state, const double* alpha);
+
     std::unique_ptr<ImplicitWorkspace> implicit_;
+    double forceSeconds_ = 0;
 };
 
 // Checks positions and velocities for non-finite values (state.flags.nonFinite).

@@ -21,7 +21,8 @@ struct State {
     Eigen::Matrix3Xd f;         // total nodal force of the last evaluation (3 x nNodes) [N]
     Eigen::Matrix3Xd a;         // acceleration from f, Newmark's a_n (3 x nNodes) [m/s^2]
     Eigen::Matrix3Xd fExt;      // applied nodal forces, besides gravity (3 x nNodes) [N]
-    Eigen::Matrix4Xd rot;       // element rotation as quaternion coeffs (x,y,z,w), warm start (4 x nElems)
+    Eigen::Matrix<double, 9, Eigen::Dynamic> rot; // element rotation R of the last force evaluation,
+                                // column-major 3x3 (9 x nElems); warm start for inverted elements
     Eigen::Matrix<double, 12, Eigen::Dynamic> fe; // elastic force per element and local node (12 x nElems) [N]
     double time = 0;            // simulated time [s]
     long steps = 0;             // steps taken

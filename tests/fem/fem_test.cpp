@@ -208,7 +208,7 @@ TEST_P(StabilityLimit, BoundedBelowDivergentAbove) {
 INSTANTIATE_TEST_SUITE_P(Explicit, StabilityLimit,
                          ::testing::Values(Integrator::SymplecticEuler, Integrator::CentralDifference,
                                            Integrator::Newmark),
-                         [](const auto& info) { return std::string(integratorName(info.param)); });
+                         [](const auto& p) { return std::string(integratorName(p.param)); });
 
 // Newmark's damping factor alpha = (dt_crit/dt)^2 keeps a step above the limit stable (eq. 3.15).
 TEST(Newmark, AlphaStabilisesAboveLimit) {

@@ -1,0 +1,179 @@
+#include "frames.hpp"
+
+#include "fem/forces.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#ifdef CUTSIM_HAVE_RENDER
+#include "png_writer.hpp"
+#include "renderer.hpp"
+#include "snapshot/snapshot.hpp"
+#include "video.hpp"
+#endif
+
+namespace cutsim::app {
+
+#ifdef CUTSIM_HAVE_RENDER
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Camera at time t: linear interpolation between keyframes, held before the first and after the last.
+Camera cameraAt(const std::vector<CameraKey>& keys, double t) {
+    Camera c;
+    const CameraKey* a = &keys.front();
+    const CameraKey* b = a;
+    for (size_t i = 0; i < keys.size(); ++i) {
+        if (keys[i].time <= t) a = &keys[i];
+        if (keys[i].time >= t) { b = &keys[i]; break; }
+        b = &keys[i];
+    }
+    const double w = b->time > a->time ? std::clamp((t - a->time) / (b->time - a->time), 0.0, 1.0) : 0.0;
+    c.eye = (1 - w) * a->eye + w * b->eye;
+    c.target = (1 - w) * a->target + w * b->target;
+    c.up = ((1 - w) * a->up + w * b->up).normalized();
+    c.fovY = (1 - w) * a->fov + w * b->fov;
+    return c;
+}
+
+class RenderSink final : public FrameSink {
+public:
+    RenderSink(const SceneDef& sc, const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt,
+               double dt)
+        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), elementDt_(elementDt), dt_(dt) {
+        render::RenderOptions ro;
+        ro.width = sc.capture.width;
+        ro.height = sc.capture.height;
+        ro.wireframe = sc.capture.wireframe;
+        ro.xray = sc.capture.xray;
+        ro.hud = sc.capture.hud;
+        renderer_ = std::make_unique<render::Renderer>(ro);
+        std::filesystem::create_directories(dir_);
+        mesh_.X = model.X;
+        mesh_.tets = model.tets;
+        up_ = model.gravity.norm() > 0 ? Eigen::Vector3d(-model.gravity.normalized()) : Eigen::Vector3d::UnitZ();
+        for (int e = 0; e < model.elements(); ++e)
+            if (elementDt_(e) < sc.capture.criticalFactor * dt_) critical_.push_back(e);
+        if (sc.capture.video) {
+            if (render::findOnPath("ffmpeg").empty()) {
+                std::fprintf(stderr, "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
+            } else if (sc.capture.width % 2 || sc.capture.height % 2) {
+                std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
+            } else {
+                videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
+                video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc.capture.width, sc.capture.height, sc.capture.fps);
+            }
+        }
+    }
+
+    void frame(const Model& model, const State& state, const FrameInfo& info) override {
+        MeshSnapshotOptions so;
+        so.wireframe = sc_.capture.wireframe;
+        so.critical = critical_;
+        Eigen::VectorXd values;
+        const std::string& cmap = sc_.capture.colormap;
+        if (cmap == "timestep") {
+            values = elementDt_ / dt_;  // element's estimated stable step over the step used
+            so.elementValues = &values;
+            so.name = "element dt / dt";
+            so.unit = "-";
+        } else if (cmap == "stress") {
+            values = vonMisesStress(model, state);
+            so.elementValues = &values;
+            so.name = "von Mises stress";
+            so.unit = "Pa";
+        }
+        MeshSnapshot ms = snapshotFromTetMesh(mesh_, state.x, so);
+        RenderSnapshot& snap = ms.snap;
+        if (cmap == "timestep") {
+            // 1 = as fast as the step itself; critical elements sit below criticalFactor
+            snap.scalarMin = 1;
+            snap.scalarMax = 2.5;
+        } else if (cmap == "displacement") {
+            snap.scalar.resize(snap.vertices());
+            for (int v = 0; v < snap.vertices(); ++v) {
+                const int n = ms.surfaceNode[v];
+                snap.scalar(v) = (state.x.col(n) - model.X.col(n)).norm();
+            }
+            snap.scalarName = "displacement";
+            snap.scalarUnit = "m";
+            snap.scalarMin = 0;
+            snap.scalarMax = std::max(1e-9, snap.scalar.size() ? snap.scalar.maxCoeff() : 0.0);
+        }
+        if (!sc_.camera.empty()) {
+            snap.camera = cameraAt(sc_.camera, info.time);
+        } else {
+            if (!camera_) {
+                const Eigen::Vector3d lo = model.X.rowwise().minCoeff(), hi = model.X.rowwise().maxCoeff();
+                camera_ = std::make_unique<Camera>(frameBox(lo, hi, up_));
+            }
+            snap.camera = *camera_;
+        }
+        HudValues& h = snap.hud;
+        h.simTime = info.time;
+        h.dtUsed = info.dt;
+        h.dtCertified = info.dtCertified;
+        h.dtExact = info.dtExact;
+        h.stepsPerSecond = info.wall > 0 ? state.steps / info.wall : 0;
+        h.realTimeFactor = info.wall > 0 ? info.time / info.wall : 0;
+        h.criticalElements = info.criticalElements;
+        h.cuts = info.cuts;
+        h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) + " nodes");
+        render::Image img = renderer_->render(snap);
+        const auto t0 = Clock::now();
+        char name[32];
+        std::snprintf(name, sizeof name, "frame_%06d.png", frames_);
+        if (video_) video_->addFrame(img);
+        pngs_.push((dir_ / name).string(), std::move(img));
+        ++frames_;
+        encode_ = std::chrono::duration<double>(Clock::now() - t0).count();
+    }
+
+    void finish() override {
+        pngs_.flush();
+        if (video_) video_->finish();
+    }
+    int frames() const override { return frames_; }
+    std::string videoPath() const override { return video_ ? videoPath_ : ""; }
+    double lastEncodeSeconds() const override { return encode_; }
+
+private:
+    const SceneDef& sc_;
+    std::filesystem::path dir_;
+    Eigen::VectorXd elementDt_;
+    double dt_;
+    TetMesh mesh_;
+    Eigen::Vector3d up_;
+    std::vector<int> critical_;
+    std::unique_ptr<render::Renderer> renderer_;
+    std::unique_ptr<Camera> camera_;
+    render::PngWriter pngs_{8};
+    std::unique_ptr<render::VideoEncoder> video_;
+    std::string videoPath_;
+    int frames_ = 0;
+    double encode_ = 0;
+};
+
+} // namespace
+#endif
+
+std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
+                                         const Eigen::VectorXd& elementDt, double dt) {
+#ifdef CUTSIM_HAVE_RENDER
+    try {
+        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
+        return nullptr;
+    }
+#else
+    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt;
+    std::fprintf(stderr, "frames: this build has no renderer; running without frames\n");
+    return nullptr;
+#endif
+}
+
+} // namespace cutsim::app

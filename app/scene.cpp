@@ -1,0 +1,284 @@
+#include "scene.hpp"
+
+#include "json_reader.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <numbers>
+
+namespace cutsim::app {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+double Profile::at(double t) const {
+    switch (kind) {
+    case Kind::Constant: return t >= start ? 1.0 : 0.0;
+    case Kind::Ramp:
+        if (t <= start) return 0.0;
+        if (t >= end) return 1.0;
+        return (t - start) / (end - start);
+    case Kind::Sine: return t >= start && t <= end ? std::sin(2 * std::numbers::pi * (t - start) / period) : 0.0;
+    case Kind::Pulse: return t >= start && t <= end ? 1.0 : 0.0;
+    }
+    return 0.0;
+}
+
+namespace {
+
+Region readRegion(ObjectReader& r) {
+    Region g;
+    g.path = r.path();
+    int kinds = 0;
+    if (r.has("box")) {
+        ObjectReader b = r.object("box");
+        g.kind = Region::Kind::Box;
+        g.min = b.requiredVec3("min");
+        g.max = b.requiredVec3("max");
+        if ((g.max.array() < g.min.array()).any()) b.fail("max", "must be >= min in every axis");
+        b.finish();
+        ++kinds;
+    }
+    if (r.has("plane")) {
+        ObjectReader p = r.object("plane");
+        g.kind = Region::Kind::Plane;
+        g.point = p.requiredVec3("point");
+        g.normal = p.requiredVec3("normal");
+        if (g.normal.norm() < 1e-12) p.fail("normal", "must not be zero");
+        g.normal.normalize();
+        g.distance = p.number("distance", 1e-3, 0, 1e300);
+        p.finish();
+        ++kinds;
+    }
+    if (r.has("sphere")) {
+        ObjectReader s = r.object("sphere");
+        g.kind = Region::Kind::Sphere;
+        g.point = s.requiredVec3("center");
+        g.distance = s.number("radius", 0, 0, 1e300, true);
+        s.finish();
+        ++kinds;
+    }
+    if (r.has("nodes")) {
+        g.kind = Region::Kind::Nodes;
+        g.nodes = r.intList("nodes");
+        ++kinds;
+    }
+    if (kinds != 1) throw InputError(r.file() + ": " + r.path() + ": give exactly one of box, plane, sphere, nodes");
+    return g;
+}
+
+Profile readProfile(ObjectReader& r) {
+    Profile p;
+    const std::string k = r.string("type", "constant", {"constant", "ramp", "sine", "pulse"});
+    p.kind = k == "ramp" ? Profile::Kind::Ramp : k == "sine" ? Profile::Kind::Sine
+           : k == "pulse" ? Profile::Kind::Pulse : Profile::Kind::Constant;
+    p.start = r.number("start", 0, 0);
+    p.end = r.number("end", p.kind == Profile::Kind::Ramp ? p.start + 1 : 1e300, p.start);
+    if (p.kind == Profile::Kind::Ramp && !(p.end > p.start)) r.fail("end", "must be > start for a ramp");
+    p.period = r.number("period", 1, 0, 1e300, true);
+    r.finish();
+    return p;
+}
+
+void setPath(json& j, const std::string& assignment) {
+    const auto eq = assignment.find('=');
+    if (eq == std::string::npos || eq == 0) throw InputError("--set " + assignment + ": expected key.path=value");
+    const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
+    json value;
+    try {
+        value = json::parse(text);
+    } catch (const json::parse_error&) {
+        value = text;
+    }
+    json* node = &j;
+    size_t pos = 0;
+    while (true) {
+        const size_t dot = key.find('.', pos);
+        const std::string part = key.substr(pos, dot == std::string::npos ? std::string::npos : dot - pos);
+        if (part.empty()) throw InputError("--set " + assignment + ": empty key in path");
+        if (!node->is_object()) throw InputError("--set " + assignment + ": '" + part + "' is inside a non-object");
+        if (dot == std::string::npos) {
+            (*node)[part] = value;
+            return;
+        }
+        node = &(*node)[part];
+        if (node->is_null()) *node = json::object();
+        pos = dot + 1;
+    }
+}
+
+} // namespace
+
+std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X) {
+    std::vector<int> out;
+    const int n = static_cast<int>(X.cols());
+    if (r.kind == Region::Kind::Nodes) {
+        for (int i : r.nodes) {
+            if (i >= n) throw InputError(r.path + ".nodes: node " + std::to_string(i) + " does not exist (mesh has " + std::to_string(n) + ")");
+            out.push_back(i);
+        }
+        return out;
+    }
+    for (int i = 0; i < n; ++i) {
+        const Eigen::Vector3d x = X.col(i);
+        bool in = false;
+        switch (r.kind) {
+        case Region::Kind::Box: in = (x.array() >= r.min.array()).all() && (x.array() <= r.max.array()).all(); break;
+        case Region::Kind::Plane: in = std::abs(r.normal.dot(x - r.point)) <= r.distance; break;
+        case Region::Kind::Sphere: in = (x - r.point).norm() <= r.distance; break;
+        case Region::Kind::Nodes: break;
+        }
+        if (in) out.push_back(i);
+    }
+    return out;
+}
+
+SceneDef parseScene(const json& j, const std::string& file) {
+    SceneDef s;
+    s.file = file;
+    s.dir = fs::path(file).parent_path().string();
+    s.source = j;
+    ObjectReader root(j, file, "");
+    s.name = root.string("name", fs::path(file).stem().string());
+    root.touch("description");
+
+    {
+        ObjectReader o = root.object("object");
+        if (o.has("mesh") == o.has("box")) o.fail("mesh", "give exactly one of mesh (a file) and box");
+        if (o.has("mesh")) {
+            fs::path p(o.requiredString("mesh"));
+            if (p.is_relative()) p = fs::path(s.dir) / p;
+            if (!fs::exists(p)) o.fail("mesh", "file not found: " + p.string());
+            s.mesh = p.lexically_normal().string();
+        } else {
+            ObjectReader b = o.object("box");
+            s.boxSize = b.requiredVec3("size");
+            if ((s.boxSize.array() <= 0).any()) b.fail("size", "must be positive in every axis");
+            const Eigen::Vector3d cells = b.requiredVec3("cells");
+            for (int k = 0; k < 3; ++k)
+                if (cells(k) < 1 || cells(k) > 1000 || cells(k) != std::floor(cells(k)))
+                    b.fail("cells", "must be 3 integers in [1, 1000]");
+            s.boxCells = cells.cast<int>();
+            if (static_cast<double>(s.boxCells.prod()) * 6 > 2e7) b.fail("cells", "more than 2e7 tets");
+            b.finish();
+        }
+        s.scale = o.number("scale", 1, 0, 1e300, true);
+        s.translate = o.vec3("translate", s.translate);
+        s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
+        s.reorient = o.boolean("reorient", false);
+        s.element = o.string("element", "corotational", {"corotational", "linear"}) == "linear"
+                        ? ElementModel::Linear : ElementModel::Corotational;
+        o.finish();
+    }
+    if (root.has("material")) {
+        ObjectReader m = root.object("material");
+        s.material.E = m.number("E", s.material.E, 0, 1e300, true);
+        s.material.nu = m.number("nu", s.material.nu, -1, 0.5, true, true);
+        s.material.rho = m.number("rho", s.material.rho, 0, 1e300, true);
+        s.damping = m.number("damping", 0, 0, 1e300);
+        m.finish();
+    }
+    for (auto& f : root.array("fixed")) {
+        s.fixed.push_back(readRegion(f));
+        f.finish();
+    }
+    if (root.has("loads")) {
+        ObjectReader l = root.object("loads");
+        s.gravity = l.vec3("gravity", s.gravity);
+        for (auto& f : l.array("forces")) {
+            ForceLoad fl;
+            fl.force = f.requiredVec3("force");
+            if (f.has("profile")) {
+                ObjectReader pr = f.object("profile");
+                fl.profile = readProfile(pr);
+            }
+            f.touch("force");
+            f.touch("profile");
+            // the region keys sit beside force and profile
+            fl.region = readRegion(f);
+            f.finish();
+            s.forces.push_back(fl);
+        }
+        l.finish();
+    }
+    if (root.has("integrator")) {
+        ObjectReader in = root.object("integrator");
+        s.integrator = parseIntegrator(in.string("scheme", "symplectic_euler",
+                                                 {"symplectic_euler", "central_difference", "newmark", "backward_euler"}));
+        if (in.has("dt")) {
+            ObjectReader d = in.object("dt");
+            const std::string mode = d.string("mode", "fraction", {"fixed", "fraction"});
+            if (mode == "fixed") {
+                s.dt.mode = DtPolicy::Mode::Fixed;
+                s.dt.value = d.number("value", 0, 0, 10, true);
+                if (!d.has("value")) d.fail("value", "is required for mode fixed");
+            } else {
+                s.dt.mode = DtPolicy::Mode::Fraction;
+                s.dt.of = d.string("of", "exact", {"exact", "certified", "estimate"});
+                s.dt.fraction = d.number("fraction", 0.9, 0, 100, true);
+            }
+            s.dt.onLimit = d.string("on_limit", "refuse", {"refuse", "clamp", "damp"});
+            d.finish();
+        }
+        in.finish();
+    }
+    s.duration = root.number("duration", 1, 0, 1e6, true);
+    if (root.has("camera")) {
+        ObjectReader c = root.object("camera");
+        for (auto& k : c.array("keyframes")) {
+            CameraKey ck;
+            ck.time = k.number("time", 0, 0);
+            ck.eye = k.requiredVec3("eye");
+            ck.target = k.requiredVec3("target");
+            ck.up = k.vec3("up", ck.up);
+            ck.fov = k.number("fov", 40, 1, 170);
+            if ((ck.eye - ck.target).norm() < 1e-12) k.fail("eye", "must differ from target");
+            k.finish();
+            if (!s.camera.empty() && ck.time < s.camera.back().time) k.fail("time", "keyframes must be in time order");
+            s.camera.push_back(ck);
+        }
+        c.finish();
+    }
+    if (root.has("capture")) {
+        ObjectReader c = root.object("capture");
+        s.capture.enabled = c.boolean("enabled", true);
+        s.capture.fps = c.number("fps", 30, 0, 1e5, true);
+        s.capture.width = c.integer("width", 1280, 16, 8192);
+        s.capture.height = c.integer("height", 720, 16, 8192);
+        s.capture.colormap = c.string("colormap", "timestep", {"timestep", "displacement", "stress", "none"});
+        s.capture.video = c.boolean("video", true);
+        s.capture.hud = c.boolean("hud", true);
+        s.capture.wireframe = c.boolean("wireframe", false);
+        s.capture.xray = c.boolean("xray", true);
+        s.capture.criticalFactor = c.number("critical_factor", 1.1, 0, 100, true);
+        c.finish();
+    }
+    if (root.has("output")) {
+        ObjectReader o = root.object("output");
+        s.writeVtu = o.boolean("vtu", true);
+        o.finish();
+    }
+    root.finish();
+    return s;
+}
+
+SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets) {
+    std::ifstream in(path);
+    if (!in) throw InputError(path, 0, "cannot open scene file");
+    json j;
+    try {
+        j = json::parse(in);
+    } catch (const json::parse_error& e) {
+        // nlohmann reports a byte offset; turn it into a line number
+        std::ifstream again(path);
+        std::string text((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
+        long line = 1;
+        for (size_t i = 0; i < std::min(text.size(), static_cast<size_t>(e.byte)); ++i) line += text[i] == '\n';
+        throw InputError(path, line, std::string("invalid JSON: ") + e.what());
+    }
+    for (const auto& a : sets) setPath(j, a);
+    return parseScene(j, path);
+}
+
+} // namespace cutsim::app

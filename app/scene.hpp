@@ -1,0 +1,112 @@
+// The scene: one JSON format drives runs, tests, benchmarks and recordings (docs/scene-format.md).
+#pragma once
+
+#include "fem/integrate.hpp"
+#include "fem/material.hpp"
+#include "fem/model.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <Eigen/Core>
+
+#include <string>
+#include <vector>
+
+namespace cutsim::app {
+
+// A set of nodes: inside a box, near a plane, inside a sphere, or listed.
+struct Region {
+    enum class Kind { Box, Plane, Sphere, Nodes } kind = Kind::Box;
+    Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();  // box corners [m]
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();   // plane point or sphere centre [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // plane normal (unit)
+    double distance = 0;                                // plane: |signed distance| <= distance [m]; sphere radius [m]
+    std::vector<int> nodes;                             // explicit node indices (0-based)
+    std::string path;                                   // key path, for messages
+};
+
+// Time profile of a load: factor in [0, 1] (constant, linear ramp, sine, or on only in [start, end]).
+struct Profile {
+    enum class Kind { Constant, Ramp, Sine, Pulse } kind = Kind::Constant;
+    double start = 0, end = 1e300;  // [s]
+    double period = 1;              // sine period [s]
+    double at(double t) const;
+};
+
+struct ForceLoad {
+    Region region;
+    Eigen::Vector3d force = Eigen::Vector3d::Zero();  // total force, shared equally by the region's nodes [N]
+    Profile profile;
+};
+
+// Time-step policy: a fixed step, or a fraction of the exact, certified or estimated limit.
+struct DtPolicy {
+    enum class Mode { Fixed, Fraction } mode = Mode::Fraction;
+    double value = 0;                  // fixed step [s]
+    std::string of = "exact";          // exact | certified | estimate
+    double fraction = 0.9;             // of the chosen limit [-]
+    std::string onLimit = "refuse";    // refuse | clamp | damp: what a step above the exact limit does
+};
+
+struct CameraKey {
+    double time = 0;                                  // [s]
+    Eigen::Vector3d eye = Eigen::Vector3d::Zero();    // [m]
+    Eigen::Vector3d target = Eigen::Vector3d::Zero(); // [m]
+    Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    double fov = 40;                                  // vertical field of view [deg]
+};
+
+struct Capture {
+    bool enabled = true;
+    double fps = 30;              // frames per simulated second
+    int width = 1280, height = 720;
+    std::string colormap = "timestep";  // timestep | displacement | stress | none
+    bool video = true;            // MP4 through ffmpeg when it is installed
+    bool hud = true;
+    bool wireframe = false;
+    bool xray = true;             // critical elements drawn through the surface
+    double criticalFactor = 1.1;  // critical: element estimate < factor * dt
+};
+
+struct SceneDef {
+    std::string file;             // scene file path
+    std::string dir;              // its folder: relative paths resolve against it
+    std::string name;
+
+    // object
+    std::string mesh;             // tet mesh path (resolved); empty when a box is generated
+    Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();  // generated box [0,size] (before scale) [m]
+    Eigen::Vector3i boxCells = Eigen::Vector3i::Zero(); // cubes along each axis, 6 tets each
+    double scale = 1;             // coordinates times scale give meters
+    Eigen::Vector3d translate = Eigen::Vector3d::Zero();  // [m], after scale and rotation
+    Eigen::Vector3d rotateDeg = Eigen::Vector3d::Zero();  // XYZ Euler angles [deg]
+    bool reorient = false;        // fix inverted tets instead of refusing the mesh
+    ElementModel element = ElementModel::Corotational;
+
+    Material material;
+    double damping = 0;           // mass-proportional damping [1/s]
+
+    std::vector<Region> fixed;
+    Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81);  // [m/s^2]
+    std::vector<ForceLoad> forces;
+
+    Integrator integrator = Integrator::SymplecticEuler;
+    DtPolicy dt;
+    double duration = 1;          // [s]
+
+    std::vector<CameraKey> camera;  // empty: frame the object
+    Capture capture;
+    bool writeVtu = true;           // final.vtu
+
+    nlohmann::json source;          // the scene as read, after --set overrides
+};
+
+// Reads and validates a scene file; `sets` are "key.path=value" overrides (value parsed as JSON,
+// else taken as a string). Throws InputError naming the file and key path.
+SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets = {});
+SceneDef parseScene(const nlohmann::json& j, const std::string& file);
+
+// Nodes of a mesh selected by a region (rest positions X).
+std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X);
+
+} // namespace cutsim::app

@@ -1,0 +1,133 @@
+#include "timestep/analyzer.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+
+namespace cutsim {
+
+namespace {
+double secondsSince(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+double minOf(const Eigen::VectorXd& v) {
+    return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity();
+}
+} // namespace
+
+void TimestepAnalyzer::compute(const Model& m) {
+    const auto t0 = std::chrono::steady_clock::now();
+    rows_ = assembleStiffnessRows(m);
+    diag_ = assembleStiffnessDiagonal(m);
+    est_.resize(m.elements());
+    estimateElements(m, rows_, diag_, nullptr, est_);
+    shapes_ = shapeMeasures(m);
+    nodeBound_.resize(m.nodes());
+    double mx = 0;
+#pragma omp parallel for schedule(static) reduction(max : mx) if (m.nodes() > 2000)
+    for (int i = 0; i < m.nodes(); ++i) {
+        nodeBound_(i) = gershgorinNodeBound(m, rows_, i);
+        mx = std::max(mx, nodeBound_(i));
+    }
+    maxBound_ = mx;
+    nodeStamp_.assign(m.nodes(), 0);
+    elemStamp_.assign(m.elements(), 0);
+    stamp_ = 0;
+    stats_ = {true, m.nodes(), m.elements(), m.nodes(), secondsSince(t0)};
+}
+
+void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedElements,
+                              const std::vector<int>& changedNodes) {
+    const int oldNodes = static_cast<int>(rows_.nbr.size()), oldElems = static_cast<int>(est_.r1r.size());
+    if (m.nodes() < oldNodes || m.elements() < oldElems || oldElems == 0) {
+        compute(m);
+        return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    // Appended nodes and elements.
+    rows_.nbr.resize(m.nodes());
+    rows_.block.resize(m.nodes());
+    diag_.conservativeResize(3, m.nodes());
+    nodeBound_.conservativeResize(m.nodes());
+    nodeStamp_.resize(m.nodes(), 0);
+    if (m.elements() > oldElems) {
+        for (Eigen::VectorXd* v : {&est_.r1r, &est_.hs, &est_.hp, &est_.le, &est_.element, &shapes_.volumeLength,
+                                   &shapes_.harmonicVolumeLength, &shapes_.minSineDihedral, &shapes_.radiusRatio,
+                                   &shapes_.meanRatio, &shapes_.charLength})
+            v->conservativeResize(m.elements());
+        elemStamp_.resize(m.elements(), 0);
+    }
+    if (++stamp_ == 0) {  // wrapped: clear the stamps
+        std::fill(nodeStamp_.begin(), nodeStamp_.end(), 0);
+        std::fill(elemStamp_.begin(), elemStamp_.end(), 0);
+        stamp_ = 1;
+    }
+    // N: nodes whose row of K, diagonal or mass changed.
+    std::vector<int> nodes;
+    auto markNode = [&](int i) {
+        if (nodeStamp_[i] != stamp_) nodeStamp_[i] = stamp_, nodes.push_back(i);
+    };
+    for (int e : changedElements)
+        for (int a = 0; a < 4; ++a) markNode(m.tets(a, e));
+    for (int i : changedNodes) markNode(i);
+    for (int i = oldNodes; i < m.nodes(); ++i) markNode(i);
+    const int nChanged = static_cast<int>(nodes.size());
+#pragma omp parallel for schedule(dynamic, 16) if (nChanged > 256)
+    for (int k = 0; k < nChanged; ++k) {
+        const int i = nodes[k];
+        assembleStiffnessRow(m, i, rows_.nbr[i], rows_.block[i]);
+        diag_.col(i) = nodeStiffnessDiagonal(m, i);
+    }
+    // Elements with a node in N: their K_r, M_r or D_r changed (R1R, Hs, Hp).
+    std::vector<int> elems;
+    for (int k = 0; k < nChanged; ++k) {
+        const int i = nodes[k];
+        for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
+            const int e = m.nodeSlots[s] / 4;
+            if (elemStamp_[e] != stamp_) elemStamp_[e] = stamp_, elems.push_back(e);
+        }
+    }
+    estimateElements(m, rows_, diag_, &elems, est_);
+    const int nElems = static_cast<int>(elems.size());
+#pragma omp parallel for schedule(static) if (nElems > 256)
+    for (int k = 0; k < nElems; ++k) shapes_.set(elems[k], elementShape(m, elems[k]));
+    // Gershgorin rows that see a changed block or mass: the nodes of those elements, plus N.
+    for (int e : elems)
+        for (int a = 0; a < 4; ++a) markNode(m.tets(a, e));
+    const int nBounds = static_cast<int>(nodes.size());
+#pragma omp parallel for schedule(static) if (nBounds > 256)
+    for (int k = 0; k < nBounds; ++k) nodeBound_(nodes[k]) = gershgorinNodeBound(m, rows_, nodes[k]);
+    maxBound_ = nodeBound_.size() ? nodeBound_.maxCoeff() : 0.0;
+    stats_ = {false, nChanged, nElems, nBounds, secondsSince(t0)};
+}
+
+void TimestepAnalyzer::updateMovedNodes(const Model& m, const std::vector<int>& movedNodes) {
+    std::vector<int> elems;
+    std::vector<char> seen(m.elements(), 0);
+    for (int i : movedNodes)
+        for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
+            const int e = m.nodeSlots[s] / 4;
+            if (!seen[e]) seen[e] = 1, elems.push_back(e);
+        }
+    update(m, elems, movedNodes);
+}
+
+TimestepAnalyzer::Minima TimestepAnalyzer::minDt() const {
+    return {minOf(est_.r1r), minOf(est_.hs), minOf(est_.hp), minOf(est_.le), minOf(est_.element)};
+}
+
+std::vector<std::pair<std::string, double>> correlationsWithR1R(const ElementEstimates& est, const ShapeMeasures& shapes) {
+    const Eigen::VectorXd& r = est.r1r;
+    return {{"volume_length", pearson(shapes.volumeLength, r)},
+            {"harmonic_volume_length", pearson(shapes.harmonicVolumeLength, r)},
+            {"min_sine_dihedral", pearson(shapes.minSineDihedral, r)},
+            {"radius_ratio", pearson(shapes.radiusRatio, r)},
+            {"mean_ratio", pearson(shapes.meanRatio, r)},
+            {"char_length", pearson(shapes.charLength, r)},
+            {"hs", pearson(est.hs, r)},
+            {"hp", pearson(est.hp, r)},
+            {"le", pearson(est.le, r)},
+            {"element", pearson(est.element, r)}};
+}
+
+} // namespace cutsim

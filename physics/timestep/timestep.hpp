@@ -1,0 +1,92 @@
+// Stable time step of explicit FEM (METHOD.md sec. 2-3, thesis ch. 3-4): the exact global value,
+// a certified lower bound and the per-element estimators. Times in seconds, lambdas in 1/s^2.
+#pragma once
+
+#include "fem/model.hpp"
+#include "fem/tet.hpp"
+
+#include <Eigen/Core>
+
+#include <stdexcept>
+#include <vector>
+
+namespace cutsim {
+
+// The global eigen-solve did not converge: reported, never replaced by a guess.
+class EigenSolveError : public std::runtime_error {
+public:
+    using std::runtime_error::runtime_error;
+};
+
+// Critical step of central differences / symplectic Euler, eq. 3.10 with c = 2; +inf if lambda <= 0.
+double dtFromLambda(double lambda);
+
+// Assembled stiffness by node rows of 3x3 blocks (each element scaled by its fraction).
+// Rows are independent, so one can be rebuilt after a local change.
+struct StiffnessRows {
+    std::vector<std::vector<int>> nbr;                // nodes coupled to node i, i first (nNodes)
+    std::vector<std::vector<Eigen::Matrix3d>> block;  // K_ij for j = nbr[i][k] [N/m] (nNodes)
+};
+
+// Row i of K from the elements incident to node i (model.nodeSlots).
+void assembleStiffnessRow(const Model& m, int i, std::vector<int>& nbr, std::vector<Eigen::Matrix3d>& block);
+StiffnessRows assembleStiffnessRows(const Model& m);
+
+// Diagonal of K at node i via eqs. 4.3-4.10 summed over the one-ring, no 12x12 matrices.
+Eigen::Vector3d nodeStiffnessDiagonal(const Model& m, int i);
+Eigen::Matrix3Xd assembleStiffnessDiagonal(const Model& m);  // (3 x nNodes) [N/m]
+
+// Exact lambda_max(M^-1 K) over the free DOFs (invMass > 0), via Lanczos (Spectra) on the symmetric
+// form M^-1/2 K M^-1/2. Throws EigenSolveError when it does not converge.
+struct ExactOptions {
+    double tol = 1e-9;        // Spectra's relative residual tolerance
+    int maxIterations = 2000; // restarts
+    int ncv = 24;             // Lanczos basis size
+};
+struct ExactResult {
+    double lambdaMax = 0;  // [1/s^2]
+    double dt = 0;         // 2 / sqrt(lambdaMax) [s]
+    int freeDofs = 0;
+    int iterations = 0;    // Lanczos restarts
+    int matvecs = 0;       // operator applications
+};
+ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts = {});
+ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts = {});
+
+// Gershgorin bound on row i of M^-1/2 K M^-1/2 (max over its 3 free DOFs; 0 for a fixed node):
+// sum_j |K_ij| / sqrt(m_i m_j), free j only. max_i of it bounds lambda_max from above.
+double gershgorinNodeBound(const Model& m, const StiffnessRows& rows, int i);
+// Certified step 2 / sqrt(max_i bound_i) <= exact dt (not in the thesis; METHOD.md sec. 3).
+double certifiedDt(const Model& m, const StiffnessRows& rows);
+double certifiedDt(const Model& m);
+
+// Largest eigenvalue of a symmetric 12x12 matrix (Householder tridiagonalisation, then Laguerre
+// iterations from the Gershgorin bound; accurate to ~1e-14 relative).
+double largestEigenvalue(const Mat12& A);
+
+// Per-element estimates of the critical step [s] (METHOD.md sec. 3; +inf when nothing is free).
+struct ElementEstimates {
+    Eigen::VectorXd r1r;      // reduced one ring, Fierz et al. 2012
+    Eigen::VectorXd hs;       // scalar heuristic, 2 / sqrt(max D_r)
+    Eigen::VectorXd hp;       // position heuristic
+    Eigen::VectorXd le;       // characteristic length over P-wave speed
+    Eigen::VectorXd element;  // isolated element eigenvalue, own masses
+    void resize(int n);
+};
+
+// lambda_max(M_r^-1 K_r) of element e from the assembled rows; fixed DOFs dropped.
+double r1rLambda(const Model& m, const StiffnessRows& rows, int e);
+// Hs and Hp lambdas from D_r = diag(K_r) / M_r (diag: assembleStiffnessDiagonal).
+double hsLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e);
+double hpLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e);
+// lambda_max(M_e^-1 K_e), masses rho V / 4 (fraction cancels); fixed DOFs dropped.
+double elementLambda(const Model& m, int e);
+// Le = 3 V / largest face area of the rest element [m].
+double characteristicLength(const Model& m, int e);
+
+// Fills the estimates of the listed elements (all when elements is null), in parallel.
+void estimateElements(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag,
+                      const std::vector<int>* elements, ElementEstimates& out);
+ElementEstimates estimateElements(const Model& m);
+
+} // namespace cutsim

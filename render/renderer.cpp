@@ -1,0 +1,672 @@
+#include "renderer.hpp"
+
+#include "colormap.hpp"
+#include "egl_context.hpp"
+#include "gl.hpp"
+
+#include <imgui.h>
+#include <backends/imgui_impl_opengl3.h>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cutsim::render {
+namespace {
+
+using Mat4f = Eigen::Matrix4f;
+using Vec3f = Eigen::Vector3f;
+using Vec3d = Eigen::Vector3d;
+
+// ---- shaders ----
+// Surface: per-vertex scalar mapped per fragment (so a colour map step stays sharp), two
+// directional lights fixed to the camera (key and fill, Phong), lit from both sides because cut
+// and open surfaces show their back.
+constexpr const char* kMeshVs = R"(#version 330 core
+layout(location = 0) in vec3 aPos;
+layout(location = 1) in vec3 aNormal;
+layout(location = 2) in float aScalar;
+layout(location = 3) in float aCut;
+uniform mat4 uView;
+uniform mat4 uProj;
+out vec3 vNormal;
+out vec3 vPosV;
+out float vScalar;
+out float vCut;
+void main() {
+    vec4 pv = uView * vec4(aPos, 1.0);
+    vPosV = pv.xyz;
+    vNormal = mat3(uView) * aNormal;
+    vScalar = aScalar;
+    vCut = aCut;
+    gl_Position = uProj * pv;
+}
+)";
+
+constexpr const char* kMeshFs = R"(#version 330 core
+in vec3 vNormal;
+in vec3 vPosV;
+in float vScalar;
+in float vCut;
+uniform int uUseMap;
+uniform vec3 uMap[16];
+uniform int uMapN;
+uniform float uMin;
+uniform float uMax;
+uniform vec3 uColour;
+uniform vec3 uCutColour;
+uniform int uLit;
+uniform float uAlpha;
+out vec4 fragColour;
+vec3 colourMap(float s) {
+    float t = clamp((s - uMin) / max(uMax - uMin, 1e-30), 0.0, 1.0);
+    float x = t * float(uMapN - 1);
+    int i = min(int(floor(x)), uMapN - 2);
+    return mix(uMap[i], uMap[i + 1], x - float(i));
+}
+void main() {
+    vec3 base = uUseMap != 0 ? colourMap(vScalar) : uColour;
+    if (vCut > 0.5) base = uCutColour;
+    if (uLit == 0) { fragColour = vec4(base, uAlpha); return; }
+    vec3 n = normalize(vNormal);
+    vec3 v = normalize(-vPosV);
+    if (dot(n, v) < 0.0) n = -n;
+    vec3 key = normalize(vec3(0.45, 0.65, 0.6));
+    vec3 fill = normalize(vec3(-0.6, -0.25, 0.5));
+    float diffuse = 0.7 * max(dot(n, key), 0.0) + 0.3 * max(dot(n, fill), 0.0);
+    float spec = 0.22 * pow(max(dot(reflect(-key, n), v), 0.0), 32.0);
+    fragColour = vec4(base * (0.22 + diffuse) + vec3(spec), uAlpha);
+}
+)";
+
+constexpr const char* kLineVs = R"(#version 330 core
+layout(location = 0) in vec3 aPos;
+uniform mat4 uView;
+uniform mat4 uProj;
+void main() { gl_Position = uProj * uView * vec4(aPos, 1.0); }
+)";
+
+constexpr const char* kLineFs = R"(#version 330 core
+uniform vec4 uColour;
+out vec4 fragColour;
+void main() { fragColour = uColour; }
+)";
+
+GLuint compile(GLenum type, const char* src) {
+    GLuint s = glCreateShader(type);
+    glShaderSource(s, 1, &src, nullptr);
+    glCompileShader(s);
+    GLint ok = 0;
+    glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+    if (!ok) {
+        char log[2048];
+        glGetShaderInfoLog(s, sizeof log, nullptr, log);
+        glDeleteShader(s);
+        throw std::runtime_error(std::string("shader compile failed: ") + log);
+    }
+    return s;
+}
+
+GLuint link(const char* vs, const char* fs) {
+    GLuint v = compile(GL_VERTEX_SHADER, vs), f = compile(GL_FRAGMENT_SHADER, fs);
+    GLuint p = glCreateProgram();
+    glAttachShader(p, v);
+    glAttachShader(p, f);
+    glLinkProgram(p);
+    glDeleteShader(v);
+    glDeleteShader(f);
+    GLint ok = 0;
+    glGetProgramiv(p, GL_LINK_STATUS, &ok);
+    if (!ok) {
+        char log[2048];
+        glGetProgramInfoLog(p, sizeof log, nullptr, log);
+        glDeleteProgram(p);
+        throw std::runtime_error(std::string("shader link failed: ") + log);
+    }
+    return p;
+}
+
+Vec3f rgb(const std::array<std::uint8_t, 3>& c) { return Vec3f(c[0] / 255.0f, c[1] / 255.0f, c[2] / 255.0f); }
+
+Mat4f lookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
+    Vec3d f = (target - eye).normalized();
+    Vec3d s = f.cross(up).normalized();
+    if (!s.allFinite()) s = f.unitOrthogonal(); // up parallel to the view direction
+    Vec3d u = s.cross(f);
+    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+    m.block<1, 3>(0, 0) = s.transpose();
+    m.block<1, 3>(1, 0) = u.transpose();
+    m.block<1, 3>(2, 0) = -f.transpose();
+    m(0, 3) = -s.dot(eye);
+    m(1, 3) = -u.dot(eye);
+    m(2, 3) = f.dot(eye);
+    return m.cast<float>();
+}
+
+Mat4f perspective(double fovYDeg, double aspect, double zNear, double zFar) {
+    const double f = 1.0 / std::tan(0.5 * fovYDeg * M_PI / 180.0);
+    Eigen::Matrix4d m = Eigen::Matrix4d::Zero();
+    m(0, 0) = f / aspect;
+    m(1, 1) = f;
+    m(2, 2) = (zFar + zNear) / (zNear - zFar);
+    m(2, 3) = 2 * zFar * zNear / (zNear - zFar);
+    m(3, 2) = -1;
+    return m.cast<float>();
+}
+
+// Interleaved vertex of the mesh program: position, normal, scalar, cut flag.
+struct MeshVertex {
+    float p[3], n[3], s, cut;
+};
+
+void pushTriangle(std::vector<MeshVertex>& out, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+    Vec3f n = (b - a).cross(c - a).normalized().cast<float>();
+    for (const Vec3d* q : {&a, &b, &c}) {
+        Vec3f p = q->cast<float>();
+        out.push_back({{p.x(), p.y(), p.z()}, {n.x(), n.y(), n.z()}, 0, 0});
+    }
+}
+
+// Tool solids as flat triangles in world coordinates.
+void toolTriangles(const ToolShape& t, std::vector<MeshVertex>& out) {
+    const Eigen::Matrix3d R = t.orientation.normalized().toRotationMatrix();
+    auto world = [&](const Vec3d& p) { return Vec3d(t.position + R * p); };
+    if (t.kind == ToolShape::Kind::Box) {
+        const Vec3d h = t.size;
+        auto corner = [&](int i) {
+            return world(Vec3d((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z()));
+        };
+        // Each face as two triangles, counter-clockwise from outside.
+        static constexpr int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+        for (const auto& f : faces) {
+            pushTriangle(out, corner(f[0]), corner(f[1]), corner(f[2]));
+            pushTriangle(out, corner(f[0]), corner(f[2]), corner(f[3]));
+        }
+        return;
+    }
+    // Sphere or capsule: a UV sphere whose two halves are pushed apart along local z.
+    const double r = t.size.x();
+    const double half = t.kind == ToolShape::Kind::Capsule ? t.size.y() : 0.0;
+    constexpr int nu = 24, nv = 12;
+    auto point = [&](int i, int j, double shift) {
+        const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
+        return Vec3d(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th) + shift);
+    };
+    for (int j = 0; j < nv; ++j) {
+        // Rows above the equator belong to the upper cap, the rest to the lower one; the row
+        // across the equator becomes the cylinder.
+        const double s0 = j < nv / 2 ? half : -half;
+        const double s1 = j + 1 <= nv / 2 ? half : -half;
+        for (int i = 0; i < nu; ++i) {
+            Vec3d a = world(point(i, j, s0)), b = world(point(i + 1, j, s0));
+            Vec3d c = world(point(i + 1, j + 1, s1)), d = world(point(i, j + 1, s1));
+            if (j > 0) pushTriangle(out, a, d, c);
+            if (j + 1 < nv) pushTriangle(out, a, c, b);
+        }
+        if (j + 1 == nv / 2 && half > 0) {
+            for (int i = 0; i < nu; ++i) {
+                Vec3d a = world(point(i, nv / 2, half)), b = world(point(i + 1, nv / 2, half));
+                Vec3d c = world(point(i + 1, nv / 2, -half)), d = world(point(i, nv / 2, -half));
+                pushTriangle(out, a, d, c);
+                pushTriangle(out, a, c, b);
+            }
+        }
+    }
+}
+
+// Largest of 1, 2, 5 times a power of ten not above x.
+double niceStep(double x) {
+    const double p = std::pow(10.0, std::floor(std::log10(x)));
+    const double m = x / p;
+    return (m >= 5 ? 5 : m >= 2 ? 2 : 1) * p;
+}
+
+} // namespace
+
+// GL objects.
+struct Renderer::Gl {
+    GLuint msFbo = 0, msColour = 0, msDepth = 0; // multisampled target
+    GLuint outFbo = 0, outColour = 0;            // resolved, read back
+    GLuint meshProg = 0, lineProg = 0;
+    GLuint vao = 0, vbo = 0;
+    ImGuiContext* imgui = nullptr;
+    std::vector<MeshVertex> verts; // reused between frames
+    std::vector<float> lines;
+    // Uniform locations.
+    GLint mView = -1, mProj = -1, mUseMap = -1, mMap = -1, mMapN = -1, mMin = -1, mMax = -1, mColour = -1,
+          mCutColour = -1, mLit = -1, mAlpha = -1;
+    GLint lView = -1, lProj = -1, lColour = -1;
+
+    // Uploads and draws interleaved mesh vertices.
+    void drawMesh(const std::vector<MeshVertex>& v) {
+        if (v.empty()) return;
+        glBindBuffer(GL_ARRAY_BUFFER, vbo);
+        glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_STREAM_DRAW);
+        const GLsizei stride = sizeof(MeshVertex);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, p)));
+        glEnableVertexAttribArray(1);
+        glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, n)));
+        glEnableVertexAttribArray(2);
+        glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, s)));
+        glEnableVertexAttribArray(3);
+        glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, cut)));
+        glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(v.size()));
+    }
+    // Uploads and draws line segments (xyz pairs).
+    void drawLines(const std::vector<float>& l) {
+        if (l.empty()) return;
+        glBindBuffer(GL_ARRAY_BUFFER, vbo);
+        glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(l.size() * sizeof(float)), l.data(), GL_STREAM_DRAW);
+        glEnableVertexAttribArray(0);
+        glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
+        for (GLuint a = 1; a < 4; ++a) glDisableVertexAttribArray(a);
+        glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(l.size() / 3));
+    }
+};
+
+Renderer::Renderer(const RenderOptions& opts) : opts_(opts), ctx_(std::make_unique<EglContext>()), gl_(std::make_unique<Gl>()) {
+    if (opts_.width <= 0 || opts_.height <= 0)
+        throw std::runtime_error("render size must be positive, got " + std::to_string(opts_.width) + "x" +
+                                 std::to_string(opts_.height));
+    Gl& g = *gl_;
+    GLint maxSamples = 1;
+    glGetIntegerv(GL_MAX_SAMPLES, &maxSamples);
+    samples_ = std::clamp(opts_.samples, 1, std::max(1, static_cast<int>(maxSamples)));
+
+    // Multisampled colour + depth, resolved into a single-sample colour buffer for read-back.
+    glGenFramebuffers(1, &g.msFbo);
+    glGenRenderbuffers(1, &g.msColour);
+    glGenRenderbuffers(1, &g.msDepth);
+    glBindRenderbuffer(GL_RENDERBUFFER, g.msColour);
+    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_RGBA8, opts_.width, opts_.height);
+    glBindRenderbuffer(GL_RENDERBUFFER, g.msDepth);
+    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_DEPTH_COMPONENT24, opts_.width, opts_.height);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.msColour);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.msDepth);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        throw std::runtime_error("multisampled framebuffer incomplete");
+    glGenFramebuffers(1, &g.outFbo);
+    glGenRenderbuffers(1, &g.outColour);
+    glBindRenderbuffer(GL_RENDERBUFFER, g.outColour);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, opts_.width, opts_.height);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.outFbo);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.outColour);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        throw std::runtime_error("read-back framebuffer incomplete");
+
+    g.meshProg = link(kMeshVs, kMeshFs);
+    g.lineProg = link(kLineVs, kLineFs);
+    auto loc = [](GLuint p, const char* n) { return glGetUniformLocation(p, n); };
+    g.mView = loc(g.meshProg, "uView");
+    g.mProj = loc(g.meshProg, "uProj");
+    g.mUseMap = loc(g.meshProg, "uUseMap");
+    g.mMap = loc(g.meshProg, "uMap");
+    g.mMapN = loc(g.meshProg, "uMapN");
+    g.mMin = loc(g.meshProg, "uMin");
+    g.mMax = loc(g.meshProg, "uMax");
+    g.mColour = loc(g.meshProg, "uColour");
+    g.mCutColour = loc(g.meshProg, "uCutColour");
+    g.mLit = loc(g.meshProg, "uLit");
+    g.mAlpha = loc(g.meshProg, "uAlpha");
+    g.lView = loc(g.lineProg, "uView");
+    g.lProj = loc(g.lineProg, "uProj");
+    g.lColour = loc(g.lineProg, "uColour");
+    glGenVertexArrays(1, &g.vao);
+    glGenBuffers(1, &g.vbo);
+
+    // ImGui with its own context per renderer; no window system: the display size is ours.
+    g.imgui = ImGui::CreateContext();
+    ImGui::SetCurrentContext(g.imgui);
+    ImGuiIO& io = ImGui::GetIO();
+    io.IniFilename = nullptr; // no imgui.ini next to the run
+    io.LogFilename = nullptr;
+    io.DisplaySize = ImVec2(static_cast<float>(opts_.width), static_cast<float>(opts_.height));
+    ImGui::StyleColorsDark();
+    if (!ImGui_ImplOpenGL3_Init("#version 330 core"))
+        throw std::runtime_error("ImGui OpenGL3 backend failed to initialise");
+}
+
+Renderer::~Renderer() {
+    ctx_->makeCurrent();
+    Gl& g = *gl_;
+    ImGui::SetCurrentContext(g.imgui);
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui::DestroyContext(g.imgui);
+    glDeleteBuffers(1, &g.vbo);
+    glDeleteVertexArrays(1, &g.vao);
+    glDeleteProgram(g.meshProg);
+    glDeleteProgram(g.lineProg);
+    glDeleteFramebuffers(1, &g.msFbo);
+    glDeleteFramebuffers(1, &g.outFbo);
+    GLuint rbs[] = {g.msColour, g.msDepth, g.outColour};
+    glDeleteRenderbuffers(3, rbs);
+}
+
+PixelRect Renderer::legendRect() const {
+    // Right edge, half the height, room for tick labels on its right.
+    const float w = static_cast<float>(opts_.width), h = static_cast<float>(opts_.height);
+    const float barW = std::max(8.0f, std::round(0.015f * w));
+    const float labelW = 62.0f;
+    PixelRect r;
+    r.x1 = w - labelW - 10.0f;
+    r.x0 = r.x1 - barW;
+    r.y0 = std::round(0.25f * h);
+    r.y1 = std::round(0.75f * h);
+    return r;
+}
+
+void Renderer::draw(const RenderSnapshot& snap) {
+    ctx_->makeCurrent();
+    Gl& g = *gl_;
+    const int n = snap.vertices();
+    const bool useMap = snap.scalar.size() == n && n > 0;
+
+    // Scene bounds: surface, critical tets and tools.
+    Eigen::AlignedBox3d box;
+    for (int v = 0; v < n; ++v) box.extend(snap.positions.col(v));
+    for (int v = 0; v < snap.criticalTets.cols(); ++v) box.extend(snap.criticalTets.col(v));
+    for (const auto& t : snap.tools) {
+        box.extend(t.position + Vec3d::Constant(t.size.norm() * 1.8));
+        box.extend(t.position - Vec3d::Constant(t.size.norm() * 1.8));
+    }
+    if (box.isEmpty()) box.extend(snap.camera.target);
+    const Vec3d centre = box.center();
+    const double radius = std::max(0.5 * box.diagonal().norm(), 1e-6);
+    const Vec3d up = snap.camera.up.normalized();
+
+    // Camera: near and far planes hug the scene and the floor around it.
+    const double dist = (snap.camera.eye - centre).norm();
+    const double zFar = dist + 3.0 * radius;
+    const double zNear = std::max(dist - 3.0 * radius, zFar * 1e-3);
+    const Mat4f view = lookAt(snap.camera.eye, snap.camera.target, up);
+    const Mat4f proj = perspective(snap.camera.fovY, double(opts_.width) / opts_.height, zNear, zFar);
+
+    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
+    glViewport(0, 0, opts_.width, opts_.height);
+    const Vec3f bg = rgb(opts_.background);
+    glClearColor(bg.x(), bg.y(), bg.z(), 1.0f);
+    glClearDepth(1.0);
+    glDepthMask(GL_TRUE);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LEQUAL);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_BLEND);
+    glDisable(GL_SCISSOR_TEST);
+    glBindVertexArray(g.vao);
+
+    // ---- surface ----
+    glUseProgram(g.meshProg);
+    glUniformMatrix4fv(g.mView, 1, GL_FALSE, view.data());
+    glUniformMatrix4fv(g.mProj, 1, GL_FALSE, proj.data());
+    {
+        auto table = colorMapTable(snap.diverging ? ColorMapKind::Diverging : ColorMapKind::Sequential);
+        float map[16 * 3] = {};
+        for (size_t i = 0; i < table.size() && i < 16; ++i) {
+            map[3 * i] = table[i].r / 255.0f;
+            map[3 * i + 1] = table[i].g / 255.0f;
+            map[3 * i + 2] = table[i].b / 255.0f;
+        }
+        glUniform3fv(g.mMap, 16, map);
+        glUniform1i(g.mMapN, static_cast<GLint>(std::min<size_t>(table.size(), 16)));
+    }
+    glUniform1f(g.mMin, static_cast<float>(snap.scalarMin));
+    glUniform1f(g.mMax, static_cast<float>(snap.scalarMax));
+    glUniform1i(g.mUseMap, useMap ? 1 : 0);
+    const Vec3f surf = rgb(opts_.surfaceColour), cut = rgb(opts_.cutColour);
+    glUniform3f(g.mColour, surf.x(), surf.y(), surf.z());
+    glUniform3f(g.mCutColour, cut.x(), cut.y(), cut.z());
+    glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
+    glUniform1f(g.mAlpha, 1.0f);
+
+    // Normals: given per vertex, or per triangle corner from the area-weighted normals of the
+    // faces around the vertex that meet this face at less than the crease angle, so box edges
+    // and cut rims stay sharp while curved surfaces shade smoothly.
+    const bool hasCut = snap.cutFace.size() == static_cast<size_t>(snap.faces());
+    const bool given = snap.normals.cols() == n;
+    const int nf = snap.faces();
+    Eigen::Matrix3Xf faceN(3, given ? 0 : nf);
+    std::vector<int> start, vertexFaces; // vertex -> faces (CSR)
+    if (!given) {
+        start.assign(static_cast<size_t>(n) + 1, 0);
+        for (int f = 0; f < nf; ++f) {
+            const auto t = snap.triangles.col(f);
+            faceN.col(f) = (snap.positions.col(t[1]) - snap.positions.col(t[0]))
+                               .cross(snap.positions.col(t[2]) - snap.positions.col(t[0]))
+                               .cast<float>();
+            for (int k = 0; k < 3; ++k) ++start[static_cast<size_t>(t[k]) + 1];
+        }
+        for (int v = 0; v < n; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
+        vertexFaces.resize(static_cast<size_t>(start.back()));
+        std::vector<int> fill(start.begin(), start.end() - 1);
+        for (int f = 0; f < nf; ++f)
+            for (int k = 0; k < 3; ++k) vertexFaces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
+    }
+    constexpr float kCosCrease = 0.64f; // about 50 degrees
+    g.verts.clear();
+    g.verts.reserve(3 * static_cast<size_t>(nf));
+    for (int f = 0; f < nf; ++f) {
+        const float c = hasCut && snap.cutFace[static_cast<size_t>(f)] ? 1.0f : 0.0f;
+        const Vec3f own = given ? Vec3f::Zero() : Vec3f(faceN.col(f).normalized());
+        for (int k = 0; k < 3; ++k) {
+            const int v = snap.triangles(k, f);
+            Vec3f q;
+            if (given) {
+                q = snap.normals.col(v).cast<float>();
+            } else {
+                q.setZero();
+                for (int i = start[static_cast<size_t>(v)]; i < start[static_cast<size_t>(v) + 1]; ++i) {
+                    const auto other = faceN.col(vertexFaces[static_cast<size_t>(i)]);
+                    if (own.dot(other) > kCosCrease * other.norm()) q += other;
+                }
+                q = q.squaredNorm() > 0 ? Vec3f(q.normalized()) : own;
+            }
+            const Vec3f p = snap.positions.col(v).cast<float>();
+            g.verts.push_back({{p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z()}, useMap ? float(snap.scalar[v]) : 0.0f, c});
+        }
+    }
+    // Pushed back a little so wireframe lines on it win the depth test.
+    glEnable(GL_POLYGON_OFFSET_FILL);
+    glPolygonOffset(1.0f, 1.0f);
+    g.drawMesh(g.verts);
+    glDisable(GL_POLYGON_OFFSET_FILL);
+
+    // ---- tools ----
+    if (!snap.tools.empty()) {
+        g.verts.clear();
+        for (const auto& t : snap.tools) toolTriangles(t, g.verts);
+        const Vec3f tc = rgb(opts_.toolColour);
+        glUniform1i(g.mUseMap, 0);
+        glUniform3f(g.mColour, tc.x(), tc.y(), tc.z());
+        g.drawMesh(g.verts);
+    }
+
+    // ---- critical elements, first where visible ----
+    const int nCrit = static_cast<int>(snap.criticalTets.cols() / 4);
+    std::vector<MeshVertex> critTris;
+    std::vector<float> critLines;
+    if (opts_.xray && nCrit > 0) {
+        static constexpr int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+        static constexpr int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+        for (int e = 0; e < nCrit; ++e) {
+            auto c = [&](int a) { return Vec3d(snap.criticalTets.col(4 * e + a)); };
+            for (const auto& f : faces) pushTriangle(critTris, c(f[0]), c(f[1]), c(f[2]));
+            for (const auto& ed : edges)
+                for (int a : {ed[0], ed[1]}) {
+                    Vec3f p = c(a).cast<float>();
+                    critLines.insert(critLines.end(), {p.x(), p.y(), p.z()});
+                }
+        }
+        const Vec3f cc = rgb(opts_.criticalColour);
+        glUniform1i(g.mUseMap, 0);
+        glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
+        g.drawMesh(critTris);
+    }
+
+    // ---- lines: wireframe and floor grid ----
+    glUseProgram(g.lineProg);
+    glUniformMatrix4fv(g.lView, 1, GL_FALSE, view.data());
+    glUniformMatrix4fv(g.lProj, 1, GL_FALSE, proj.data());
+    if (opts_.wireframe && snap.edges.cols() >= 2) {
+        g.lines.resize(3 * static_cast<size_t>(snap.edges.cols()));
+        Eigen::Map<Eigen::Matrix3Xf>(g.lines.data(), 3, snap.edges.cols()) = snap.edges.cast<float>();
+        glUniform4f(g.lColour, 0.08f, 0.08f, 0.1f, 1.0f);
+        g.drawLines(g.lines);
+    }
+    if (opts_.floor && n > 0) {
+        // Grid in the plane normal to up, just under the lowest surface point.
+        double low = snap.positions.col(0).dot(up);
+        for (int v = 1; v < n; ++v) low = std::min(low, snap.positions.col(v).dot(up));
+        const Vec3d e1 = up.unitOrthogonal(), e2 = up.cross(e1);
+        const Vec3d origin = centre + (low - 0.02 * radius - centre.dot(up)) * up;
+        const double step = niceStep(radius / 4), half = std::ceil(2.0 * radius / step) * step;
+        g.lines.clear();
+        for (double s = -half; s <= half + 0.5 * step; s += step)
+            for (int axis = 0; axis < 2; ++axis) {
+                const Vec3d a = axis ? e1 : e2, b = axis ? e2 : e1;
+                for (double end : {-half, half}) {
+                    Vec3f p = (origin + s * a + end * b).cast<float>();
+                    g.lines.insert(g.lines.end(), {p.x(), p.y(), p.z()});
+                }
+            }
+        glUniform4f(g.lColour, bg.x() + 0.12f, bg.y() + 0.12f, bg.z() + 0.12f, 1.0f);
+        g.drawLines(g.lines);
+    }
+
+    // ---- critical elements through the surface (x-ray): no depth test, blended ----
+    if (opts_.xray && nCrit > 0) {
+        const Vec3f cc = rgb(opts_.criticalColour);
+        glDisable(GL_DEPTH_TEST);
+        glEnable(GL_BLEND);
+        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+        glUseProgram(g.meshProg);
+        glUniform1i(g.mUseMap, 0);
+        glUniform1i(g.mLit, 0);
+        glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
+        glUniform1f(g.mAlpha, 0.35f);
+        g.drawMesh(critTris);
+        glUseProgram(g.lineProg);
+        glUniform4f(g.lColour, cc.x(), cc.y(), cc.z(), 0.9f);
+        g.drawLines(critLines);
+        glDisable(GL_BLEND);
+        glEnable(GL_DEPTH_TEST);
+    }
+    glBindVertexArray(0);
+
+    // ---- 2D: legend and HUD (ImGui draws into the bound framebuffer) ----
+    drawHudAndLegend(snap);
+
+    // Resolve the samples into the read-back target.
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, g.msFbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, g.outFbo);
+    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+}
+
+void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
+    Gl& g = *gl_;
+    const bool legend = opts_.legend && snap.scalar.size() == snap.vertices() && snap.vertices() > 0;
+    if (!legend && !opts_.hud) return;
+    ImGui::SetCurrentContext(g.imgui);
+    ImGuiIO& io = ImGui::GetIO();
+    io.DisplaySize = ImVec2(static_cast<float>(opts_.width), static_cast<float>(opts_.height));
+    io.DeltaTime = 1.0f / 30.0f; // fixed: frames must not depend on wall-clock time
+
+    auto hudWindow = [&] {
+        const HudValues& h = snap.hud;
+        ImGui::SetNextWindowPos(ImVec2(8, 8));
+        ImGui::SetNextWindowBgAlpha(0.6f);
+        const ImGuiWindowFlags flags = ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize |
+                                       ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing |
+                                       ImGuiWindowFlags_NoNav | ImGuiWindowFlags_NoInputs;
+        ImGui::Begin("hud", nullptr, flags);
+        ImGui::Text("t        %.4f s", h.simTime);
+        ImGui::Text("dt used  %.3e s", h.dtUsed);
+        ImGui::Text("dt cert  %.3e s", h.dtCertified);
+        if (std::isnan(h.dtExact))
+            ImGui::Text("dt exact n/a");
+        else
+            ImGui::Text("dt exact %.3e s", h.dtExact);
+        ImGui::Text("steps/s  %.0f", h.stepsPerSecond);
+        ImGui::Text("RT x     %.3f", h.realTimeFactor);
+        ImGui::Text("critical %d", h.criticalElements);
+        ImGui::Text("cuts     %d", h.cuts);
+        for (const auto& line : h.lines) ImGui::TextUnformatted(line.c_str());
+        ImGui::End();
+    };
+
+    // A new window is hidden on its first frame (auto-fit): run one frame without drawing it.
+    if (opts_.hud && !hudShown_) {
+        ImGui_ImplOpenGL3_NewFrame();
+        ImGui::NewFrame();
+        hudWindow();
+        ImGui::Render();
+        hudShown_ = true;
+    }
+
+    ImGui_ImplOpenGL3_NewFrame();
+    ImGui::NewFrame();
+    if (opts_.hud) hudWindow();
+    if (legend) {
+        // Colour bar: one gradient quad per pair of control points, so the bar is exactly the map.
+        ImDrawList* dl = ImGui::GetBackgroundDrawList();
+        const PixelRect r = legendRect();
+        auto table = colorMapTable(snap.diverging ? ColorMapKind::Diverging : ColorMapKind::Sequential);
+        const int segs = static_cast<int>(table.size()) - 1;
+        auto col = [](Rgb8 c) { return IM_COL32(c.r, c.g, c.b, 255); };
+        for (int i = 0; i < segs; ++i) {
+            const float yb = r.y1 - (r.y1 - r.y0) * float(i) / float(segs);
+            const float yt = r.y1 - (r.y1 - r.y0) * float(i + 1) / float(segs);
+            const ImU32 lo = col(table[static_cast<size_t>(i)]), hi = col(table[static_cast<size_t>(i + 1)]);
+            dl->AddRectFilledMultiColor(ImVec2(r.x0, yt), ImVec2(r.x1, yb), hi, hi, lo, lo);
+        }
+        dl->AddRect(ImVec2(r.x0 - 1, r.y0 - 1), ImVec2(r.x1 + 1, r.y1 + 1), IM_COL32(220, 220, 220, 255));
+        // Ticks at the ends, quarters and middle.
+        const ImU32 text = IM_COL32(235, 235, 235, 255);
+        const float lineH = ImGui::GetTextLineHeight();
+        for (int k = 0; k <= 4; ++k) {
+            const float y = r.y1 - (r.y1 - r.y0) * float(k) / 4.0f;
+            const double v = snap.scalarMin + (snap.scalarMax - snap.scalarMin) * k / 4.0;
+            char buf[32];
+            std::snprintf(buf, sizeof buf, "%.3g", std::abs(v) < 1e-12 * std::abs(snap.scalarMax - snap.scalarMin) ? 0.0 : v);
+            dl->AddLine(ImVec2(r.x1, y), ImVec2(r.x1 + 4, y), text);
+            dl->AddText(ImVec2(r.x1 + 7, y - 0.5f * lineH), text, buf);
+        }
+        std::string title = snap.scalarName;
+        if (!snap.scalarUnit.empty()) title += " [" + snap.scalarUnit + "]";
+        if (!title.empty()) {
+            const float tw = ImGui::CalcTextSize(title.c_str()).x;
+            const float x = std::max(4.0f, std::min(r.x0, static_cast<float>(opts_.width) - tw - 6.0f));
+            dl->AddText(ImVec2(x, r.y0 - lineH - 6), text, title.c_str());
+        }
+    }
+    ImGui::Render();
+    ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+}
+
+Image Renderer::read() const {
+    ctx_->makeCurrent();
+    Image img;
+    img.width = opts_.width;
+    img.height = opts_.height;
+    img.rgba.resize(4 * static_cast<size_t>(img.width) * static_cast<size_t>(img.height));
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, gl_->outFbo);
+    glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    std::vector<std::uint8_t> raw(img.rgba.size());
+    glReadPixels(0, 0, img.width, img.height, GL_RGBA, GL_UNSIGNED_BYTE, raw.data());
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    // GL's first row is the bottom one.
+    const size_t row = 4 * static_cast<size_t>(img.width);
+    for (int y = 0; y < img.height; ++y)
+        std::copy_n(raw.data() + row * static_cast<size_t>(img.height - 1 - y), row, img.rgba.data() + row * static_cast<size_t>(y));
+    return img;
+}
+
+} // namespace cutsim::render

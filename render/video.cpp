@@ -1,0 +1,85 @@
+#include "video.hpp"
+
+#include <csignal>
+#include <cstdlib>
+#include <sstream>
+#include <stdexcept>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace cutsim::render {
+
+std::string findOnPath(const std::string& program) {
+    const char* path = std::getenv("PATH");
+    if (!path || !*path) return {};
+    std::stringstream dirs(path);
+    std::string dir;
+    while (std::getline(dirs, dir, ':')) {
+        if (dir.empty()) continue; // an empty entry would mean the current folder: not trusted
+        const std::string full = dir + "/" + program;
+        if (::access(full.c_str(), X_OK) == 0) return full;
+    }
+    return {};
+}
+
+namespace {
+// Single-quoted for /bin/sh.
+std::string shellQuote(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+} // namespace
+
+VideoEncoder::VideoEncoder(const std::string& path, int width, int height, double fps)
+    : path_(path), tmp_(path + ".tmp"), width_(width), height_(height) {
+    if (width <= 0 || height <= 0 || width % 2 || height % 2)
+        throw std::runtime_error("video size must be positive and even (H.264 yuv420p), got " +
+                                 std::to_string(width) + "x" + std::to_string(height));
+    const std::string ffmpeg = findOnPath("ffmpeg");
+    if (ffmpeg.empty())
+        throw std::runtime_error("cannot write video " + path +
+                                 ": the ffmpeg program is not on PATH (install it, e.g. apt-get install ffmpeg)");
+    // A dying ffmpeg must give a write error here, not kill the simulation with SIGPIPE.
+    std::signal(SIGPIPE, SIG_IGN);
+    std::ostringstream cmd;
+    cmd << shellQuote(ffmpeg) << " -hide_banner -loglevel error -y -f rawvideo -pix_fmt rgba -s " << width << "x"
+        << height << " -r " << fps << " -i - -c:v libx264 -pix_fmt yuv420p -f mp4 " << shellQuote(tmp_);
+    pipe_ = ::popen(cmd.str().c_str(), "w");
+    if (!pipe_) throw std::runtime_error("cannot start ffmpeg for " + path);
+}
+
+VideoEncoder::~VideoEncoder() {
+    if (pipe_) {
+        ::pclose(pipe_);
+        std::remove(tmp_.c_str());
+    }
+}
+
+void VideoEncoder::addFrame(const Image& img) {
+    if (!pipe_) throw std::runtime_error("video " + path_ + " already finished");
+    if (img.width != width_ || img.height != height_)
+        throw std::runtime_error("video frame is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
+                                 ", the video " + std::to_string(width_) + "x" + std::to_string(height_));
+    if (std::fwrite(img.rgba.data(), 1, img.rgba.size(), pipe_) != img.rgba.size())
+        throw std::runtime_error("ffmpeg stopped while writing " + path_);
+    ++frames_;
+}
+
+void VideoEncoder::finish() {
+    if (!pipe_) return;
+    const int status = ::pclose(pipe_);
+    pipe_ = nullptr;
+    if (status == -1 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+        std::remove(tmp_.c_str());
+        throw std::runtime_error("ffmpeg failed writing " + path_ + " (exit status " +
+                                 std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")");
+    }
+    if (std::rename(tmp_.c_str(), path_.c_str()) != 0) {
+        std::remove(tmp_.c_str());
+        throw std::runtime_error("cannot rename video to " + path_);
+    }
+}
+
+} // namespace cutsim::render

@@ -1,0 +1,104 @@
+// PNG and video output: round trips, background writing, clear errors.
+#include "png_writer.hpp"
+#include "test_support.hpp"
+#include "video.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+namespace cutsim {
+namespace {
+
+using render::Image;
+
+Image pattern(int w, int h, int seed) {
+    Image img;
+    img.width = w;
+    img.height = h;
+    img.rgba.resize(4 * size_t(w) * h);
+    for (size_t i = 0; i < img.rgba.size(); ++i) img.rgba[i] = static_cast<std::uint8_t>((i * 7 + seed * 13) % 251);
+    return img;
+}
+
+TEST(RenderOutput, PngRoundTrip) {
+    const std::string dir = test::tempDir();
+    const Image img = pattern(33, 17, 1);
+    render::writePng(dir + "/a.png", img);
+    EXPECT_FALSE(std::filesystem::exists(dir + "/a.png.tmp"));
+    const Image back = render::readPng(dir + "/a.png");
+    EXPECT_EQ(back.width, 33);
+    EXPECT_EQ(back.height, 17);
+    EXPECT_EQ(back.rgba, img.rgba);
+}
+
+TEST(RenderOutput, PngToUnwritableFolderThrows) {
+    const std::string dir = test::tempDir();
+    // A regular file where a folder should be: unwritable even for root.
+    std::ofstream(dir + "/file") << "x";
+    EXPECT_THROW(render::writePng(dir + "/file/a.png", pattern(4, 4, 0)), std::runtime_error);
+    try {
+        render::writePng(dir + "/missing/a.png", pattern(4, 4, 0));
+        FAIL() << "no exception";
+    } catch (const std::runtime_error& e) {
+        EXPECT_NE(std::string(e.what()).find("missing/a.png"), std::string::npos) << e.what();
+    }
+}
+
+TEST(RenderOutput, BackgroundWriterWritesEveryFrame) {
+    const std::string dir = test::tempDir();
+    render::PngWriter w(2);
+    for (int i = 0; i < 10; ++i) w.push(dir + "/f" + std::to_string(i) + ".png", pattern(40, 30, i));
+    w.flush();
+    EXPECT_EQ(w.written(), 10u);
+    for (int i = 0; i < 10; ++i) EXPECT_EQ(render::readPng(dir + "/f" + std::to_string(i) + ".png").rgba, pattern(40, 30, i).rgba);
+}
+
+TEST(RenderOutput, BackgroundWriterReportsErrors) {
+    const std::string dir = test::tempDir();
+    render::PngWriter w(2);
+    w.push(dir + "/missing/a.png", pattern(4, 4, 0));
+    EXPECT_THROW(w.flush(), std::runtime_error);
+    w.push(dir + "/ok.png", pattern(4, 4, 0)); // the writer keeps working after an error
+    w.flush();
+    EXPECT_TRUE(std::filesystem::exists(dir + "/ok.png"));
+}
+
+// Restores PATH when the test ends.
+struct PathGuard {
+    std::string old = std::getenv("PATH") ? std::getenv("PATH") : "";
+    ~PathGuard() { setenv("PATH", old.c_str(), 1); }
+};
+
+TEST(RenderOutput, MissingFfmpegIsReportedClearly) {
+    PathGuard guard;
+    setenv("PATH", "", 1);
+    const std::string dir = test::tempDir();
+    try {
+        render::VideoEncoder enc(dir + "/v.mp4", 64, 48, 30);
+        FAIL() << "no exception";
+    } catch (const std::runtime_error& e) {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find("ffmpeg"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("PATH"), std::string::npos) << msg;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir + "/v.mp4"));
+}
+
+TEST(RenderOutput, VideoEncodes) {
+    if (render::findOnPath("ffmpeg").empty()) GTEST_SKIP() << "ffmpeg not installed";
+    const std::string dir = test::tempDir();
+    render::VideoEncoder enc(dir + "/v.mp4", 64, 48, 30);
+    for (int i = 0; i < 15; ++i) enc.addFrame(pattern(64, 48, i));
+    EXPECT_FALSE(std::filesystem::exists(dir + "/v.mp4")); // only the temporary file so far
+    enc.finish();
+    EXPECT_EQ(enc.frames(), 15);
+    EXPECT_GT(std::filesystem::file_size(dir + "/v.mp4"), 100u);
+    EXPECT_FALSE(std::filesystem::exists(dir + "/v.mp4.tmp"));
+    EXPECT_THROW(render::VideoEncoder(dir + "/odd.mp4", 63, 48, 30), std::runtime_error);
+}
+
+} // namespace
+} // namespace cutsim
