@@ -76,7 +76,7 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d&
         const Eigen::Matrix3d Xn = 0.5 * (X + C / X.col(0).dot(C.col(0)));
         const double d = (Xn - X).squaredNorm();
         X = Xn;
-        if (d < 1e-16) break;  // quadratic convergence: the error of X is now ~d, i.e. round-off
+        if (d < 1e-12) break;  // quadratic convergence: the error of X is now ~d/2 <= 1e-12
     }
     return X;
 }
