@@ -145,9 +145,13 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     const bool explicitScheme = sc.integrator != Integrator::BackwardEuler;
     if (explicitScheme && dt > exact.dt) {
         if (sc.dt.onLimit == "refuse")
-            throw InputError(sc.file + ": integrator.dt: step " + std::to_string(dt) + " s is above the exact stable limit " +
-                             std::to_string(exact.dt) + " s of " + integratorName(sc.integrator) +
+        {
+            char msg[256];
+            std::snprintf(msg, sizeof msg, "step %.6g s is above the exact stable limit %.6g s of %s", dt, exact.dt,
+                          integratorName(sc.integrator));
+            throw InputError(sc.file + ": integrator.dt: " + msg +
                              "; set integrator.dt.on_limit to \"clamp\" or \"damp\" to allow it");
+        }
         if (sc.dt.onLimit == "clamp") {
             dt = 0.98 * exact.dt;  // at exactly the limit the top mode is only marginally stable
             limitAction = "clamped";

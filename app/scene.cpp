@@ -55,7 +55,8 @@ Region readRegion(ObjectReader& r) {
         ObjectReader s = r.object("sphere");
         g.kind = Region::Kind::Sphere;
         g.point = s.requiredVec3("center");
-        g.distance = s.number("radius", 0, 0, 1e300, true);
+        g.distance = s.requiredNumber("radius", 0, 1e300);
+        if (!(g.distance > 0)) s.fail("radius", "must be > 0");
         s.finish();
         ++kinds;
     }

@@ -25,7 +25,8 @@ struct Region {
     std::string path;                                   // key path, for messages
 };
 
-// Time profile of a load: factor in [0, 1] (constant, linear ramp, sine, or on only in [start, end]).
+// Time profile of a load: a factor on the force. constant: 1 from start on; ramp: 0 -> 1 over
+// [start, end]; sine: sin(2 pi (t - start) / period) in [start, end] (in [-1, 1]); pulse: 1 in [start, end].
 struct Profile {
     enum class Kind { Constant, Ramp, Sine, Pulse } kind = Kind::Constant;
     double start = 0, end = 1e300;  // [s]

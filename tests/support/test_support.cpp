@@ -34,8 +34,10 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
 }
 
 int runCutsim(const std::string& args, std::string* out, std::string* err) {
-    const std::string dir = tempDir();
-    const std::string o = dir + "/stdout.txt", e = dir + "/stderr.txt";
+    // its own folder: tempDir() would wipe files the test prepared for the command
+    const auto dir = std::filesystem::temp_directory_path() / ("cutsim_run_" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir);
+    const std::string o = (dir / "stdout.txt").string(), e = (dir / "stderr.txt").string();
     const std::string cmd = std::string(CUTSIM_BINARY) + " " + args + " >" + o + " 2>" + e;
     const int status = std::system(cmd.c_str());
     auto slurp = [](const std::string& p) {

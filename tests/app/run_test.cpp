@@ -1,0 +1,304 @@
+// `cutsim run`: the report.json contract, final.vtu, and refusal of bad scenes before any output.
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <unistd.h>
+
+namespace cutsim {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// test::runCutsim() calls test::tempDir(), which wipes the test's temp folder, so scenes and
+// output folders live in a separate folder of their own.
+std::string workDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string name = std::string(info->test_suite_name()) + "_" + info->name();
+    const fs::path dir = fs::temp_directory_path() / ("cutsim_run_" + name + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir.string();
+}
+
+json barSag() {
+    std::ifstream in(test::source("assets/scenes/bar_sag.json"));
+    return json::parse(in);
+}
+
+std::string writeScene(const std::string& dir, const std::string& name, const json& j) {
+    const std::string p = dir + "/" + name;
+    std::ofstream(p) << j.dump(2) << "\n";
+    return p;
+}
+
+json readReport(const std::string& out) {
+    std::ifstream in(out + "/report.json");
+    return json::parse(in);
+}
+
+// A bad scene: exit 2, "error:" and the key path on stderr, and no --out folder.
+void expectRefused(const std::string& scene, const std::string& sets, const std::string& keyPath,
+                   std::string* errOut = nullptr) {
+    static int counter = 0;
+    const fs::path fresh = fs::temp_directory_path() /
+                           ("cutsim_run_never_" + std::to_string(::getpid()) + "_" + std::to_string(++counter));
+    fs::remove_all(fresh);
+    const std::string out = fresh.string();
+    std::string err;
+    const int code = test::runCutsim("run " + scene + " --out " + out + " --no-render --quiet " + sets, nullptr, &err);
+    EXPECT_EQ(code, 2) << err;
+    EXPECT_NE(err.find("error:"), std::string::npos) << err;
+    EXPECT_NE(err.find(keyPath), std::string::npos) << "expected '" << keyPath << "' in: " << err;
+    EXPECT_FALSE(fs::exists(out)) << "the output folder must not be created for a bad scene";
+    if (errOut) *errOut = err;
+}
+
+// The number that follows `after` in `text`, or NaN.
+double numberAfter(const std::string& text, const std::string& after) {
+    const auto p = text.find(after);
+    if (p == std::string::npos) return std::nan("");
+    return std::strtod(text.c_str() + p + after.size(), nullptr);
+}
+
+TEST(Run, BarSagReportHoldsTheContract) {
+    const std::string out = workDir() + "/out";
+    const std::string scene = test::source("assets/scenes/bar_sag.json");
+    std::string err;
+    const int code = test::runCutsim("run " + scene + " --out " + out + " --no-render --quiet --set duration=0.05", nullptr, &err);
+    ASSERT_EQ(code, 0) << err;
+    ASSERT_TRUE(fs::exists(out + "/report.json"));
+    const json r = readReport(out);
+
+    for (const char* key : {"scene", "name", "status", "steps", "sim_time", "wall_time", "threads", "integrator", "dt",
+                            "dt_limit_action", "dt_initial", "critical_elements", "mesh", "cuts", "pieces", "mass",
+                            "energy", "inverted", "stages", "frames", "video", "steps_per_second", "real_time_factor"})
+        EXPECT_TRUE(r.contains(key)) << key;
+    EXPECT_EQ(r["scene"].get<std::string>(), scene);
+    EXPECT_EQ(r["name"].get<std::string>(), "bar_sag");
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_EQ(r["integrator"].get<std::string>(), "symplectic_euler");
+    EXPECT_EQ(r["dt_limit_action"].get<std::string>(), "none");
+
+    // Time step: 0.9 of the exact limit, certified below exact.
+    const json& d0 = r["dt_initial"];
+    for (const char* key : {"exact", "certified", "estimate"}) ASSERT_TRUE(d0.contains(key)) << key;
+    const double exact = d0["exact"].get<double>(), certified = d0["certified"].get<double>();
+    EXPECT_GT(exact, 0);
+    EXPECT_GT(certified, 0);
+    EXPECT_LE(certified, exact);
+    EXPECT_GT(d0["estimate"].get<double>(), 0);
+    const double dt = r["dt"].get<double>();
+    EXPECT_EQ(dt, 0.9 * exact);
+
+    // Steps and time: the run covers the duration with a whole number of steps of dt.
+    const long steps = r["steps"].get<long>();
+    const double simTime = r["sim_time"].get<double>();
+    EXPECT_GE(simTime, 0.05);
+    EXPECT_LT(simTime, 0.05 + dt + 1e-12);
+    EXPECT_EQ(steps, static_cast<long>(std::ceil(0.05 / dt - 1e-9)));
+    EXPECT_NEAR(simTime, steps * dt, 1e-9 * simTime);
+    EXPECT_GT(r["wall_time"].get<double>(), 0);
+
+    // Mesh: the 40 x 4 x 4 box, 6 tets per cube, clamped at x = 0 (5 x 5 nodes).
+    EXPECT_EQ(r["mesh"]["file"].get<std::string>(), "box");
+    EXPECT_EQ(r["mesh"]["nodes"].get<int>(), 41 * 5 * 5);
+    EXPECT_EQ(r["mesh"]["elements"].get<int>(), 40 * 4 * 4 * 6);
+    EXPECT_EQ(r["mesh"]["fixed_nodes"].get<int>(), 25);
+
+    // Topology and mass: no cuts, one piece, mass = rho * volume = 1000 * 1 * 0.1 * 0.1 kg.
+    ASSERT_TRUE(r["cuts"].is_array());
+    EXPECT_TRUE(r["cuts"].empty());
+    EXPECT_EQ(r["pieces"].get<int>(), 1);
+    const double m0 = r["mass"]["initial"].get<double>(), m1 = r["mass"]["final"].get<double>();
+    EXPECT_EQ(m0, m1);
+    EXPECT_NEAR(m0, 1000 * 1.0 * 0.1 * 0.1, 1e-9 * 10.0);
+
+    // Energy: one entry per 1/fps of simulated time from t = 0, plus the final state.
+    ASSERT_TRUE(r["energy"].is_array());
+    ASSERT_GE(r["energy"].size(), 2u);
+    EXPECT_EQ(r["energy"][0]["time"].get<double>(), 0.0);
+    EXPECT_NEAR(r["energy"].back()["time"].get<double>(), simTime, 1e-12);
+    for (const auto& e : r["energy"]) {
+        for (const char* key : {"time", "kinetic", "elastic", "gravity", "total"}) ASSERT_TRUE(e.contains(key)) << key;
+        EXPECT_NEAR(e["total"].get<double>(),
+                    e["kinetic"].get<double>() + e["elastic"].get<double>() + e["gravity"].get<double>(), 1e-9);
+        EXPECT_GE(e["kinetic"].get<double>(), 0);
+    }
+    EXPECT_EQ(r["energy"][0]["kinetic"].get<double>(), 0.0);  // starts at rest
+    EXPECT_GT(r["energy"].back()["kinetic"].get<double>(), 0.0);  // and falls under gravity
+
+    // Stages: all seven; with --no-render and no tools only forces, integrate and timestep take time.
+    const json& st = r["stages"];
+    EXPECT_EQ(st.size(), 7u);
+    for (const char* key : {"contact", "forces", "integrate", "cut", "timestep", "render", "encode"})
+        ASSERT_TRUE(st.contains(key)) << key;
+    for (const char* key : {"contact", "cut", "render", "encode"}) EXPECT_EQ(st[key].get<double>(), 0.0) << key;
+    for (const char* key : {"forces", "integrate", "timestep"}) EXPECT_GT(st[key].get<double>(), 0.0) << key;
+
+    EXPECT_EQ(r["frames"].get<int>(), 0);
+    EXPECT_EQ(r["video"].get<std::string>(), "");
+    EXPECT_EQ(r["inverted"]["steps"].get<long>(), 0);
+    EXPECT_GT(r["steps_per_second"].get<double>(), 0);
+    EXPECT_GT(r["real_time_factor"].get<double>(), 0);
+
+    EXPECT_TRUE(fs::exists(out + "/final.vtu"));
+    EXPECT_GT(fs::file_size(out + "/final.vtu"), 0u);
+    EXPECT_FALSE(fs::exists(out + "/frames"));
+    EXPECT_FALSE(fs::exists(out + "/video.mp4"));
+    EXPECT_FALSE(fs::exists(out + "/report.json.tmp"));
+}
+
+TEST(Run, OutputVtuFalseWritesNoVtu) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    const int code = test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                                         " --no-render --quiet --set duration=0.01 --set output.vtu=false",
+                                     nullptr, &err);
+    ASSERT_EQ(code, 0) << err;
+    EXPECT_TRUE(fs::exists(out + "/report.json"));
+    EXPECT_FALSE(fs::exists(out + "/final.vtu"));
+}
+
+TEST(Run, RefusesUnknownKey) {
+    json j = barSag();
+    j["material"]["Young"] = 1e6;
+    expectRefused(writeScene(workDir(), "unknown.json", j), "", "material.Young");
+    // the same through --set
+    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set material.Young=1e6", "material.Young");
+}
+
+TEST(Run, RefusesWrongType) {
+    json j = barSag();
+    j["material"]["E"] = "soft";
+    std::string err;
+    expectRefused(writeScene(workDir(), "type.json", j), "", "material.E", &err);
+    EXPECT_NE(err.find("number"), std::string::npos) << err;
+}
+
+TEST(Run, RefusesIncompressibleNu) {
+    json j = barSag();
+    j["material"]["nu"] = 0.5;
+    expectRefused(writeScene(workDir(), "nu.json", j), "", "material.nu");
+}
+
+TEST(Run, RefusesZeroAndNegativeE) {
+    json j = barSag();
+    j["material"]["E"] = 0;
+    expectRefused(writeScene(workDir(), "e0.json", j), "", "material.E");
+    j["material"]["E"] = -1e6;
+    expectRefused(writeScene(workDir(), "eneg.json", j), "", "material.E");
+}
+
+TEST(Run, RefusesMissingMeshFile) {
+    json j = barSag();
+    j["object"] = {{"mesh", "nope.msh"}};
+    std::string err;
+    expectRefused(writeScene(workDir(), "mesh.json", j), "", "object.mesh", &err);
+    EXPECT_NE(err.find("nope.msh"), std::string::npos) << err;
+}
+
+TEST(Run, RefusesInvalidJsonNamingTheLine) {
+    const std::string p = workDir() + "/broken.json";
+    std::ofstream(p) << "{\n"
+                        "  \"object\": { \"box\": { \"size\": [1.0, 0.1, 0.1], \"cells\": [4, 1, 1] } },\n"
+                        "  \"material\": { \"E\": 1.0e6,, \"nu\": 0.3 },\n"
+                        "  \"duration\": 0.01\n"
+                        "}\n";
+    std::string err;
+    expectRefused(p, "", "broken.json:3:", &err);
+    EXPECT_NE(err.find("invalid JSON"), std::string::npos) << err;
+}
+
+TEST(Run, RefusesFixedStepAboveTheExactLimit) {
+    const std::string scene = test::source("assets/scenes/bar_sag.json");
+    // The exact limit of this scene, from a short valid run.
+    const std::string ref = workDir() + "/ref";
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + scene + " --out " + ref + " --no-render --quiet --set duration=0.001", nullptr, &err), 0)
+        << err;
+    const double exact = readReport(ref)["dt_initial"]["exact"].get<double>();
+
+    json j = barSag();
+    j["integrator"]["dt"] = {{"mode", "fixed"}, {"value", 1.0}};
+    expectRefused(writeScene(workDir(), "fixed.json", j), "", "integrator.dt", &err);
+    EXPECT_NE(err.find("on_limit"), std::string::npos) << err;
+    // the message states the exact limit (to the precision it prints)
+    const double said = numberAfter(err, "exact stable limit ");
+    EXPECT_NEAR(said, exact, 0.01 * exact) << err;
+
+    // the same through --set
+    expectRefused(scene, "--set 'integrator.dt={\"mode\":\"fixed\",\"value\":1.0}'", "integrator.dt");
+}
+
+TEST(Run, RefusalStatesASmallExactLimitPrecisely) {
+    // A stiff material puts the exact limit near 1e-7 s; the message must still state it.
+    const std::string scene = test::source("assets/scenes/bar_sag.json");
+    const std::string stiff = "--set material.E=1e12 --set duration=1e-6";
+    const std::string ref = workDir() + "/ref";
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + scene + " --out " + ref + " --no-render --quiet " + stiff, nullptr, &err), 0) << err;
+    const double exact = readReport(ref)["dt_initial"]["exact"].get<double>();
+    ASSERT_LT(exact, 1e-6);
+
+    expectRefused(scene, stiff + " --set 'integrator.dt={\"mode\":\"fixed\",\"value\":1e-3}'", "integrator.dt", &err);
+    const double said = numberAfter(err, "exact stable limit ");
+    EXPECT_NEAR(said, exact, 0.01 * exact) << err;
+}
+
+TEST(Run, ClampsAFixedStepWhenAsked) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    const int code = test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                                         " --no-render --quiet --set duration=0.01"
+                                         " --set 'integrator.dt={\"mode\":\"fixed\",\"value\":1.0}'"
+                                         " --set integrator.dt.on_limit=\"clamp\"",
+                                     nullptr, &err);
+    ASSERT_EQ(code, 0) << err;
+    const json r = readReport(out);
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_EQ(r["dt_limit_action"].get<std::string>(), "clamped");
+    const double dt = r["dt"].get<double>(), exact = r["dt_initial"]["exact"].get<double>();
+    EXPECT_LT(dt, exact);
+    EXPECT_GT(dt, 0.9 * exact);  // clamped just below the limit, not to something tiny
+    EXPECT_GE(r["sim_time"].get<double>(), 0.01);
+}
+
+TEST(Run, RefusesAFixedRegionThatSelectsNoNode) {
+    json j = barSag();
+    j["fixed"] = json::parse(R"([{"box": {"min": [5, 5, 5], "max": [6, 6, 6]}}])");
+    std::string err;
+    expectRefused(writeScene(workDir(), "nofix.json", j), "", "fixed[0]", &err);
+    EXPECT_NE(err.find("selects no node"), std::string::npos) << err;
+}
+
+TEST(Run, RefusesAnUnwritableOutputBeforeSimulating) {
+    const std::string dir = workDir();
+    const std::string file = dir + "/a_file";
+    std::ofstream(file) << "not a folder\n";
+    // A duration that would take minutes to simulate: the refusal must come before the loop.
+    const auto t0 = std::chrono::steady_clock::now();
+    std::string err;
+    const int code = test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + file +
+                                         "/out --no-render --quiet --set duration=100",
+                                     nullptr, &err);
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(code, 2) << err;
+    EXPECT_NE(err.find("error:"), std::string::npos) << err;
+    EXPECT_NE(err.find(file + "/out"), std::string::npos) << err;
+    EXPECT_LT(seconds, 20.0);
+    EXPECT_TRUE(fs::is_regular_file(file));
+}
+
+} // namespace
+} // namespace cutsim
