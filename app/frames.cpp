@@ -86,7 +86,14 @@ public:
             so.name = "von Mises stress";
             so.unit = "Pa";
         }
-        MeshSnapshot ms = snapshotFromTetMesh(mesh_, state.x, so);
+        // The surface is extracted once; later frames move its vertices and refresh changing fields.
+        if (!ms_) {
+            ms_ = std::make_unique<MeshSnapshot>(snapshotFromTetMesh(mesh_, state.x, so));
+        } else {
+            updateSnapshotPositions(*ms_, mesh_, state.x, so);
+            if (cmap == "stress") setElementValues(*ms_, mesh_, so);
+        }
+        MeshSnapshot& ms = *ms_;
         RenderSnapshot& snap = ms.snap;
         if (cmap == "timestep") {
             // 1 = as fast as the step itself; critical elements sit below criticalFactor
@@ -113,6 +120,7 @@ public:
             snap.camera = *camera_;
         }
         HudValues& h = snap.hud;
+        h = HudValues{};
         h.simTime = info.time;
         h.dtUsed = info.dt;
         h.dtCertified = info.dtCertified;
@@ -149,6 +157,7 @@ private:
     Eigen::Vector3d up_;
     std::vector<int> critical_;
     std::unique_ptr<render::Renderer> renderer_;
+    std::unique_ptr<MeshSnapshot> ms_;
     std::unique_ptr<Camera> camera_;
     render::PngWriter pngs_{8};
     std::unique_ptr<render::VideoEncoder> video_;

@@ -215,7 +215,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             recordFrame();
             nextFrame += frameDt;
         }
-        // 1. contact: no tools yet. Applied loads go to fExt.
+        // 1. contact stage: no tools yet, so it stays 0. Applied loads go to fExt.
         auto ts = Clock::now();
         if (!sc.forces.empty()) {
             state.fExt.setZero();
@@ -225,7 +225,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                 for (int n : loadNodes[l]) state.fExt.col(n) += f;
             }
         }
-        stages.contact += 0;
         // 2-4. forces, integrate, checks (fem/integrate.hpp)
         stepper.step(model, state, so);
         const double stepTime = since(ts);

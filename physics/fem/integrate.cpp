@@ -89,7 +89,7 @@ struct ImplicitWorkspace {
 
     void step(const Model& m, State& s, double dt) {
         if (nElems != m.elements() || nNodes != m.nodes()) build(m);
-        computeForces(m, s);
+        // s.f and s.rot come from the force stage the caller just ran
         const double c = m.massDamping;
         double* val = A.valuePtr();
         std::fill(val, val + A.nonZeros(), 0.0);
@@ -212,6 +212,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     }
     case Integrator::BackwardEuler: {
         if (!implicit_) implicit_ = std::make_unique<ImplicitWorkspace>();
+        forces(m, s, nullptr);
         implicit_->step(m, s, dt);
         break;
     }

@@ -14,7 +14,7 @@ namespace cutsim {
 
 enum class Integrator {
     SymplecticEuler,    // v += dt a(x); x += dt v                         (METHOD.md sec. 2)
-    CentralDifference,  // half-step velocities, centred damping            (thesis eq. 3.5-3.8)
+    CentralDifference,  // half-step velocities, centred damping            (METHOD.md sec. 2)
     Newmark,            // explicit Newmark beta=0, gamma=1/2, damping factor alpha (eqs. 3.11-3.12)
     BackwardEuler,      // implicit reference, linearised corotational, sparse LDL^T
 };

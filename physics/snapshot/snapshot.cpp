@@ -47,6 +47,47 @@ void fillPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen::Matrix3Xd
 
 } // namespace
 
+void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotOptions& opts) {
+    // Per-vertex value: mean over the elements around the node (the simplest smoothing that keeps
+    // the range of the element values).
+    if (!opts.elementValues) return;
+    RenderSnapshot& s = ms.snap;
+    std::vector<int> vertexOf(static_cast<size_t>(mesh.nodes()), -1);
+    for (size_t v = 0; v < ms.surfaceNode.size(); ++v) vertexOf[static_cast<size_t>(ms.surfaceNode[v])] = static_cast<int>(v);
+    const Eigen::VectorXd& ev = *opts.elementValues;
+    assert(ev.size() == mesh.elements());
+    Eigen::VectorXd sum = Eigen::VectorXd::Zero(s.positions.cols());
+    Eigen::VectorXi count = Eigen::VectorXi::Zero(s.positions.cols());
+    for (int t = 0; t < mesh.elements(); ++t)
+        for (int a = 0; a < 4; ++a) {
+            int v = vertexOf[static_cast<size_t>(mesh.tets(a, t))];
+            if (v < 0) continue;
+            sum[v] += ev[t];
+            ++count[v];
+        }
+    s.scalar = sum.cwiseQuotient(count.cast<double>().cwiseMax(1.0));
+    s.scalarName = opts.name;
+    s.scalarUnit = opts.unit;
+    s.diverging = opts.diverging;
+    double lo = ev.size() ? ev[0] : 0.0, hi = ev.size() ? ev[0] : 1.0;
+    for (Eigen::Index t = 1; t < ev.size(); ++t) {
+        lo = std::min(lo, ev[t]);
+        hi = std::max(hi, ev[t]);
+    }
+    if (opts.diverging) {
+        double m = std::max(std::abs(lo), std::abs(hi));
+        lo = -m;
+        hi = m;
+    }
+    if (!(hi > lo)) { // constant field: a range around it so the map stays defined
+        double pad = std::max(std::abs(lo) * 1e-3, 1e-30);
+        lo -= pad;
+        hi += pad;
+    }
+    s.scalarMin = lo;
+    s.scalarMax = hi;
+}
+
 MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const MeshSnapshotOptions& opts) {
     return snapshotFromTetMesh(mesh, mesh.X, opts);
 }
@@ -72,42 +113,7 @@ MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x,
     s.positions.resize(3, static_cast<int>(ms.surfaceNode.size()));
     s.cutFace.assign(static_cast<size_t>(bf.cols()), 0);
 
-    // Per-vertex value: mean over the elements around the node (the simplest smoothing that keeps
-    // the range of the element values).
-    if (opts.elementValues) {
-        const Eigen::VectorXd& ev = *opts.elementValues;
-        assert(ev.size() == mesh.elements());
-        Eigen::VectorXd sum = Eigen::VectorXd::Zero(s.positions.cols());
-        Eigen::VectorXi count = Eigen::VectorXi::Zero(s.positions.cols());
-        for (int t = 0; t < mesh.elements(); ++t)
-            for (int a = 0; a < 4; ++a) {
-                int v = vertexOf[static_cast<size_t>(mesh.tets(a, t))];
-                if (v < 0) continue;
-                sum[v] += ev[t];
-                ++count[v];
-            }
-        s.scalar = sum.cwiseQuotient(count.cast<double>().cwiseMax(1.0));
-        s.scalarName = opts.name;
-        s.scalarUnit = opts.unit;
-        s.diverging = opts.diverging;
-        double lo = ev.size() ? ev[0] : 0.0, hi = ev.size() ? ev[0] : 1.0;
-        for (Eigen::Index t = 1; t < ev.size(); ++t) {
-            lo = std::min(lo, ev[t]);
-            hi = std::max(hi, ev[t]);
-        }
-        if (opts.diverging) {
-            double m = std::max(std::abs(lo), std::abs(hi));
-            lo = -m;
-            hi = m;
-        }
-        if (!(hi > lo)) { // constant field: a range around it so the map stays defined
-            double pad = std::max(std::abs(lo) * 1e-3, 1e-30);
-            lo -= pad;
-            hi += pad;
-        }
-        s.scalarMin = lo;
-        s.scalarMax = hi;
-    }
+    setElementValues(ms, mesh, opts);
 
     fillPositions(ms, mesh, x, opts);
 

@@ -99,6 +99,10 @@ MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x,
                                  const MeshSnapshotOptions& opts = {});
 MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const MeshSnapshotOptions& opts = {});
 
+// Sets the per-vertex scalar, legend and range from opts.elementValues (mean over the elements
+// around each surface vertex); nothing when it is null. For fields that change between frames.
+void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotOptions& opts);
+
 // Moves the surface (and wireframe, critical tets) of a snapshot to new node positions.
 void updateSnapshotPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen::Matrix3Xd& x,
                              const MeshSnapshotOptions& opts = {});

@@ -28,21 +28,8 @@ TetMesh unitTet() {
 
 Eigen::VectorXd flat(const Eigen::Matrix3Xd& x) { return Eigen::Map<const Eigen::VectorXd>(x.data(), x.size()); }
 
-// Exact critical step over free DOFs by a dense eigen-solve (independent of physics/timestep).
-double denseCriticalDt(const Model& m) {
-    const Eigen::MatrixXd K = Eigen::MatrixXd(assembleStiffness(m));
-    std::vector<int> dofs;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.invMass(i) > 0)
-            for (int k = 0; k < 3; ++k) dofs.push_back(3 * i + k);
-    const int nf = static_cast<int>(dofs.size());
-    Eigen::MatrixXd A(nf, nf);
-    for (int r = 0; r < nf; ++r)
-        for (int c = 0; c < nf; ++c)
-            A(r, c) = K(dofs[r], dofs[c]) / std::sqrt(m.mass(dofs[r] / 3) * m.mass(dofs[c] / 3));
-    const double lmax = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(A, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
-    return 2.0 / std::sqrt(lmax);
-}
+// Exact critical step over free DOFs, independent of physics/timestep.
+double denseCriticalDt(const Model& m) { return 2.0 / std::sqrt(test::denseLambdaMax(m)); }
 
 } // namespace
 

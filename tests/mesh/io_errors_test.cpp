@@ -14,17 +14,8 @@ using namespace cutsim;
 
 namespace {
 
-std::string writeText(const std::string& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-    return path;
-}
-
-std::string slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using test::writeText;
+const auto& slurp = test::readText;
 
 // Message of the InputError that `f` throws; a failure if it throws nothing or something else.
 std::string errorOf(const std::function<void()>& f) {

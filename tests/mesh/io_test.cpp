@@ -14,17 +14,8 @@ using namespace cutsim;
 
 namespace {
 
-std::string writeText(const std::string& path, const std::string& text) {
-    std::ofstream(path, std::ios::binary) << text;
-    return path;
-}
-
-std::string slurp(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
+using test::writeText;
+const auto& slurp = test::readText;
 
 int unreferenced(const SurfaceMesh& s) {
     std::vector<char> used(static_cast<size_t>(s.vertices()), 0);

@@ -2,6 +2,7 @@
 
 #include "mesh/generate.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -33,6 +34,32 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
     return cutsim::boxMesh(lx, ly, lz, nx, ny, nz);
 }
 
+std::string writeText(const std::string& path, const std::string& text) {
+    std::ofstream(path, std::ios::binary) << text;
+    return path;
+}
+
+std::string readText(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+double denseLambdaMax(const Model& m) {
+    const Eigen::MatrixXd K = Eigen::MatrixXd(assembleStiffness(m));
+    std::vector<int> dofs;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0)
+            for (int k = 0; k < 3; ++k) dofs.push_back(3 * i + k);
+    const int n = static_cast<int>(dofs.size());
+    Eigen::MatrixXd A(n, n);
+    for (int r = 0; r < n; ++r)
+        for (int c = 0; c < n; ++c)
+            A(r, c) = K(dofs[r], dofs[c]) * std::sqrt(m.invMass(dofs[r] / 3) * m.invMass(dofs[c] / 3));
+    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(A, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+}
+
 int runCutsim(const std::string& args, std::string* out, std::string* err) {
     // its own folder: tempDir() would wipe files the test prepared for the command
     const auto dir = std::filesystem::temp_directory_path() / ("cutsim_run_" + std::to_string(::getpid()));
@@ -40,14 +67,8 @@ int runCutsim(const std::string& args, std::string* out, std::string* err) {
     const std::string o = (dir / "stdout.txt").string(), e = (dir / "stderr.txt").string();
     const std::string cmd = std::string(CUTSIM_BINARY) + " " + args + " >" + o + " 2>" + e;
     const int status = std::system(cmd.c_str());
-    auto slurp = [](const std::string& p) {
-        std::ifstream in(p);
-        std::stringstream ss;
-        ss << in.rdbuf();
-        return ss.str();
-    };
-    if (out) *out = slurp(o);
-    if (err) *err = slurp(e);
+    if (out) *out = readText(o);
+    if (err) *err = readText(e);
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 

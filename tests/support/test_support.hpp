@@ -1,6 +1,7 @@
 // Shared helpers for tests: paths to data and small generated meshes.
 #pragma once
 
+#include "fem/model.hpp"
 #include "mesh/mesh.hpp"
 
 #include <string>
@@ -17,6 +18,14 @@ std::string tempDir();
 // Regular box [0,lx]x[0,ly]x[0,lz] split into nx*ny*nz cubes of 6 tets each (Kuhn split,
 // conforming across cubes), all positively oriented.
 TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz);
+
+// Writes text (binary-exact) to path and returns path; reads a whole file back.
+std::string writeText(const std::string& path, const std::string& text);
+std::string readText(const std::string& path);
+
+// Reference lambda_max(M^-1 K) over the free DOFs by a dense eigen-solve of M^-1/2 K M^-1/2,
+// independent of physics/timestep; for small models only.
+double denseLambdaMax(const Model& m);
 
 // Runs the cutsim executable with the given arguments; returns its exit code, fills out/err.
 int runCutsim(const std::string& args, std::string* out = nullptr, std::string* err = nullptr);

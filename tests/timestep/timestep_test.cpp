@@ -18,20 +18,7 @@
 namespace cutsim {
 namespace {
 
-// Independent reference: dense eigen-solve of M^-1/2 K M^-1/2 over the free DOFs.
-double denseLambdaMax(const Model& m) {
-    const Eigen::MatrixXd K = Eigen::MatrixXd(assembleStiffness(m));
-    std::vector<int> dofs;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.invMass(i) > 0)
-            for (int k = 0; k < 3; ++k) dofs.push_back(3 * i + k);
-    const int n = static_cast<int>(dofs.size());
-    Eigen::MatrixXd A(n, n);
-    for (int r = 0; r < n; ++r)
-        for (int c = 0; c < n; ++c)
-            A(r, c) = K(dofs[r], dofs[c]) * std::sqrt(m.invMass(dofs[r] / 3) * m.invMass(dofs[c] / 3));
-    return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(A, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
-}
+using test::denseLambdaMax;
 
 TetMesh regularTet(double a) {
     TetMesh t;
