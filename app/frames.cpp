@@ -100,11 +100,9 @@ public:
             snap.scalarMin = 1;
             snap.scalarMax = 2.5;
         } else if (cmap == "displacement") {
-            snap.scalar.resize(snap.vertices());
-            for (int v = 0; v < snap.vertices(); ++v) {
-                const int n = ms.surfaceNode[v];
-                snap.scalar(v) = (state.x.col(n) - model.X.col(n)).norm();
-            }
+            Eigen::Matrix3Xd rest;
+            embeddedPositions(ms.surface, mesh_.tets, model.X, rest);
+            snap.scalar = (snap.positions - rest).colwise().norm().transpose();
             snap.scalarName = "displacement";
             snap.scalarUnit = "m";
             snap.scalarMin = 0;

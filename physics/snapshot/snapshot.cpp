@@ -28,7 +28,7 @@ std::vector<std::pair<int, int>> uniqueEdges(const TetMesh& mesh) {
 // Fills the position-dependent parts from x.
 void fillPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen::Matrix3Xd& x, const MeshSnapshotOptions& opts) {
     RenderSnapshot& s = ms.snap;
-    for (size_t v = 0; v < ms.surfaceNode.size(); ++v) s.positions.col(static_cast<int>(v)) = x.col(ms.surfaceNode[v]);
+    embeddedPositions(ms.surface, mesh.tets, x, s.positions);
     s.normals.resize(3, 0); // recomputed by the renderer
     if (opts.wireframe) {
         auto e = uniqueEdges(mesh);
@@ -52,20 +52,21 @@ void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotO
     // the range of the element values).
     if (!opts.elementValues) return;
     RenderSnapshot& s = ms.snap;
-    std::vector<int> vertexOf(static_cast<size_t>(mesh.nodes()), -1);
-    for (size_t v = 0; v < ms.surfaceNode.size(); ++v) vertexOf[static_cast<size_t>(ms.surfaceNode[v])] = static_cast<int>(v);
     const Eigen::VectorXd& ev = *opts.elementValues;
     assert(ev.size() == mesh.elements());
-    Eigen::VectorXd sum = Eigen::VectorXd::Zero(s.positions.cols());
-    Eigen::VectorXi count = Eigen::VectorXi::Zero(s.positions.cols());
+    Eigen::VectorXd sum = Eigen::VectorXd::Zero(mesh.nodes());
+    Eigen::VectorXi count = Eigen::VectorXi::Zero(mesh.nodes());
     for (int t = 0; t < mesh.elements(); ++t)
         for (int a = 0; a < 4; ++a) {
-            int v = vertexOf[static_cast<size_t>(mesh.tets(a, t))];
-            if (v < 0) continue;
-            sum[v] += ev[t];
-            ++count[v];
+            sum[mesh.tets(a, t)] += ev[t];
+            ++count[mesh.tets(a, t)];
         }
-    s.scalar = sum.cwiseQuotient(count.cast<double>().cwiseMax(1.0));
+    const int nv = ms.surface.vertices();
+    s.scalar.resize(nv);
+    for (int v = 0; v < nv; ++v) {
+        const int n = dominantNode(ms.surface, mesh.tets, v);
+        s.scalar[v] = sum[n] / std::max(1, count[n]);
+    }
     s.scalarName = opts.name;
     s.scalarUnit = opts.unit;
     s.diverging = opts.diverging;
@@ -93,25 +94,18 @@ MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const MeshSnapshotOptions&
 }
 
 MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x, const MeshSnapshotOptions& opts) {
+    return snapshotFromSurface(mesh, x, boundarySurface(mesh.tets, mesh.X), opts);
+}
+
+MeshSnapshot snapshotFromSurface(const TetMesh& mesh, const Eigen::Matrix3Xd& x, EmbeddedSurface surface,
+                                 const MeshSnapshotOptions& opts) {
     assert(x.cols() == mesh.nodes());
     MeshSnapshot ms;
     RenderSnapshot& s = ms.snap;
-
-    // Surface: boundary faces, re-indexed to the nodes they use.
-    const Eigen::Matrix3Xi bf = boundaryFaces(mesh);
-    std::vector<int> vertexOf(static_cast<size_t>(mesh.nodes()), -1);
-    s.triangles.resize(3, bf.cols());
-    for (int f = 0; f < bf.cols(); ++f)
-        for (int k = 0; k < 3; ++k) {
-            int& v = vertexOf[static_cast<size_t>(bf(k, f))];
-            if (v < 0) {
-                v = static_cast<int>(ms.surfaceNode.size());
-                ms.surfaceNode.push_back(bf(k, f));
-            }
-            s.triangles(k, f) = v;
-        }
-    s.positions.resize(3, static_cast<int>(ms.surfaceNode.size()));
-    s.cutFace.assign(static_cast<size_t>(bf.cols()), 0);
+    ms.surface = std::move(surface);
+    s.triangles = ms.surface.triangles;
+    s.cutFace = ms.surface.cutFace;
+    s.cutFace.resize(static_cast<size_t>(s.triangles.cols()), 0);
 
     setElementValues(ms, mesh, opts);
 

@@ -2,6 +2,7 @@
 // render/ reads only this struct, so physics and render stay independent (DESIGN.md, data flow).
 #pragma once
 
+#include "mesh/embedding.hpp"
 #include "mesh/mesh.hpp"
 
 #include <Eigen/Core>
@@ -79,7 +80,7 @@ struct RenderSnapshot {
 // A snapshot of a tet mesh with the surface it keeps, so later frames only move vertices.
 struct MeshSnapshot {
     RenderSnapshot snap;
-    std::vector<int> surfaceNode;  // mesh node of each surface vertex (nVerts)
+    EmbeddedSurface surface;       // where each surface vertex rides in the mesh
 };
 
 // Options of snapshotFromTetMesh.
@@ -99,8 +100,12 @@ MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x,
                                  const MeshSnapshotOptions& opts = {});
 MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const MeshSnapshotOptions& opts = {});
 
+// The same for a given embedded surface (a cut or embedded object) instead of the boundary faces.
+MeshSnapshot snapshotFromSurface(const TetMesh& mesh, const Eigen::Matrix3Xd& x, EmbeddedSurface surface,
+                                 const MeshSnapshotOptions& opts = {});
+
 // Sets the per-vertex scalar, legend and range from opts.elementValues (mean over the elements
-// around each surface vertex); nothing when it is null. For fields that change between frames.
+// around the node each surface vertex follows most); nothing when it is null. For fields that change between frames.
 void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotOptions& opts);
 
 // Moves the surface (and wireframe, critical tets) of a snapshot to new node positions.
