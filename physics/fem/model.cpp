@@ -52,9 +52,10 @@ Model buildModel(const TetMesh& mesh, const Material& material, ElementModel ele
 void updateMasses(Model& m) {
     m.mass = Eigen::VectorXd::Zero(m.nodes());
     const double rho = m.material.rho;
+    const bool shares = m.massShare.cols() == m.elements();
     for (int e = 0; e < m.elements(); ++e) {
         const double me = rho * m.volume(e) * m.fraction(e) / 4.0;
-        for (int a = 0; a < 4; ++a) m.mass(m.tets(a, e)) += me;
+        for (int a = 0; a < 4; ++a) m.mass(m.tets(a, e)) += shares ? rho * m.volume(e) * m.massShare(a, e) : me;
     }
     m.invMass.resize(m.nodes());
     for (int i = 0; i < m.nodes(); ++i)

@@ -31,6 +31,8 @@ struct Model {
     Eigen::VectorXd volume;                 // rest volume of the (parent) element (nElems) [m^3]
     Eigen::VectorXd fraction;               // share of the volume this element stands for (nElems) [-];
                                             // 1 for an ordinary element, < 1 for a virtual element of a cut
+    Eigen::Matrix4Xd massShare;             // share of rho * volume lumped to each corner (4 x nElems) [-],
+                                            // or empty: fraction / 4 each (set by the cut's lumping option)
 
     // Loads and damping
     Eigen::Vector3d gravity = Eigen::Vector3d::Zero(); // [m/s^2]
@@ -50,8 +52,8 @@ struct Model {
 Model buildModel(const TetMesh& mesh, const Material& material,
                  ElementModel elementModel = ElementModel::Corotational);
 
-// Recomputes lumped masses (rho V fraction / 4 per node) and inverse masses; call after changing
-// fixed nodes, fractions or the material.
+// Recomputes lumped masses (rho V fraction / 4 per node, or rho V massShare) and inverse masses;
+// call after changing fixed nodes, fractions or the material.
 void updateMasses(Model& model);
 
 // Marks nodes as fixed (their inverse mass becomes 0).

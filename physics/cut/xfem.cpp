@@ -1,0 +1,588 @@
+#include "cut/xfem.hpp"
+
+#include "mesh/mesh.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <numeric>
+#include <tuple>
+
+namespace cutsim {
+
+MassLumping parseLumping(const std::string& name) {
+    if (name == "row_sum") return MassLumping::RowSum;
+    if (name == "weighted_diagonal") return MassLumping::WeightedDiagonal;
+    if (name == "enrichment") return MassLumping::Enrichment;
+    throw InputError("unknown mass lumping '" + name + "' (row_sum, weighted_diagonal, enrichment)");
+}
+
+const char* lumpingName(MassLumping l) {
+    switch (l) {
+    case MassLumping::RowSum: return "row_sum";
+    case MassLumping::WeightedDiagonal: return "weighted_diagonal";
+    case MassLumping::Enrichment: return "enrichment";
+    }
+    return "?";
+}
+
+void planeAxes(const Eigen::Vector3d& normal, Eigen::Vector3d& u, Eigen::Vector3d& v) {
+    u = normal.unitOrthogonal();
+    v = normal.cross(u);
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+const ConvexPiece& wholeTet() {
+    static const ConvexPiece t = referenceTet();
+    return t;
+}
+
+// Point in a convex polygon of either orientation, boundary included (tolerance tol) [m].
+bool insideConvex(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2d& p, double tol) {
+    const size_t n = poly.size();
+    if (n < 3) return false;
+    double area2 = 0;
+    for (size_t k = 0; k < n; ++k) {
+        const Eigen::Vector2d& a = poly[k];
+        const Eigen::Vector2d& b = poly[(k + 1) % n];
+        area2 += a[0] * b[1] - a[1] * b[0];
+    }
+    const double sgn = area2 >= 0 ? 1.0 : -1.0;
+    for (size_t k = 0; k < n; ++k) {
+        const Eigen::Vector2d e = poly[(k + 1) % n] - poly[k];
+        const double len = e.norm();
+        if (len == 0) continue;
+        const Eigen::Vector2d d = p - poly[k];
+        if (sgn * (e[0] * d[1] - e[1] * d[0]) / len < -tol) return false;
+    }
+    return true;
+}
+
+// Convex hull (counter-clockwise) of a few points, Andrew's monotone chain.
+std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> p) {
+    std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); });
+    if (p.size() < 3) return p;
+    std::vector<Eigen::Vector2d> h(2 * p.size());
+    size_t k = 0;
+    auto turn = [](const Eigen::Vector2d& o, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+        return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+    };
+    for (size_t i = 0; i < p.size(); ++i) {
+        while (k >= 2 && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    for (size_t i = p.size() - 1, t = k + 1; i-- > 0;) {
+        while (k >= t && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    h.resize(k - 1);
+    return h;
+}
+
+int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
+    for (int a = 0; a < 4; ++a)
+        if (tets(a, e) == node) return a;
+    return -1;
+}
+
+struct UnionFind {
+    std::vector<int> p;
+    explicit UnionFind(size_t n) : p(n) { std::iota(p.begin(), p.end(), 0); }
+    int find(int i) {
+        while (p[i] != i) i = p[i] = p[p[i]];
+        return i;
+    }
+    void join(int a, int b) { p[find(a)] = find(b); }
+};
+
+} // namespace
+
+const std::vector<int>& CutEngine::virtualsOf(int parent) const {
+    auto it = children_.find(parent);
+    if (it != children_.end()) return it->second;
+    single_.assign(1, parent);
+    return single_;
+}
+
+void CutEngine::prepare(const Model& m) {
+    if (prepared_) return;
+    tets0_ = m.tets;
+    const int ne = m.elements(), nn = m.nodes();
+    fraction0_ = m.fraction;
+
+    // Face adjacency: sort (face key, element, corner) and pair equal keys.
+    std::vector<std::tuple<std::array<int, 3>, int, int>> faces;
+    faces.reserve(4 * static_cast<size_t>(ne));
+    for (int e = 0; e < ne; ++e)
+        for (int k = 0; k < 4; ++k) {
+            std::array<int, 3> f{};
+            for (int a = 0, j = 0; a < 4; ++a)
+                if (a != k) f[j++] = m.tets(a, e);
+            std::sort(f.begin(), f.end());
+            faces.emplace_back(f, e, k);
+        }
+    std::sort(faces.begin(), faces.end());
+    adj_ = Eigen::Matrix4Xi::Constant(4, ne, -1);
+    for (size_t i = 0; i + 1 < faces.size(); ++i)
+        if (std::get<0>(faces[i]) == std::get<0>(faces[i + 1])) {
+            adj_(std::get<2>(faces[i]), std::get<1>(faces[i])) = std::get<1>(faces[i + 1]);
+            adj_(std::get<2>(faces[i + 1]), std::get<1>(faces[i + 1])) = std::get<1>(faces[i]);
+            ++i;
+        }
+
+    // Original node -> parents.
+    ringStart_.assign(static_cast<size_t>(nn) + 1, 0);
+    for (int e = 0; e < ne; ++e)
+        for (int a = 0; a < 4; ++a) ++ringStart_[static_cast<size_t>(m.tets(a, e)) + 1];
+    for (int i = 0; i < nn; ++i) ringStart_[i + 1] += ringStart_[i];
+    ring_.resize(4 * static_cast<size_t>(ne));
+    std::vector<int> fill(ringStart_.begin(), ringStart_.end() - 1);
+    for (int e = 0; e < ne; ++e)
+        for (int a = 0; a < 4; ++a) ring_[static_cast<size_t>(fill[m.tets(a, e)]++)] = e;
+
+    parent_.resize(static_cast<size_t>(ne));
+    std::iota(parent_.begin(), parent_.end(), 0);
+    origNode_.resize(static_cast<size_t>(nn));
+    std::iota(origNode_.begin(), origNode_.end(), 0);
+    prepared_ = true;
+}
+
+void CutEngine::setMassShare(Model& m, int e) const {
+    if (m.massShare.cols() != m.elements()) return;  // enrichment lumping: fraction / 4 by default
+    const auto it = virt_.find(e);
+    const double f = m.fraction(e);
+    if (it == virt_.end() || opts_.lumping == MassLumping::Enrichment) {
+        m.massShare.col(e).setConstant(f / 4.0);
+        return;
+    }
+    // Shares of the side's integrals, scaled to the side's mass (f, with the parent's own
+    // fraction f0 for an embedded element).
+    Eigen::Vector4d first, second;
+    weightIntegrals(it->second.piece, first, second);
+    const Eigen::Vector4d w = opts_.lumping == MassLumping::RowSum ? first : second;
+    const double sum = w.sum();
+    if (sum > 0)
+        m.massShare.col(e) = f * w / sum;
+    else
+        m.massShare.col(e).setConstant(f / 4.0);
+}
+
+CutResult CutEngine::cut(Model& m, State& s, const CutSurface& surface) {
+    std::unordered_map<int, double> nodeS;
+    std::vector<int> pending;
+    CutResult r = apply(m, s, surface, nextCut_++, nullptr, &pending, nodeS);
+    r.pending = static_cast<int>(pending.size());
+    return r;
+}
+
+void CutEngine::endStroke() { stroke_ = Stroke{}; }
+
+CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const BladeEdge& to,
+                           const std::vector<int>* candidates) {
+    const Eigen::Vector3d motion = 0.5 * (to.a + to.b) - 0.5 * (from.a + from.b);
+    const Eigen::Vector3d edge = from.b - from.a;
+    if (!stroke_.active) {
+        const Eigen::Vector3d n = edge.cross(motion);
+        if (!(n.norm() > 1e-12 * std::max(1e-300, edge.norm() * motion.norm())) || n.norm() == 0) return {};
+        stroke_ = Stroke{};
+        stroke_.active = true;
+        stroke_.cut = nextCut_++;
+        stroke_.surface.point = from.a;
+        stroke_.surface.normal = n.normalized();
+    }
+    // The swept quad, projected onto the stroke's plane.
+    Eigen::Vector3d u, v;
+    planeAxes(stroke_.surface.normal, u, v);
+    std::vector<Eigen::Vector2d> q;
+    for (const Eigen::Vector3d& p : {from.a, from.b, to.b, to.a}) {
+        const Eigen::Vector3d d = p - stroke_.surface.point;
+        q.emplace_back(d.dot(u), d.dot(v));
+    }
+    q = convexHull(q);
+    if (q.size() < 3) return {};
+    stroke_.surface.regions.push_back(std::move(q));
+
+    // Elements to test: the candidates and the elements still pending from earlier sweeps.
+    std::vector<int> cand;
+    const std::vector<int>* candPtr = nullptr;
+    if (candidates) {
+        cand = *candidates;
+        cand.insert(cand.end(), stroke_.pending.begin(), stroke_.pending.end());
+        std::sort(cand.begin(), cand.end());
+        cand.erase(std::unique(cand.begin(), cand.end()), cand.end());
+        candPtr = &cand;
+    }
+    std::vector<int> pending;
+    CutResult r = apply(m, s, stroke_.surface, stroke_.cut, candPtr, &pending, stroke_.nodeS);
+    stroke_.pending = std::move(pending);
+    r.pending = static_cast<int>(stroke_.pending.size());
+    return r;
+}
+
+CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId,
+                           const std::vector<int>* candidates, std::vector<int>* pendingOut,
+                           std::unordered_map<int, double>& nodeS) {
+    const auto t0 = Clock::now();
+    prepare(m);
+    CutResult r;
+    r.cut = cutId;
+    r.volumeBefore = m.volume.dot(m.fraction);
+    r.massBefore = m.mass.sum();
+    if (opts_.lumping != MassLumping::Enrichment && m.massShare.cols() != m.elements()) {
+        m.massShare.resize(4, m.elements());
+        for (int e = 0; e < m.elements(); ++e) m.massShare.col(e).setConstant(m.fraction(e) / 4.0);
+    }
+
+    const Eigen::Vector3d n = surface.normal.normalized();
+    const double d = n.dot(surface.point);
+    Eigen::Vector3d u, v;
+    planeAxes(n, u, v);
+    // Signed distance of a node, frozen for the whole cut (a blade stroke) so that elements cut at
+    // different sweeps see the same values at their shared nodes.
+    auto sAt = [&](int node) {
+        auto it = nodeS.find(node);
+        if (it != nodeS.end()) return it->second;
+        const double val = n.dot(s.x.col(node)) - d;
+        nodeS.emplace(node, val);
+        return val;
+    };
+
+    struct NewElem {
+        int src;
+        Virtual virt;
+    };
+    std::vector<NewElem> fresh;
+    std::vector<int> parents;
+    const int E0 = m.elements();
+    const double tol = 1e-9;
+
+    auto visit = [&](int e) {
+        auto it = virt_.find(e);
+        if (it != virt_.end())
+            for (const Halfspace& h : it->second.hs)
+                if (h.cut == cutId) return;  // done by an earlier sweep of this stroke
+        Halfspace h;
+        h.cut = cutId;
+        bool anyPos = false, anyNeg = false;
+        for (int a = 0; a < 4; ++a) {
+            h.s[a] = sAt(m.tets(a, e));
+            (h.s[a] >= 0 ? anyPos : anyNeg) = true;  // ties go to the positive side
+        }
+        if (!(anyPos && anyNeg)) return;
+        const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
+        Halfspace hn = h, hp = h;
+        hn.positive = false;
+        hp.positive = true;
+        ConvexPiece neg = clip(piece, hn), pos = clip(piece, hp);
+        if (neg.empty() && pos.empty()) return;
+
+        if (!surface.regions.empty()) {
+            // Coverage: every point of the element's cross-section must lie in the cut area.
+            const ConvexPiece& side = neg.empty() ? pos : neg;
+            int total = 0, inside = 0;
+            for (const PolyFace& f : side.faces) {
+                if (f.tag != 4 + cutId) continue;
+                for (int vi : f.v) {
+                    const Eigen::Vector4d w = weightsOf(side.xi[vi]);
+                    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+                    for (int a = 0; a < 4; ++a) x += w[a] * s.x.col(m.tets(a, e));
+                    const Eigen::Vector3d dx = x - surface.point;
+                    const Eigen::Vector2d p(dx.dot(u), dx.dot(v));
+                    ++total;
+                    for (const auto& poly : surface.regions)
+                        if (insideConvex(poly, p, tol)) {
+                            ++inside;
+                            break;
+                        }
+                }
+            }
+            if (total == 0 || inside == 0) return;
+            if (inside < total) {
+                if (pendingOut) pendingOut->push_back(e);
+                return;
+            }
+        }
+
+        ++r.crossed;
+        const int p = parent_[static_cast<size_t>(e)];
+        const double fneg = volumeFraction(neg), fpos = volumeFraction(pos);
+        bool keepNeg = fneg >= opts_.minFraction, keepPos = fpos >= opts_.minFraction;
+        if (!keepNeg && !keepPos) (fneg >= fpos ? keepNeg : keepPos) = true;  // never lose a whole element
+        r.dropped += (!keepNeg && fneg > 0) + (!keepPos && fpos > 0);
+
+        Virtual base;
+        if (it != virt_.end()) base = it->second;
+        const double f0 = fraction0_[p];
+        if (keepNeg && keepPos) {
+            ++r.split;
+            NewElem ne{e, base};
+            ne.virt.piece = std::move(pos);
+            ne.virt.hs.push_back(hp);
+            fresh.push_back(std::move(ne));
+        }
+        Virtual& mine = virt_[e];
+        mine = std::move(base);
+        mine.hs.push_back(keepNeg ? hn : hp);
+        mine.piece = keepNeg ? std::move(neg) : std::move(pos);
+        m.fraction(e) = f0 * volumeFraction(mine.piece);
+        parents.push_back(p);
+    };
+    if (candidates) {
+        for (int e : *candidates)
+            if (e >= 0 && e < E0) visit(e);
+    } else {
+        for (int e = 0; e < E0; ++e) visit(e);
+    }
+
+    if (!fresh.empty()) {
+        // Append the new virtual elements in one go: the parent's rest data, its rotation as warm start.
+        const int E1 = E0 + static_cast<int>(fresh.size());
+        m.tets.conservativeResize(4, E1);
+        m.DmInv.conservativeResize(9, E1);
+        m.volume.conservativeResize(E1);
+        m.fraction.conservativeResize(E1);
+        if (m.massShare.cols() == E0) m.massShare.conservativeResize(4, E1);
+        s.rot.conservativeResize(9, E1);
+        s.fe.resize(12, E1);
+        for (size_t k = 0; k < fresh.size(); ++k) {
+            const int e = E0 + static_cast<int>(k), src = fresh[k].src;
+            const int p = parent_[static_cast<size_t>(src)];
+            m.tets.col(e) = m.tets.col(src);
+            m.DmInv.col(e) = m.DmInv.col(src);
+            m.volume(e) = m.volume(src);
+            m.fraction(e) = fraction0_[p] * volumeFraction(fresh[k].virt.piece);
+            s.rot.col(e) = s.rot.col(src);
+            parent_.push_back(p);
+            auto ch = children_.find(p);
+            if (ch == children_.end()) ch = children_.emplace(p, std::vector<int>{p}).first;
+            ch->second.push_back(e);
+            virt_[e] = std::move(fresh[k].virt);
+            r.newElements.push_back(e);
+            r.elementSource.push_back(src);
+        }
+    }
+
+    std::sort(parents.begin(), parents.end());
+    parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
+    if (!parents.empty()) relink(m, s, parents, r, nodeS);
+    r.volumeAfter = m.volume.dot(m.fraction);
+    r.massAfter = m.mass.sum();
+    r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+    return r;
+}
+
+void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
+                       std::unordered_map<int, double>& nodeS) {
+    // Original nodes whose copies may change: those of the parents the cut touched.
+    std::vector<int> nodes;
+    for (int p : parents)
+        for (int a = 0; a < 4; ++a) nodes.push_back(tets0_(a, p));
+    std::sort(nodes.begin(), nodes.end());
+    nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+
+    struct Slot {
+        int elem, corner, parent;
+    };
+    struct Copy {
+        int src, orig;
+    };
+    std::vector<Copy> copies;
+    std::vector<int> changedNodes;
+    std::vector<Slot> slots;
+    std::vector<FaceSide> sides;
+
+    // Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
+    // across the face when their sides leave part of it to both (Molino et al. 2004).
+    auto glued = [&](int e, int p, int k, int g, int q) {
+        const auto ie = virt_.find(e), ig = virt_.find(g);
+        if (ie == virt_.end() && ig == virt_.end()) return true;
+        int cp[3], cq[3];
+        for (int a = 0, j = 0; a < 4; ++a)
+            if (a != k) {
+                cp[j] = a;
+                cq[j] = localIndex(tets0_, q, tets0_(a, p));
+                ++j;
+            }
+        sides.clear();
+        if (ie != virt_.end())
+            for (const Halfspace& h : ie->second.hs) sides.push_back({{h.s[cp[0]], h.s[cp[1]], h.s[cp[2]]}, h.positive});
+        if (ig != virt_.end())
+            for (const Halfspace& h : ig->second.hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
+        return faceAreaFraction(sides) > 1e-9;
+    };
+
+    int nextNode = m.nodes();
+    for (int N : nodes) {
+        slots.clear();
+        for (int i = ringStart_[N]; i < ringStart_[N + 1]; ++i) {
+            const int p = ring_[static_cast<size_t>(i)];
+            const int c = localIndex(tets0_, p, N);
+            for (int e : virtualsOf(p)) slots.push_back({e, c, p});
+        }
+        UnionFind uf(slots.size());
+        for (size_t i = 0; i < slots.size(); ++i)
+            for (size_t j = i + 1; j < slots.size(); ++j) {
+                const Slot &a = slots[i], &b = slots[j];
+                if (a.parent == b.parent) continue;  // sides of one parent are apart by construction
+                int k = -1;
+                for (int c = 0; c < 4; ++c)
+                    if (adj_(c, a.parent) == b.parent) k = c;
+                if (k < 0 || k == a.corner) continue;  // not neighbours across a face holding N
+                if (uf.find(static_cast<int>(i)) == uf.find(static_cast<int>(j))) continue;
+                if (glued(a.elem, a.parent, k, b.elem, b.parent)) uf.join(static_cast<int>(i), static_cast<int>(j));
+            }
+
+        // Components; the largest keep existing node ids, the others get new copies of N.
+        std::vector<std::vector<int>> comps;
+        std::vector<int> compOf(slots.size(), -1), rootComp(slots.size(), -1);
+        for (size_t i = 0; i < slots.size(); ++i) {
+            const int root = uf.find(static_cast<int>(i));
+            if (rootComp[root] < 0) {
+                rootComp[root] = static_cast<int>(comps.size());
+                comps.emplace_back();
+            }
+            comps[rootComp[root]].push_back(static_cast<int>(i));
+        }
+        std::sort(comps.begin(), comps.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+        std::vector<int> used;
+        for (const auto& comp : comps) {
+            std::vector<int> ids;
+            for (int i : comp) ids.push_back(m.tets(slots[i].corner, slots[i].elem));
+            std::sort(ids.begin(), ids.end());
+            int best = -1, bestCount = 0, common = ids.front(), commonCount = 0;
+            for (size_t i = 0; i < ids.size();) {
+                size_t j = i;
+                while (j < ids.size() && ids[j] == ids[i]) ++j;
+                const int cnt = static_cast<int>(j - i);
+                if (cnt > commonCount) common = ids[i], commonCount = cnt;
+                if (cnt > bestCount && std::find(used.begin(), used.end(), ids[i]) == used.end()) best = ids[i], bestCount = cnt;
+                i = j;
+            }
+            int id = best;
+            if (id < 0) {
+                id = nextNode++;
+                copies.push_back({common, N});
+                r.newNodes.push_back(id);
+                if (auto it = nodeS.find(common); it != nodeS.end()) nodeS.emplace(id, it->second);
+            }
+            used.push_back(id);
+            for (int i : comp) {
+                int& cur = m.tets(slots[i].corner, slots[i].elem);
+                if (cur != id) {
+                    changedNodes.push_back(cur);
+                    cur = id;
+                }
+            }
+        }
+    }
+
+    // New nodes: copies of the node they split from, at its rest and current position and velocity.
+    if (!copies.empty()) {
+        const int N0 = m.nodes(), N1 = nextNode;
+        m.X.conservativeResize(3, N1);
+        for (auto* mat : {&s.x, &s.v, &s.f, &s.a, &s.fExt}) mat->conservativeResize(3, N1);
+        m.fixed.resize(static_cast<size_t>(N1), 0);
+        for (int k = 0; k < N1 - N0; ++k) {
+            const int id = N0 + k, src = copies[static_cast<size_t>(k)].src;
+            m.X.col(id) = m.X.col(src);
+            m.fixed[static_cast<size_t>(id)] = m.fixed[static_cast<size_t>(src)];
+            s.x.col(id) = s.x.col(src);
+            s.v.col(id) = s.v.col(src);
+            s.a.col(id) = s.a.col(src);
+            s.f.col(id).setZero();
+            s.fExt.col(id).setZero();
+            origNode_.push_back(copies[static_cast<size_t>(k)].orig);
+        }
+    }
+
+    // Masses and incidence of the changed elements.
+    for (int p : parents)
+        for (int e : virtualsOf(p)) {
+            setMassShare(m, e);
+            r.changedElements.push_back(e);
+            for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
+        }
+    updateMasses(m);
+    buildIncidence(m);
+    std::sort(changedNodes.begin(), changedNodes.end());
+    changedNodes.erase(std::unique(changedNodes.begin(), changedNodes.end()), changedNodes.end());
+    r.changedNodes = std::move(changedNodes);
+}
+
+EmbeddedSurface CutEngine::surface(const Model& m) const {
+    if (!prepared_) return boundarySurface(m.tets, m.X);
+    EmbeddedSurface out;
+    std::vector<int> elem;
+    std::vector<Eigen::Vector4d> weights;
+    std::vector<Eigen::Vector3i> tris;
+    std::unordered_map<int, int> nodeVertex;  // corners share one vertex per node: smooth shading
+
+    auto vertex = [&](int e, const ConvexPiece& piece, int vi) {
+        const int c = piece.corner[static_cast<size_t>(vi)];
+        if (c >= 0) {
+            auto [it, added] = nodeVertex.emplace(m.tets(c, e), static_cast<int>(elem.size()));
+            if (!added) return it->second;
+            Eigen::Vector4d w = Eigen::Vector4d::Zero();
+            w[c] = 1;
+            elem.push_back(e);
+            weights.push_back(w);
+            return it->second;
+        }
+        elem.push_back(e);
+        weights.push_back(weightsOf(piece.xi[static_cast<size_t>(vi)]));
+        return static_cast<int>(elem.size()) - 1;
+    };
+    // A face of an element is inside the body when a virtual element across it uses the same three nodes.
+    auto exposed = [&](int e, int p, int k) {
+        const int q = adj_(k, p);
+        if (q < 0) return true;
+        std::array<int, 3> mine{};
+        for (int a = 0, j = 0; a < 4; ++a)
+            if (a != k) mine[j++] = m.tets(a, e);
+        std::sort(mine.begin(), mine.end());
+        for (int g : virtualsOf(q)) {
+            std::array<int, 3> theirs{};
+            int j = 0;
+            for (int a = 0; a < 4 && j < 3; ++a) {
+                const int orig = tets0_(a, q);
+                if (orig == tets0_(0, p) || orig == tets0_(1, p) || orig == tets0_(2, p) || orig == tets0_(3, p))
+                    theirs[j++] = m.tets(a, g);
+            }
+            std::sort(theirs.begin(), theirs.end());
+            if (theirs == mine) return false;
+        }
+        return true;
+    };
+
+    std::vector<std::uint8_t> cutFace;
+    const int nParents = static_cast<int>(tets0_.cols());
+    for (int p = 0; p < nParents; ++p) {
+        const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
+        for (int e : ves) {
+            const auto it = virt_.find(e);
+            const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
+            for (const PolyFace& f : piece.faces) {
+                const bool cap = f.tag >= 4;
+                if (!cap && !exposed(e, p, f.tag)) continue;
+                std::vector<int> vs;
+                for (int vi : f.v) vs.push_back(vertex(e, piece, vi));
+                for (size_t k = 1; k + 1 < vs.size(); ++k) {
+                    tris.emplace_back(vs[0], vs[k], vs[k + 1]);
+                    cutFace.push_back(cap ? 1 : 0);
+                }
+            }
+        }
+    }
+    out.element = std::move(elem);
+    out.weights.resize(4, static_cast<int>(weights.size()));
+    for (size_t i = 0; i < weights.size(); ++i) out.weights.col(static_cast<int>(i)) = weights[i];
+    out.triangles.resize(3, static_cast<int>(tris.size()));
+    for (size_t i = 0; i < tris.size(); ++i) out.triangles.col(static_cast<int>(i)) = tris[i];
+    out.cutFace = std::move(cutFace);
+    return out;
+}
+
+} // namespace cutsim

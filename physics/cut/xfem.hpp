@@ -1,0 +1,147 @@
+// Cutting with XFEM virtual elements (thesis sec. 2.3 and Algorithm 5; METHOD.md sec. 5).
+//
+// With the shifted Heaviside enrichment, each side of a cut element behaves as a copy of the
+// element: same rest shape (DmInv), its own four control points (the original nodes on its side,
+// duplicates for the nodes on the far side), stiffness and mass scaled by the exact volume
+// fraction of its side. A copy is a "virtual element": an ordinary column of the Model, so the
+// corotational force kernel runs on it unchanged (Algorithm 5 reuses the parent's data).
+// Control points are shared between virtual elements on the same side of neighbouring elements
+// (virtual node algorithm, Molino et al. 2004), so each piece stays one body and pieces separate
+// where the cut goes through.
+//
+// A cut is a topology change between steps. It appends nodes and elements (existing indices keep
+// their meaning), and returns what changed so the caller updates the time-step analysis locally.
+#pragma once
+
+#include "cut/polyhedron.hpp"
+#include "fem/model.hpp"
+#include "fem/state.hpp"
+#include "mesh/embedding.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace cutsim {
+
+// How a virtual element's mass is lumped onto its four control points (thesis sec. 2.3.3).
+enum class MassLumping : std::uint8_t {
+    RowSum,           // m_a = rho int_side N_a: exact row sums of the side's consistent mass
+    WeightedDiagonal, // m_a = m_side int_side N_a^2 / sum_b int_side N_b^2 (Hinton-Rock-Zienkiewicz)
+    Enrichment,       // m_a = m_side / 4 (Menouillard et al. 2006): mass scales with stiffness
+};
+MassLumping parseLumping(const std::string& name);  // row_sum | weighted_diagonal | enrichment
+const char* lumpingName(MassLumping l);
+
+struct CutOptions {
+    // Enrichment lumping is the default because it keeps the time step: an isolated virtual
+    // element then has exactly its parent's eigenvalues (K and M both scale by the fraction), so a
+    // sliver cannot shrink dt. Row sum and weighted diagonal give a far control point of a sliver
+    // a vanishing mass against a finite stiffness row (measured: tests/cut, bench stability).
+    MassLumping lumping = MassLumping::Enrichment;
+    double minFraction = 1e-10;  // a side below this share of its parent's volume is dropped [-]
+};
+
+// A cutting surface in world space: the plane through `point` with unit `normal`, restricted to
+// the union of convex polygons given in the plane's coordinates (origin `point`, axes u, v from
+// planeAxes), or the whole plane when there are none.
+struct CutSurface {
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();   // [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // unit
+    std::vector<std::vector<Eigen::Vector2d>> regions; // convex polygons (u, v) [m]; empty: unbounded
+};
+void planeAxes(const Eigen::Vector3d& normal, Eigen::Vector3d& u, Eigen::Vector3d& v);
+
+// The cutting edge of a blade at one pose.
+struct BladeEdge {
+    Eigen::Vector3d a = Eigen::Vector3d::Zero(); // one end [m]
+    Eigen::Vector3d b = Eigen::Vector3d::Zero(); // the other end [m]
+};
+
+struct CutResult {
+    int cut = -1;                      // id of this cut (a blade stroke keeps one id)
+    int crossed = 0;                   // virtual elements the surface went through
+    int split = 0;                     // of those, split into two (the rest had an empty side)
+    int pending = 0;                   // elements the surface entered but did not cross yet
+    int dropped = 0;                   // sides below minFraction, dropped
+    std::vector<int> newNodes;         // appended node indices
+    std::vector<int> newElements;      // appended element indices
+    std::vector<int> elementSource;    // element each new element was copied from (newElements.size())
+    std::vector<int> changedElements;  // elements whose nodes, fraction or mass share changed, and new ones
+    std::vector<int> changedNodes;     // nodes whose mass or incident elements changed
+    double volumeBefore = 0, volumeAfter = 0; // sum of V * fraction [m^3]
+    double massBefore = 0, massAfter = 0;     // sum of lumped masses [kg]
+    double seconds = 0;                // wall time of the cut [s]
+    bool changed() const { return crossed > 0; }
+};
+
+class CutEngine {
+public:
+    explicit CutEngine(CutOptions opts = {}) : opts_(opts) {}
+
+    // Builds the bookkeeping of the uncut model (face adjacency, boundary). Done by the first cut
+    // if not called; a scene that never cuts never pays for it.
+    void prepare(const Model& m);
+    bool prepared() const { return prepared_; }
+
+    // Cuts every element the surface crosses completely, in the current (deformed) configuration.
+    CutResult cut(Model& m, State& s, const CutSurface& surface);
+
+    // Progressive cut: the blade's edge moved from `from` to `to`. The stroke cuts in the plane
+    // the edge sweeps at its start (a scalpel slices in its own plane; motion out of it is
+    // projected). An element is split once the swept area covers its whole cross-section, so an
+    // element the blade entered stays pending until a later sweep completes it.
+    // candidates: elements that may meet the swept area (e.g. from a broad phase); null: all.
+    CutResult sweep(Model& m, State& s, const BladeEdge& from, const BladeEdge& to,
+                    const std::vector<int>* candidates = nullptr);
+    void endStroke();  // the next sweep starts a new stroke (new plane, new cut id)
+
+    // The surface to draw and collide with: the original boundary clipped to each virtual
+    // element, plus the cut faces (cutFace = 1), all riding their elements.
+    EmbeddedSurface surface(const Model& m) const;
+
+    int cuts() const { return nextCut_; }
+    int pendingElements() const { return static_cast<int>(stroke_.pending.size()); }
+    int parentOf(int e) const { return prepared_ ? parent_[static_cast<size_t>(e)] : e; }
+    int originalNode(int n) const { return prepared_ ? origNode_[static_cast<size_t>(n)] : n; }
+    const CutOptions& options() const { return opts_; }
+
+private:
+    struct Virtual {                 // a cut virtual element
+        ConvexPiece piece;           // its side of the parent, reference coordinates
+        std::vector<Halfspace> hs;   // the sides that made it
+    };
+    struct Stroke {
+        bool active = false;
+        int cut = -1;
+        CutSurface surface;
+        std::vector<int> pending;    // elements entered, not yet crossed
+        std::unordered_map<int, double> nodeS; // signed distance of each node met so far [m]
+    };
+
+    CutResult apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
+                    std::vector<int>* pendingOut, std::unordered_map<int, double>& nodeS);
+    void relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
+                std::unordered_map<int, double>& nodeS);
+    void setMassShare(Model& m, int e) const;
+    const std::vector<int>& virtualsOf(int parent) const;
+
+    CutOptions opts_;
+    bool prepared_ = false;
+    int nextCut_ = 0;
+    Eigen::Matrix4Xi tets0_;               // original elements (4 x nParents)
+    Eigen::VectorXd fraction0_;            // fraction of each parent before any cut (nParents) [-]
+    Eigen::Matrix4Xi adj_;                 // parent across the face opposite each corner, or -1 (4 x nParents)
+    std::vector<int> ringStart_, ring_;    // original node -> parents (CSR)
+    std::vector<int> parent_;              // parent of each element (nElems)
+    std::vector<int> origNode_;            // original node of each node (nNodes)
+    std::unordered_map<int, Virtual> virt_;                // element -> its piece, for cut elements only
+    std::unordered_map<int, std::vector<int>> children_;   // parent -> its elements, for cut parents only
+    Stroke stroke_;
+    mutable std::vector<int> single_;      // scratch for virtualsOf on an uncut parent
+};
+
+} // namespace cutsim

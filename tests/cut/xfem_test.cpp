@@ -1,0 +1,265 @@
+// XFEM virtual elements: exact pieces, conservation, separation, degenerate cuts, the time step.
+#include "cut/polyhedron.hpp"
+#include "cut/xfem.hpp"
+#include "fem/forces.hpp"
+#include "fem/integrate.hpp"
+#include "mesh/embedding.hpp"
+#include "mesh/mesh.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <numeric>
+
+namespace cutsim {
+namespace {
+
+// Piece label of each node: connected components of elements joined through shared nodes.
+std::vector<int> pieceOfNode(const Model& m) {
+    std::vector<int> parent(m.nodes());
+    std::iota(parent.begin(), parent.end(), 0);
+    auto find = [&](int i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    for (int e = 0; e < m.elements(); ++e)
+        for (int a = 1; a < 4; ++a) parent[find(m.tets(a, e))] = find(m.tets(0, e));
+    for (int i = 0; i < m.nodes(); ++i) parent[i] = find(i);
+    return parent;
+}
+
+// Volume (V f) of each piece, ascending.
+std::vector<double> pieceVolumes(const Model& m) {
+    const std::vector<int> piece = pieceOfNode(m);
+    std::map<int, double> vol;
+    for (int e = 0; e < m.elements(); ++e) vol[piece[m.tets(0, e)]] += m.volume(e) * m.fraction(e);
+    std::vector<double> out;
+    for (const auto& kv : vol) out.push_back(kv.second);
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+Model unitBox(int cells) { return buildModel(test::boxMesh(1, 1, 1, cells, cells, cells), Material{}); }
+
+CutSurface plane(Eigen::Vector3d point, Eigen::Vector3d normal) {
+    CutSurface c;
+    c.point = point;
+    c.normal = normal.normalized();
+    return c;
+}
+
+// Closed-surface volume of an embedded surface at rest positions (divergence theorem).
+double surfaceVolume(const EmbeddedSurface& s, const Model& m, double* cutArea = nullptr) {
+    Eigen::Matrix3Xd p;
+    embeddedPositions(s, m.tets, m.X, p);
+    double v = 0, area = 0;
+    for (int f = 0; f < s.faces(); ++f) {
+        const Eigen::Vector3d a = p.col(s.triangles(0, f)), b = p.col(s.triangles(1, f)), c = p.col(s.triangles(2, f));
+        v += a.dot(b.cross(c)) / 6.0;
+        if (s.cutFace[f]) area += 0.5 * (b - a).cross(c - a).norm();
+    }
+    if (cutArea) *cutArea = area;
+    return v;
+}
+
+TEST(Polyhedron, ReferenceTetAndClippedCorner) {
+    const ConvexPiece t = referenceTet();
+    EXPECT_NEAR(volumeFraction(t), 1.0, 1e-15);
+    // s = l1 - 1/2: the corner-1 side is a tet scaled by 1/2, volume 1/8.
+    Halfspace h;
+    h.s << -0.5, 0.5, -0.5, -0.5;
+    h.positive = true;
+    EXPECT_NEAR(volumeFraction(clip(t, h)), 0.125, 1e-15);
+    h.positive = false;
+    EXPECT_NEAR(volumeFraction(clip(t, h)), 0.875, 1e-15);
+    // int l_a = V/4, int l_a^2 = V/10 over a tet.
+    Eigen::Vector4d first, second;
+    weightIntegrals(t, first, second);
+    EXPECT_NEAR((first.array() - 0.25).abs().maxCoeff(), 0, 1e-15);
+    EXPECT_NEAR((second.array() - 0.1).abs().maxCoeff(), 0, 1e-15);
+    // Over the corner piece: int l1 / V = 1/8 * (1/2 + 1/4 * 1/2) (centroid value 5/8).
+    h.positive = true;
+    weightIntegrals(clip(t, h), first, second);
+    EXPECT_NEAR(first[1], 0.125 * 0.625, 1e-15);
+    EXPECT_NEAR(first.sum(), 0.125, 1e-15);
+}
+
+TEST(Polyhedron, FaceAreaAndTies) {
+    // s = 1 - 2 m0... keeps the corner-0 quarter of the triangle: area (1/2)^2.
+    FaceSide a{{1, -1, -1}, true};
+    EXPECT_NEAR(faceAreaFraction({a}), 0.25, 1e-15);
+    FaceSide b{{1, -1, -1}, false};
+    EXPECT_NEAR(faceAreaFraction({b}), 0.75, 1e-15);
+    EXPECT_NEAR(faceAreaFraction({a, b}), 0.0, 1e-15);
+    // A plane through the whole face: the face belongs to the positive side only.
+    FaceSide on{{0, 0, 0}, true}, off{{0, 0, 0}, false};
+    EXPECT_NEAR(faceAreaFraction({on}), 1.0, 1e-15);
+    EXPECT_NEAR(faceAreaFraction({off}), 0.0, 1e-15);
+}
+
+TEST(Xfem, PlaneCutSplitsBoxExactly) {
+    Model m = unitBox(4);
+    State s = makeState(m);
+    const double mass0 = m.mass.sum();
+    CutEngine eng;
+    const CutResult r = eng.cut(m, s, plane({0.37, 0, 0}, {1, 0, 0}));
+    EXPECT_GT(r.split, 0);
+    EXPECT_EQ(r.crossed, r.split);
+    EXPECT_EQ(r.dropped, 0);
+    EXPECT_NEAR(r.volumeAfter, 1.0, 1e-12);
+    EXPECT_NEAR(m.mass.sum(), mass0, 1e-12 * mass0);
+    const auto pieces = pieceVolumes(m);
+    ASSERT_EQ(pieces.size(), 2u);
+    EXPECT_NEAR(pieces[0], 0.37, 1e-12);
+    EXPECT_NEAR(pieces[1], 0.63, 1e-12);
+    // The drawn surface is closed around both pieces: enclosed volume 1, cut faces 2 x 1 m^2.
+    double cutArea = 0;
+    EXPECT_NEAR(surfaceVolume(eng.surface(m), m, &cutArea), 1.0, 1e-12);
+    EXPECT_NEAR(cutArea, 2.0, 1e-12);
+    // State arrays follow the model.
+    EXPECT_EQ(s.x.cols(), m.nodes());
+    EXPECT_EQ(s.rot.cols(), m.elements());
+}
+
+TEST(Xfem, CutsThroughNodesAndFacesSeparateWithoutSlivers) {
+    // x = 0.5 passes through a layer of nodes; x = y holds faces of the Kuhn tets.
+    for (const CutSurface& c : {plane({0.5, 0, 0}, {1, 0, 0}), plane({0, 0, 0}, {1, -1, 0})}) {
+        Model m = unitBox(4);
+        State s = makeState(m);
+        CutEngine eng;
+        const CutResult r = eng.cut(m, s, c);
+        EXPECT_TRUE(r.changed());
+        EXPECT_EQ(r.split, 0);  // every element lies on one side; only nodes are duplicated
+        const auto pieces = pieceVolumes(m);
+        ASSERT_EQ(pieces.size(), 2u);
+        EXPECT_NEAR(pieces[0], 0.5, 1e-12);
+        EXPECT_NEAR(pieces[1], 0.5, 1e-12);
+        EXPECT_GT(m.fraction.minCoeff(), 0.999999);
+        EXPECT_NEAR(surfaceVolume(eng.surface(m), m), 1.0, 1e-12);
+    }
+}
+
+TEST(Xfem, CrossingCutsMakeFourPieces) {
+    Model m = unitBox(3);
+    State s = makeState(m);
+    CutEngine eng;
+    eng.cut(m, s, plane({0.37, 0, 0}, {1, 0, 0}));
+    eng.cut(m, s, plane({0, 0.61, 0}, {0, 1, 0}));
+    const auto pieces = pieceVolumes(m);
+    ASSERT_EQ(pieces.size(), 4u);
+    EXPECT_NEAR(pieces[0], 0.37 * 0.39, 1e-12);
+    EXPECT_NEAR(pieces[1], 0.37 * 0.61, 1e-12);
+    EXPECT_NEAR(pieces[2], 0.63 * 0.39, 1e-12);
+    EXPECT_NEAR(pieces[3], 0.63 * 0.61, 1e-12);
+    EXPECT_NEAR(surfaceVolume(eng.surface(m), m), 1.0, 1e-12);
+}
+
+TEST(Xfem, MissingPlaneChangesNothing) {
+    Model m = unitBox(2);
+    State s = makeState(m);
+    const int n = m.nodes(), e = m.elements();
+    CutEngine eng;
+    const CutResult r = eng.cut(m, s, plane({2, 0, 0}, {1, 0, 0}));
+    EXPECT_FALSE(r.changed());
+    EXPECT_EQ(m.nodes(), n);
+    EXPECT_EQ(m.elements(), e);
+}
+
+TEST(Xfem, BoundedCutLeavesOnePiece) {
+    // Plane x = 0.4 restricted to y < 0.5: the body is cut half-way and stays one piece.
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutSurface c = plane({0.4, 0, 0}, {1, 0, 0});
+    Eigen::Vector3d u, v;
+    planeAxes(c.normal, u, v);
+    std::vector<Eigen::Vector2d> poly;
+    for (const Eigen::Vector3d& p : {Eigen::Vector3d(0.4, -1, -1), Eigen::Vector3d(0.4, 0.5, -1),
+                                     Eigen::Vector3d(0.4, 0.5, 2), Eigen::Vector3d(0.4, -1, 2)})
+        poly.emplace_back((p - c.point).dot(u), (p - c.point).dot(v));
+    c.regions.push_back(poly);
+    CutEngine eng;
+    const CutResult r = eng.cut(m, s, c);
+    EXPECT_GT(r.split, 0);
+    EXPECT_GT(r.pending, 0);
+    EXPECT_EQ(pieceVolumes(m).size(), 1u);
+    EXPECT_NEAR(r.volumeAfter, 1.0, 1e-12);
+    EXPECT_NEAR(surfaceVolume(eng.surface(m), m), 1.0, 1e-12);
+}
+
+TEST(Xfem, BladeSweepSeparatesOnlyWhenThrough) {
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutEngine eng;
+    // A vertical edge at x = 0.43 moving along +y.
+    auto edgeAt = [](double y) { return BladeEdge{{0.43, y, -0.2}, {0.43, y, 1.2}}; };
+    double y = -0.1;
+    for (; y < 0.5; y += 0.05) eng.sweep(m, s, edgeAt(y), edgeAt(y + 0.05));
+    EXPECT_EQ(pieceVolumes(m).size(), 1u);  // the blade stopped inside: pending, not separated
+    EXPECT_GT(eng.pendingElements(), 0);
+    for (; y < 1.1; y += 0.05) eng.sweep(m, s, edgeAt(y), edgeAt(y + 0.05));
+    const auto pieces = pieceVolumes(m);
+    ASSERT_EQ(pieces.size(), 2u);
+    EXPECT_NEAR(pieces[0], 0.43, 1e-12);
+    EXPECT_EQ(eng.pendingElements(), 0);
+    EXPECT_EQ(eng.cuts(), 1);  // one stroke, one cut id
+}
+
+TEST(Xfem, EnrichmentLumpingKeepsTimeStepOnSlivers) {
+    // A cut 1e-6 beyond a node layer leaves slivers of ~1e-6 volume fraction.
+    const double uncut = [] {
+        Model m = unitBox(3);
+        return 2.0 / std::sqrt(test::denseLambdaMax(m));
+    }();
+    std::map<MassLumping, double> dt;
+    for (MassLumping l : {MassLumping::RowSum, MassLumping::WeightedDiagonal, MassLumping::Enrichment}) {
+        Model m = unitBox(3);
+        State s = makeState(m);
+        CutEngine eng({l, 1e-10});
+        const CutResult r = eng.cut(m, s, plane({1.0 / 3 + 1e-6, 0, 0}, {1, 0, 0}));
+        EXPECT_GT(r.split, 0);
+        EXPECT_LT(m.fraction.minCoeff(), 1e-4);
+        EXPECT_NEAR(m.mass.sum(), 1000.0, 1e-9 * 1000.0);  // sides below 1e-10 are dropped
+        dt[l] = 2.0 / std::sqrt(test::denseLambdaMax(m));
+        std::printf("lumping %-17s dt after the sliver cut = %.4g of the uncut %.4g s\n", lumpingName(l),
+                    dt[l] / uncut, uncut);
+    }
+    // Enrichment: every virtual element keeps its parent's eigenvalues; the others collapse.
+    EXPECT_GE(dt[MassLumping::Enrichment], 0.9 * uncut);
+    EXPECT_LT(dt[MassLumping::RowSum], 0.1 * uncut);
+}
+
+TEST(Xfem, CutPieceFallsFreely) {
+    // Bar fixed at x = 0, cut at x = 0.5: the free half falls with g, the fixed half holds.
+    Model m = buildModel(test::boxMesh(1, 0.2, 0.2, 10, 2, 2), Material{});
+    std::vector<int> fixedNodes;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
+    fixNodes(m, fixedNodes);
+    m.gravity = Eigen::Vector3d(0, 0, -9.81);
+    State s = makeState(m);
+    CutEngine eng;
+    eng.cut(m, s, plane({0.55, 0, 0}, {1, 0, 0}));
+    Stepper st;
+    StepOptions opt;
+    opt.dt = 1e-4;
+    for (int k = 0; k < 1000; ++k) st.step(m, s, opt);
+    ASSERT_TRUE(s.flags.ok());
+    // Mass-weighted mean z velocity of the free piece: -g t (its internal forces cancel).
+    const std::vector<int> piece = pieceOfNode(m);
+    int tip = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) > 0.999) tip = piece[i];
+    double mv = 0, mm = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (piece[i] == tip) {
+            mv += m.mass(i) * s.v(2, i);
+            mm += m.mass(i);
+        }
+    EXPECT_NEAR(mv / mm, -9.81 * 0.1, 1e-6);
+}
+
+} // namespace
+} // namespace cutsim
