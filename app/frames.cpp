@@ -88,7 +88,8 @@ public:
         }
         // The surface is extracted once; later frames move its vertices and refresh changing fields.
         if (!ms_) {
-            ms_ = std::make_unique<MeshSnapshot>(snapshotFromTetMesh(mesh_, state.x, so));
+            ms_ = std::make_unique<MeshSnapshot>(surface_ ? snapshotFromSurface(mesh_, state.x, *surface_, so)
+                                                          : snapshotFromTetMesh(mesh_, state.x, so));
         } else {
             updateSnapshotPositions(*ms_, mesh_, state.x, so);
             if (cmap == "stress") setElementValues(*ms_, mesh_, so);
@@ -138,6 +139,19 @@ public:
         encode_ = std::chrono::duration<double>(Clock::now() - t0).count();
     }
 
+    void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt,
+                         double dt) override {
+        mesh_.X = model.X;
+        mesh_.tets = model.tets;
+        elementDt_ = elementDt;
+        dt_ = dt;
+        critical_.clear();
+        for (int e = 0; e < model.elements(); ++e)
+            if (elementDt_(e) < sc_.capture.criticalFactor * dt_) critical_.push_back(e);
+        surface_ = std::make_unique<EmbeddedSurface>(std::move(surface));
+        ms_.reset();  // rebuilt from the new surface at the next frame
+    }
+
     void finish() override {
         pngs_.flush();
         if (video_) video_->finish();
@@ -156,6 +170,7 @@ private:
     std::vector<int> critical_;
     std::unique_ptr<render::Renderer> renderer_;
     std::unique_ptr<MeshSnapshot> ms_;
+    std::unique_ptr<EmbeddedSurface> surface_;  // null: the mesh's boundary faces
     std::unique_ptr<Camera> camera_;
     render::PngWriter pngs_{8};
     std::unique_ptr<render::VideoEncoder> video_;

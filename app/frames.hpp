@@ -3,6 +3,7 @@
 #pragma once
 
 #include "fem/state.hpp"
+#include "mesh/embedding.hpp"
 #include "scene.hpp"
 
 #include <memory>
@@ -28,6 +29,9 @@ public:
     virtual int frames() const = 0;
     virtual std::string videoPath() const = 0;    // "" when no video was made
     virtual double lastEncodeSeconds() const = 0; // part of the last frame() spent handing off/encoding
+    // After a cut: the surface to draw from now on, and the new per-element limits (nElems) [s].
+    virtual void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt,
+                                 double dt) = 0;
 };
 
 // A sink for the scene's capture settings, or nullptr with a message on stderr when this build

@@ -1,5 +1,6 @@
 #include "run.hpp"
 
+#include "cut/xfem.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "frames.hpp"
@@ -186,7 +187,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     StepOptions so{sc.integrator, dt};
     if (alphaElem.size()) so.alphaElem = &alphaElem;
 
-    const long nSteps = static_cast<long>(std::ceil(sc.duration / dt - 1e-9));
     const double frameDt = 1.0 / sc.capture.fps;
     double nextFrame = 0;
     json energy = json::array();
@@ -196,13 +196,27 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     int maxInverted = 0;
     Progress progress(sc.duration, opt.quiet);
     const double mass0 = model.mass.sum();
+    const int nodes0 = model.nodes(), elements0 = model.elements(), fixed0 = model.nodes() - model.freeDofs() / 3;
     const auto loopStart = Clock::now();
+
+    // Cutting: the engine's bookkeeping exists only in scenes that cut (DESIGN.md: pay for what you use).
+    std::unique_ptr<CutEngine> cutter;
+    if (!sc.cutting.cuts.empty()) {
+        const auto tc = Clock::now();
+        cutter = std::make_unique<CutEngine>(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
+        cutter->prepare(model);
+        stages.cut += since(tc);
+    }
+    size_t nextCut = 0;
+    json cutsJson = json::array();
+    double dtExactNow = exact.dt, dtCertifiedNow = certified;
 
     auto recordFrame = [&]() {
         const double ek = kineticEnergy(model, state), ee = elasticEnergy(model, state), eg = gravityEnergy(model, state);
         energy.push_back({{"time", state.time}, {"kinetic", ek}, {"elastic", ee}, {"gravity", eg}, {"total", ek + ee + eg}});
         if (sink) {
-            FrameInfo fi{state.time, dt, certified, exact.dt, criticalElements, 0, since(loopStart)};
+            FrameInfo fi{state.time, dt, dtCertifiedNow, dtExactNow, criticalElements, cutter ? cutter->cuts() : 0,
+                         since(loopStart)};
             const auto tr = Clock::now();
             sink->frame(model, state, fi);
             stages.render += since(tr) - sink->lastEncodeSeconds();
@@ -210,7 +224,86 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         }
     };
 
-    for (long k = 0; k < nSteps; ++k) {
+    // Applies the cuts due at the current time; false when the run must stop (step above the limit).
+    auto applyDueCuts = [&]() {
+        while (nextCut < sc.cutting.cuts.size() && sc.cutting.cuts[nextCut].time <= state.time + 1e-12) {
+            const CutDef& cd = sc.cutting.cuts[nextCut++];
+            CutSurface surf;
+            surf.point = cd.point;
+            surf.normal = cd.normal;
+            if (!cd.polygon.empty()) {
+                Eigen::Vector3d u, v;
+                planeAxes(cd.normal, u, v);
+                std::vector<Eigen::Vector2d> poly;
+                for (const auto& p : cd.polygon) poly.emplace_back((p - cd.point).dot(u), (p - cd.point).dot(v));
+                surf.regions.push_back(std::move(poly));
+            }
+            auto tc = Clock::now();
+            const CutResult r = cutter->cut(model, state, surf);
+            stages.cut += since(tc);
+            // Local update of the estimators and the certified bound around the cut; no global solve.
+            tc = Clock::now();
+            ta.update(model, r.changedElements, r.changedNodes);
+            const double updateSeconds = since(tc);
+            stages.timestep += updateSeconds;
+            dtCertifiedNow = ta.certifiedDt();
+            double exactSeconds = 0;
+            dtExactNow = std::numeric_limits<double>::quiet_NaN();
+            if (sc.cutting.exactAfterCut) {
+                tc = Clock::now();
+                dtExactNow = ta.exact(model).dt;
+                exactSeconds = since(tc);
+                stages.timestep += exactSeconds;
+            }
+            stepper.reset();
+            const double limitNow = std::isnan(dtExactNow) ? dtCertifiedNow : dtExactNow;
+            std::string action = "none";
+            if (explicitScheme && dt > limitNow) {
+                if (sc.dt.onLimit == "clamp") {
+                    dt = 0.98 * limitNow;
+                    action = "clamped";
+                } else if (sc.dt.onLimit == "damp") {
+                    action = "damped";
+                } else {
+                    action = "refused";
+                }
+            }
+            if (alphaElem.size() || action == "damped") {
+                alphaElem = elementAlpha(ta.estimates().r1r, dt);
+                so.alphaElem = &alphaElem;
+            }
+            so.dt = dt;
+            criticalElements = 0;
+            for (Eigen::Index e = 0; e < ta.estimates().r1r.size(); ++e)
+                criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
+            if (sink) sink->topologyChanged(model, cutter->surface(model), ta.estimates().r1r, dt);
+            json dtAfter = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)},
+                            {"certified", dtCertifiedNow}, {"estimate", ta.minDt().r1r}};
+            cutsJson.push_back({{"time", state.time}, {"key", cd.path}, {"crossed", r.crossed}, {"split", r.split},
+                                {"pending", r.pending}, {"dropped", r.dropped}, {"new_nodes", r.newNodes.size()},
+                                {"new_elements", r.newElements.size()}, {"nodes", model.nodes()},
+                                {"elements", model.elements()},
+                                {"volume_change", r.volumeBefore > 0 ? (r.volumeAfter - r.volumeBefore) / r.volumeBefore : 0.0},
+                                {"mass_change", r.massBefore > 0 ? (r.massAfter - r.massBefore) / r.massBefore : 0.0},
+                                {"seconds", r.seconds}, {"update_seconds", updateSeconds},
+                                {"exact_seconds", exactSeconds}, {"dt_after", dtAfter},
+                                {"dt_ratio", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow / exact.dt)},
+                                {"dt_used", dt}, {"limit_action", action}, {"critical_elements", criticalElements},
+                                {"pieces", countPieces(model)}});
+            if (action == "refused") {
+                char msg[256];
+                std::snprintf(msg, sizeof msg, "stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
+                              " (integrator.dt.on_limit is \"refuse\")", dt, limitNow, state.time);
+                status = msg;
+                exitCode = 4;
+                return false;
+            }
+        }
+        return true;
+    };
+
+    while (state.time < sc.duration - 1e-9 * dt) {
+        if (cutter && !applyDueCuts()) break;
         if (state.time >= nextFrame - 1e-12) {
             recordFrame();
             nextFrame += frameDt;
@@ -276,9 +369,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["dt_limit_action"] = limitAction;
     report["dt_initial"] = {{"exact", exact.dt}, {"certified", certified}, {"estimate", estimate}};
     report["critical_elements"] = criticalElements;
-    report["mesh"] = {{"file", sc.mesh.empty() ? std::string("box") : sc.mesh}, {"nodes", model.nodes()}, {"elements", model.elements()},
-                      {"fixed_nodes", model.nodes() - model.freeDofs() / 3}};
-    report["cuts"] = json::array();
+    report["mesh"] = {{"file", sc.mesh.empty() ? std::string("box") : sc.mesh}, {"nodes", nodes0}, {"elements", elements0},
+                      {"fixed_nodes", fixed0}, {"nodes_final", model.nodes()}, {"elements_final", model.elements()}};
+    report["cuts"] = cutsJson;
+    report["dt_final"] = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)}, {"certified", dtCertifiedNow}};
     report["pieces"] = countPieces(model);
     report["mass"] = {{"initial", mass0}, {"final", model.mass.sum()}};
     report["energy"] = energy;

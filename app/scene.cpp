@@ -2,6 +2,8 @@
 
 #include "json_reader.hpp"
 
+#include "cut/xfem.hpp"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -225,6 +227,48 @@ SceneDef parseScene(const json& j, const std::string& file) {
         in.finish();
     }
     s.duration = root.number("duration", 1, 0, 1e6, true);
+    if (root.has("cutting")) {
+        ObjectReader c = root.object("cutting");
+        s.cutting.lumping = c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"});
+        s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
+        s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+        if (c.has("compare")) {
+            const json& cmp = c.raw("compare");
+            c.touch("compare");
+            if (!cmp.is_array()) c.fail("compare", "must be an array of \"subdivision\" and \"remesh\"");
+            for (const auto& m : cmp) {
+                if (!m.is_string() || (m != "subdivision" && m != "remesh"))
+                    c.fail("compare", "must be an array of \"subdivision\" and \"remesh\"");
+                s.cutting.compare.push_back(m.get<std::string>());
+            }
+        }
+        for (auto& k : c.array("cuts")) {
+            CutDef cd;
+            cd.path = k.path();
+            cd.time = k.number("time", 0, 0);
+            cd.point = k.requiredVec3("point");
+            cd.normal = k.requiredVec3("normal");
+            if (!(cd.normal.norm() > 0)) k.fail("normal", "must not be zero");
+            cd.normal.normalize();
+            if (k.has("polygon")) {
+                const json& poly = k.raw("polygon");
+                k.touch("polygon");
+                if (!poly.is_array() || poly.size() < 3) k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
+                for (const auto& q : poly) {
+                    if (!q.is_array() || q.size() != 3 || !q[0].is_number() || !q[1].is_number() || !q[2].is_number())
+                        k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
+                    const Eigen::Vector3d p(q[0].get<double>(), q[1].get<double>(), q[2].get<double>());
+                    if (std::abs(cd.normal.dot(p - cd.point)) > 1e-6 * std::max(1.0, (p - cd.point).norm()))
+                        k.fail("polygon", "its points must lie in the cut plane");
+                    cd.polygon.push_back(p);
+                }
+            }
+            k.finish();
+            if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time) k.fail("time", "cuts must be in time order");
+            s.cutting.cuts.push_back(cd);
+        }
+        c.finish();
+    }
     if (root.has("camera")) {
         ObjectReader c = root.object("camera");
         for (auto& k : c.array("keyframes")) {

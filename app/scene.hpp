@@ -69,6 +69,26 @@ struct Capture {
     double criticalFactor = 1.1;  // critical: element estimate < factor * dt
 };
 
+// A scripted cut at a given time: the plane through point with normal, in world coordinates of
+// the deformed object, optionally bounded by a polygon lying in that plane.
+struct CutDef {
+    double time = 0;                                     // [s]
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();     // [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();   // unit
+    std::vector<Eigen::Vector3d> polygon;                // corners [m], empty: the whole plane
+    std::string path;                                    // key path, for messages
+};
+
+// How the object is cut (physics/cut/xfem.hpp).
+struct Cutting {
+    std::string lumping = "enrichment";     // row_sum | weighted_diagonal | enrichment
+    double minFraction = 1e-2;              // sides below this share of their element merge into the other [-]
+    bool exactAfterCut = true;              // exact dt (global eigen-solve) after every cut, for the report
+    std::vector<std::string> compare;       // baselines run on the rest mesh with the same planes:
+                                            // subdivision | remesh
+    std::vector<CutDef> cuts;               // in time order
+};
+
 struct SceneDef {
     std::string file;             // scene file path
     std::string dir;              // its folder: relative paths resolve against it
@@ -94,6 +114,8 @@ struct SceneDef {
     Integrator integrator = Integrator::SymplecticEuler;
     DtPolicy dt;
     double duration = 1;          // [s]
+
+    Cutting cutting;
 
     std::vector<CameraKey> camera;  // empty: frame the object
     Capture capture;

@@ -112,6 +112,7 @@ void CutEngine::prepare(const Model& m) {
     tets0_ = m.tets;
     const int ne = m.elements(), nn = m.nodes();
     fraction0_ = m.fraction;
+    fixed0_ = m.fixed;
 
     // Face adjacency: sort (face key, element, corner) and pair equal keys.
     std::vector<std::tuple<std::array<int, 3>, int, int>> faces;
@@ -309,17 +310,24 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
         ++r.crossed;
         const int p = parent_[static_cast<size_t>(e)];
         const double fneg = volumeFraction(neg), fpos = volumeFraction(pos);
-        bool keepNeg = fneg >= opts_.minFraction, keepPos = fpos >= opts_.minFraction;
-        if (!keepNeg && !keepPos) (fneg >= fpos ? keepNeg : keepPos) = true;  // never lose a whole element
-        r.dropped += (!keepNeg && fneg > 0) + (!keepPos && fpos > 0);
-
         Virtual base;
         if (it != virt_.end()) base = it->second;
+        else base.share = volumeFraction(piece);
+        // Shares of the two sides; a sliver side is merged into the other (see CutOptions).
+        const double total = base.share, sum = fneg + fpos;
+        double sneg = sum > 0 ? total * fneg / sum : 0, spos = total - sneg;
+        bool keepNeg = !neg.empty() && sneg >= opts_.minFraction, keepPos = !pos.empty() && spos >= opts_.minFraction;
+        if (!keepNeg && !keepPos) (fneg >= fpos ? keepNeg : keepPos) = true;  // never lose a whole element
+        r.dropped += (!keepNeg && fneg > 0) + (!keepPos && fpos > 0);
+        if (!keepNeg) spos = total;
+        if (!keepPos) sneg = total;
+
         const double f0 = fraction0_[p];
         if (keepNeg && keepPos) {
             ++r.split;
             NewElem ne{e, base};
             ne.virt.piece = std::move(pos);
+            ne.virt.share = spos;
             ne.virt.hs.push_back(hp);
             fresh.push_back(std::move(ne));
         }
@@ -327,7 +335,8 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
         mine = std::move(base);
         mine.hs.push_back(keepNeg ? hn : hp);
         mine.piece = keepNeg ? std::move(neg) : std::move(pos);
-        m.fraction(e) = f0 * volumeFraction(mine.piece);
+        mine.share = keepNeg ? sneg : spos;
+        m.fraction(e) = f0 * mine.share;
         parents.push_back(p);
     };
     if (candidates) {
@@ -353,7 +362,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
             m.tets.col(e) = m.tets.col(src);
             m.DmInv.col(e) = m.DmInv.col(src);
             m.volume(e) = m.volume(src);
-            m.fraction(e) = fraction0_[p] * volumeFraction(fresh[k].virt.piece);
+            m.fraction(e) = fraction0_[p] * fresh[k].virt.share;
             s.rot.col(e) = s.rot.col(src);
             parent_.push_back(p);
             auto ch = children_.find(p);
@@ -390,6 +399,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
         int src, orig;
     };
     std::vector<Copy> copies;
+    std::vector<std::pair<int, std::uint8_t>> fixedOf;  // node -> fixed, applied once the arrays have grown
     std::vector<int> changedNodes;
     std::vector<Slot> slots;
     std::vector<FaceSide> sides;
@@ -469,6 +479,21 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
                 if (auto it = nodeS.find(common); it != nodeS.end()) nodeS.emplace(id, it->second);
             }
             used.push_back(id);
+            // A copy of a prescribed node stays prescribed when its piece is held: it carries
+            // material at that node, or at another prescribed node of its element (a cut through
+            // a clamp keeps both sides clamped). A copy serving only pieces that lie away from
+            // the support is an enrichment degree of freedom and moves; fixing it would hang a
+            // severed piece on the clamp (measured: 33 of 250 random bar cut sequences then
+            // inverted the hanging element).
+            bool held = false;
+            for (int i : comp) {
+                const auto it = virt_.find(slots[i].elem);
+                if (it == virt_.end()) { held = true; break; }
+                for (int a : it->second.piece.corner)
+                    if (a >= 0 && fixed0_[static_cast<size_t>(tets0_(a, slots[i].parent))]) held = true;
+                if (held) break;
+            }
+            fixedOf.emplace_back(id, fixed0_[static_cast<size_t>(N)] && held);
             for (int i : comp) {
                 int& cur = m.tets(slots[i].corner, slots[i].elem);
                 if (cur != id) {
@@ -488,7 +513,6 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
         for (int k = 0; k < N1 - N0; ++k) {
             const int id = N0 + k, src = copies[static_cast<size_t>(k)].src;
             m.X.col(id) = m.X.col(src);
-            m.fixed[static_cast<size_t>(id)] = m.fixed[static_cast<size_t>(src)];
             s.x.col(id) = s.x.col(src);
             s.v.col(id) = s.v.col(src);
             s.a.col(id) = s.a.col(src);
@@ -497,6 +521,8 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             origNode_.push_back(copies[static_cast<size_t>(k)].orig);
         }
     }
+
+    for (const auto& [id, fx] : fixedOf) m.fixed[static_cast<size_t>(id)] = fx;
 
     // Masses and incidence of the changed elements.
     for (int p : parents)

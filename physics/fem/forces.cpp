@@ -140,6 +140,17 @@ void computeForces(const Model& m, State& s, const double* alpha) {
                      static_cast<int>(static_cast<long>(nn) * (t + 1) / nt));
     }
     s.flags.inverted = inverted;
+    s.flags.firstInverted = -1;
+    // Rare: find one for messages with a scan instead of a shared write in the hot loop.
+    for (int e = 0; inverted > 0 && e < ne; ++e) {
+        const Eigen::Vector3d x0 = s.x.col(m.tets(0, e));
+        Eigen::Matrix3d Ds;
+        Ds << s.x.col(m.tets(1, e)) - x0, s.x.col(m.tets(2, e)) - x0, s.x.col(m.tets(3, e)) - x0;
+        if ((Ds * m.dmInv(e)).determinant() <= 0) {
+            s.flags.firstInverted = e;
+            break;
+        }
+    }
 }
 
 double elasticEnergy(const Model& m, const State& s) {

@@ -300,5 +300,52 @@ TEST(Run, RefusesAnUnwritableOutputBeforeSimulating) {
     EXPECT_TRUE(fs::is_regular_file(file));
 }
 
+TEST(Run, LiverCutsReportEachCut) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/liver_cuts.json") + " --out " + out +
+                                  " --no-render --quiet --set duration=0.9",
+                              nullptr, &err),
+              0)
+        << err;
+    const json r = readReport(out);
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    const json& cuts = r["cuts"];
+    ASSERT_EQ(cuts.size(), 4u);
+    const double exact0 = r["dt_initial"]["exact"].get<double>();
+    int prevNodes = r["mesh"]["nodes"].get<int>();
+    for (size_t i = 0; i < cuts.size(); ++i) {
+        const json& c = cuts[i];
+        EXPECT_EQ(c["key"].get<std::string>(), "cutting.cuts[" + std::to_string(i) + "]");
+        EXPECT_GT(c["crossed"].get<int>(), 0);
+        EXPECT_GT(c["new_nodes"].get<int>(), 0);
+        EXPECT_EQ(c["nodes"].get<int>(), prevNodes + c["new_nodes"].get<int>());
+        prevNodes = c["nodes"].get<int>();
+        // virtual elements keep volume and mass exactly (the pieces partition their parent)
+        EXPECT_LT(std::abs(c["volume_change"].get<double>()), 1e-12);
+        EXPECT_LT(std::abs(c["mass_change"].get<double>()), 1e-12);
+        // the limit after the cut: certified <= exact, ratio as reported, and the step below it
+        const double ex = c["dt_after"]["exact"].get<double>();
+        EXPECT_LE(c["dt_after"]["certified"].get<double>(), ex);
+        EXPECT_NEAR(c["dt_ratio"].get<double>(), ex / exact0, 1e-12);
+        EXPECT_GT(c["dt_ratio"].get<double>(), 0.5);
+        EXPECT_LT(c["dt_used"].get<double>(), ex);
+    }
+    EXPECT_EQ(r["mesh"]["nodes_final"].get<int>(), prevNodes);
+    EXPECT_GE(cuts.back()["pieces"].get<int>(), 3);
+    EXPECT_EQ(r["pieces"].get<int>(), cuts.back()["pieces"].get<int>());
+    EXPECT_NEAR(r["mass"]["final"].get<double>(), r["mass"]["initial"].get<double>(),
+                1e-12 * r["mass"]["initial"].get<double>());
+}
+
+TEST(Run, RefusesACutWithAZeroNormal) {
+    std::ifstream in(test::source("assets/scenes/liver_cuts.json"));
+    json j = json::parse(in);
+    j["cutting"]["cuts"][1]["normal"] = {0, 0, 0};
+    j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    std::string err;
+    expectRefused(writeScene(workDir(), "zero.json", j), "", "cutting.cuts[1].normal", &err);
+}
+
 } // namespace
 } // namespace cutsim

@@ -1,0 +1,52 @@
+// A cut must not change the mechanics of the moment it is made: the pieces partition each cut
+// element, so elastic and kinetic energy stay, and the forces on the copies of a node sum to the
+// force the node had (virtual node algorithm, thesis sec. 2.3).
+#include "random_cuts.hpp"
+
+namespace cutsim {
+namespace {
+
+TEST(CutConsistency, RandomCutsKeepEnergyAndForcesOfTheMoment) {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> uni(0, 1);
+    for (bool liver : {true, false}) {
+        Model m = test::randomCutModel(liver);
+        State s = makeState(m);
+        const Eigen::Vector3d lo = m.X.rowwise().minCoeff(), hi = m.X.rowwise().maxCoeff();
+        StepOptions opt;
+        opt.dt = 0.9 * TimestepAnalyzer(m).exact(m).dt;
+        Stepper stepper;
+        CutEngine eng;
+        for (int c = 0; c < 6; ++c) {
+            for (int k = 0; k < 100; ++k) stepper.step(m, s, opt);   // deformed and moving
+            computeForces(m, s);
+            // forces summed over all copies of each node of the uncut mesh
+            const Model base = test::randomCutModel(liver);
+            const int N = base.nodes();
+            auto grouped = [&] {
+                Eigen::Matrix3Xd g = Eigen::Matrix3Xd::Zero(3, N);
+                for (int n = 0; n < m.nodes(); ++n)
+                    if (!base.fixed[static_cast<size_t>(eng.originalNode(n))]) g.col(eng.originalNode(n)) += s.f.col(n);
+                return g;
+            };
+            const Eigen::Matrix3Xd f0 = grouped();
+            const double e0 = elasticEnergy(m, s), k0 = kineticEnergy(m, s);
+            CutSurface cs;
+            for (int d = 0; d < 3; ++d) cs.point[d] = lo[d] + (0.15 + 0.7 * uni(rng)) * (hi[d] - lo[d]);
+            cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
+            const CutResult r = eng.cut(m, s, cs);
+            opt.dt = 0.9 * TimestepAnalyzer(m).exact(m).dt;
+            stepper.reset();
+            computeForces(m, s);
+            EXPECT_NEAR(elasticEnergy(m, s), e0, 1e-9 * e0) << "cut " << c;
+            EXPECT_NEAR(kineticEnergy(m, s), k0, 1e-9 * k0 + 1e-15) << "cut " << c;
+            const Eigen::Matrix3Xd f1 = grouped();
+            const double scale = f0.cwiseAbs().maxCoeff();
+            for (int n = 0; n < N; ++n)
+                ASSERT_LT((f1.col(n) - f0.col(n)).norm(), 1e-9 * scale) << "node " << n << " cut " << c << " split " << r.split;
+        }
+    }
+}
+
+} // namespace
+} // namespace cutsim
