@@ -157,7 +157,7 @@ private:
     std::unique_ptr<render::Renderer> renderer_;
     std::unique_ptr<MeshSnapshot> ms_;
     std::unique_ptr<Camera> camera_;
-    render::PngWriter pngs_{8};
+    render::PngWriter pngs_{8}; // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     std::string videoPath_;
     int frames_ = 0;

@@ -45,7 +45,7 @@ VideoEncoder::VideoEncoder(const std::string& path, int width, int height, doubl
     std::signal(SIGPIPE, SIG_IGN);
     std::ostringstream cmd;
     cmd << shellQuote(ffmpeg) << " -hide_banner -loglevel error -y -f rawvideo -pix_fmt rgba -s " << width << "x"
-        << height << " -r " << fps << " -i - -c:v libx264 -pix_fmt yuv420p -f mp4 " << shellQuote(tmp_);
+        << height << " -r " << fps << " -i - -c:v libx264 -preset veryfast -pix_fmt yuv420p -f mp4 " << shellQuote(tmp_);
     pipe_ = ::popen(cmd.str().c_str(), "w");
     if (!pipe_) throw std::runtime_error("cannot start ffmpeg for " + path);
 }
