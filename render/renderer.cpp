@@ -689,13 +689,14 @@ Image Renderer::read() const {
     img.rgba.resize(4 * static_cast<size_t>(img.width) * static_cast<size_t>(img.height));
     glBindFramebuffer(GL_READ_FRAMEBUFFER, gl_->outFbo);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    std::vector<std::uint8_t> raw(img.rgba.size());
-    glReadPixels(0, 0, img.width, img.height, GL_RGBA, GL_UNSIGNED_BYTE, raw.data());
+    glReadPixels(0, 0, img.width, img.height, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
     glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-    // GL's first row is the bottom one.
+    // GL's first row is the bottom one: flip in place (no second frame-sized buffer per frame).
     const size_t row = 4 * static_cast<size_t>(img.width);
-    for (int y = 0; y < img.height; ++y)
-        std::copy_n(raw.data() + row * static_cast<size_t>(img.height - 1 - y), row, img.rgba.data() + row * static_cast<size_t>(y));
+    for (int y = 0; y < img.height / 2; ++y)
+        std::swap_ranges(img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y)),
+                         img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y + 1)),
+                         img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(img.height - 1 - y)));
     return img;
 }
 
