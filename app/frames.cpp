@@ -160,8 +160,10 @@ public:
         const auto t0 = Clock::now();
         char name[32];
         std::snprintf(name, sizeof name, "frame_%06d.png", frames_);
-        if (video_) video_->addFrame(img);
-        pngs_.push((dir_ / name).string(), std::move(img));
+        const bool png = sc_.capture.pngEvery > 0 && frames_ % sc_.capture.pngEvery == 0;
+        if (video_ && png) video_->addFrame(img);
+        else if (video_) video_->addFrame(std::move(img));
+        if (png) pngs_.push((dir_ / name).string(), std::move(img));
         ++frames_;
         encode_ = std::chrono::duration<double>(Clock::now() - t0).count();
     }
