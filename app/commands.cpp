@@ -16,6 +16,7 @@ void registerCommands(CLI::App& app) {
     addMeshCommand(app);
     addRunCommand(app);
     addRenderCommand(app);
+    addViewCommand(app);
 }
 
 } // namespace cutsim::app

@@ -100,11 +100,7 @@ void writeJsonFile(const fs::path& p, const json& j) {
 
 } // namespace
 
-int runScene(const SceneDef& sc, const RunOptions& opt) {
-    const auto wallStart = Clock::now();
-    Stages stages;
-    setThreads(opt.threads);
-
+Simulation prepareScene(const SceneDef& sc) {
     // Object: read, place, build. Everything that can fail on bad input fails before any output.
     ReadOptions ro;
     ro.scale = sc.scale;
@@ -138,7 +134,22 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     const ExactResult exact = ta.exact(model);
     const double certified = ta.certifiedDt();
     const double estimate = ta.minDt().r1r;
-    stages.timestep += since(t0);
+    Simulation sim;
+    sim.model = std::move(model);
+    sim.ta = std::move(ta);
+    sim.exact = exact;
+    sim.certified = certified;
+    sim.estimate = estimate;
+    sim.loadNodes = std::move(loadNodes);
+    sim.timestepSeconds = since(t0);
+    chooseStep(sc, sim);
+    return sim;
+}
+
+void chooseStep(const SceneDef& sc, Simulation& sim) {
+    const ExactResult& exact = sim.exact;
+    const TimestepAnalyzer& ta = sim.ta;
+    const double certified = sim.certified, estimate = sim.estimate;
     double limit = sc.dt.of == "certified" ? certified : sc.dt.of == "estimate" ? estimate : exact.dt;
     double dt = sc.dt.mode == DtPolicy::Mode::Fixed ? sc.dt.value : sc.dt.fraction * limit;
     std::string limitAction = "none";
@@ -165,6 +176,41 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     int criticalElements = 0;
     for (Eigen::Index e = 0; e < ta.estimates().r1r.size(); ++e)
         criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
+    sim.dt = dt;
+    sim.limitAction = limitAction;
+    sim.alphaElem = std::move(alphaElem);
+    sim.criticalElements = criticalElements;
+}
+
+void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper& stepper, const StepOptions& so) {
+    // 1. contact stage: no tools yet. Applied loads go to fExt.
+    if (!sc.forces.empty()) {
+        state.fExt.setZero();
+        for (size_t l = 0; l < sc.forces.size(); ++l) {
+            const Eigen::Vector3d f = sc.forces[l].force * sc.forces[l].profile.at(state.time) /
+                                      static_cast<double>(sim.loadNodes[l].size());
+            for (int n : sim.loadNodes[l]) state.fExt.col(n) += f;
+        }
+    }
+    // 2-4. forces, integrate, checks (fem/integrate.hpp)
+    stepper.step(sim.model, state, so);
+}
+
+int runScene(const SceneDef& sc, const RunOptions& opt) {
+    const auto wallStart = Clock::now();
+    Stages stages;
+    setThreads(opt.threads);
+    Simulation sim = prepareScene(sc);
+    stages.timestep += sim.timestepSeconds;
+    Model& model = sim.model;
+    TimestepAnalyzer& ta = sim.ta;
+    const ExactResult& exact = sim.exact;
+    const double certified = sim.certified, estimate = sim.estimate;
+    double dt = sim.dt;   // a cut may lower it (cutting.cuts, integrator.dt.on_limit)
+    const std::string& limitAction = sim.limitAction;
+    Eigen::VectorXd alphaElem = sim.alphaElem;
+    int criticalElements = sim.criticalElements;
+    const bool explicitScheme = sc.integrator != Integrator::BackwardEuler;
 
     // Output folder: created and probed before the first step.
     const fs::path out(opt.out);
@@ -308,18 +354,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             recordFrame();
             nextFrame += frameDt;
         }
-        // 1. contact stage: no tools yet, so it stays 0. Applied loads go to fExt.
+        // stages 1-4: loads, forces, integrate, checks
         auto ts = Clock::now();
-        if (!sc.forces.empty()) {
-            state.fExt.setZero();
-            for (size_t l = 0; l < sc.forces.size(); ++l) {
-                const Eigen::Vector3d f = sc.forces[l].force * sc.forces[l].profile.at(state.time) /
-                                          static_cast<double>(loadNodes[l].size());
-                for (int n : loadNodes[l]) state.fExt.col(n) += f;
-            }
-        }
-        // 2-4. forces, integrate, checks (fem/integrate.hpp)
-        stepper.step(model, state, so);
+        stepScene(sc, sim, state, stepper, so);
         const double stepTime = since(ts);
         const double fshare = stepper.lastForceSeconds();
         stages.forces += fshare;

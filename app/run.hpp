@@ -2,8 +2,10 @@
 #pragma once
 
 #include "scene.hpp"
+#include "timestep/analyzer.hpp"
 
 #include <string>
+#include <vector>
 
 namespace cutsim::app {
 
@@ -13,6 +15,31 @@ struct RunOptions {
     int threads = 0;          // 0 = all cores
     bool quiet = false;       // no progress output
 };
+
+// A scene made ready to step, shared by `cutsim run` and `cutsim view`: the model, its time-step
+// limits and the step the scene's policy chose (METHOD.md sec. 2-3).
+struct Simulation {
+    Model model;
+    TimestepAnalyzer ta;             // per-element estimates of the model
+    ExactResult exact;               // exact stable limit of the explicit schemes
+    double certified = 0;            // certified limit [s]
+    double estimate = 0;             // smallest per-element estimate (R1R) [s]
+    double dt = 0;                   // step the policy chose [s]
+    std::string limitAction = "none"; // none | clamped | damped
+    Eigen::VectorXd alphaElem;       // per-element damping (nElems) when damped, else empty
+    int criticalElements = 0;        // elements whose estimate is below criticalFactor * dt
+    std::vector<std::vector<int>> loadNodes; // nodes of each scene load (sc.forces order)
+    double timestepSeconds = 0;      // wall time of the analysis [s]
+};
+
+// Reads and builds the scene's object, analyses its time step and chooses the step. Throws
+// InputError for bad input (a region selecting nothing, a refused step).
+Simulation prepareScene(const SceneDef& sc);
+// (Re)chooses sim.dt, limitAction, alphaElem and criticalElements from the scene's integrator
+// and dt policy and the limits already in sim. Throws InputError when the policy refuses.
+void chooseStep(const SceneDef& sc, Simulation& sim);
+// One step: the scene's loads into state.fExt, then forces, integrate, checks (fem/integrate.hpp).
+void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper& stepper, const StepOptions& so);
 
 // Runs a scene; returns the process exit code (0 ok, 3 numerical failure). Throws InputError for
 // bad input before anything is written.

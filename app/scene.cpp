@@ -293,6 +293,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.capture.height = c.integer("height", 720, 16, 8192);
         s.capture.colormap = c.string("colormap", "timestep", {"timestep", "displacement", "stress", "none"});
         s.capture.video = c.boolean("video", true);
+        s.capture.pngEvery = c.integer("png_every", 1, 0, 1000000);
         s.capture.hud = c.boolean("hud", true);
         s.capture.wireframe = c.boolean("wireframe", false);
         s.capture.xray = c.boolean("xray", true);

@@ -63,6 +63,7 @@ struct Capture {
     int width = 1280, height = 720;
     std::string colormap = "timestep";  // timestep | displacement | stress | none
     bool video = true;            // MP4 through ffmpeg when it is installed
+    int pngEvery = 1;             // a PNG file for every n-th frame (0: none, the video has them all)
     bool hud = true;
     bool wireframe = false;
     bool xray = true;             // critical elements drawn through the surface

@@ -1,29 +1,67 @@
 #include "png_writer.hpp"
 
-// Debian's libstb (linked through pkg-config imgui) already holds the stb implementations, so
-// only the declarations are included here; defining STB_*_IMPLEMENTATION would duplicate symbols.
+// Writing through libpng (speed, see encodePng); reading through stb. Debian's libstb (linked
+// through pkg-config imgui) already holds the stb implementation, so only its declarations are here.
+#include <png.h>
 #include <stb_image.h>
-#include <stb_image_write.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <algorithm>
 #include <stdexcept>
 #include <vector>
 
 namespace cutsim::render {
+
+namespace {
+
+// libpng reports errors by longjmp: keep the message, then jump back to encode's setjmp.
+void onPngError(png_structp png, png_const_charp msg) {
+    if (auto* err = static_cast<char*>(png_get_error_ptr(png))) std::snprintf(err, 256, "%s", msg);
+    png_longjmp(png, 1);
+}
+void onPngWarning(png_structp, png_const_charp) {}
+void appendBytes(png_structp png, png_bytep data, png_size_t n) {
+    auto* out = static_cast<std::vector<unsigned char>*>(png_get_io_ptr(png));
+    out->insert(out->end(), data, data + n);
+}
+void noFlush(png_structp) {}
+
+// Lossless PNG at zlib level 1 with the Sub filter: about 6x faster than level 6 with adaptive
+// filters (or stb's encoder) on rendered frames, for files of about the same size as stb's.
+// No object with a destructor lives in this frame, so the longjmp skips nothing.
+bool encodePng(const Image& img, std::vector<unsigned char>* out, char* err) {
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, err, onPngError, onPngWarning);
+    if (!png) return false;
+    png_infop info = png_create_info_struct(png);
+    if (!info || setjmp(png_jmpbuf(png))) {
+        png_destroy_write_struct(&png, &info);
+        return false;
+    }
+    png_set_write_fn(png, out, appendBytes, noFlush);
+    png_set_IHDR(png, info, static_cast<png_uint_32>(img.width), static_cast<png_uint_32>(img.height), 8,
+                 PNG_COLOR_TYPE_RGBA, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_compression_level(png, 1);
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
+    png_write_info(png, info);
+    const size_t row = 4 * static_cast<size_t>(img.width);
+    for (int y = 0; y < img.height; ++y) png_write_row(png, img.rgba.data() + row * static_cast<size_t>(y));
+    png_write_end(png, nullptr);
+    png_destroy_write_struct(&png, &info);
+    return true;
+}
+
+} // namespace
 
 void writePng(const std::string& path, const Image& img) {
     if (img.width <= 0 || img.height <= 0 || img.rgba.size() != 4 * static_cast<size_t>(img.width) * img.height)
         throw std::runtime_error("cannot write " + path + ": empty or inconsistent image");
     // Encode to memory first, so a failing folder is reported by the file write below.
     std::vector<unsigned char> png;
-    auto sink = [](void* ctx, void* data, int size) {
-        auto* out = static_cast<std::vector<unsigned char>*>(ctx);
-        out->insert(out->end(), static_cast<unsigned char*>(data), static_cast<unsigned char*>(data) + size);
-    };
-    if (!stbi_write_png_to_func(sink, &png, img.width, img.height, 4, img.rgba.data(), 4 * img.width))
-        throw std::runtime_error("cannot encode PNG " + path);
+    png.reserve(img.rgba.size() / 8);
+    char err[256] = "libpng failed";
+    if (!encodePng(img, &png, err)) throw std::runtime_error("cannot encode PNG " + path + ": " + err);
     const std::string tmp = path + ".tmp";
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
     if (!f) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
@@ -52,7 +90,10 @@ Image readPng(const std::string& path) {
     return img;
 }
 
-PngWriter::PngWriter(std::size_t capacity) : capacity_(capacity ? capacity : 1), thread_([this] { run(); }) {}
+PngWriter::PngWriter(std::size_t capacity, unsigned threads) : capacity_(capacity ? capacity : 1) {
+    if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+    for (unsigned i = 0; i < threads; ++i) threads_.emplace_back([this] { run(); });
+}
 
 PngWriter::~PngWriter() {
     {
@@ -60,7 +101,7 @@ PngWriter::~PngWriter() {
         stop_ = true;
     }
     changed_.notify_all();
-    thread_.join();
+    for (auto& t : threads_) t.join();
 }
 
 void PngWriter::rethrow() {
@@ -81,7 +122,7 @@ void PngWriter::push(std::string path, Image img) {
 
 void PngWriter::flush() {
     std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return (queue_.empty() && !busy_) || error_; });
+    changed_.wait(lock, [&] { return (queue_.empty() && busy_ == 0) || error_; });
     rethrow();
 }
 
@@ -97,7 +138,7 @@ void PngWriter::run() {
         if (queue_.empty()) return; // stop requested and nothing left
         auto job = std::move(queue_.front());
         queue_.pop_front();
-        busy_ = true;
+        ++busy_;
         lock.unlock();
         std::exception_ptr err;
         try {
@@ -106,7 +147,7 @@ void PngWriter::run() {
             err = std::current_exception();
         }
         lock.lock();
-        busy_ = false;
+        --busy_;
         if (err) {
             if (!error_) error_ = err; // the first error is the informative one
         } else {

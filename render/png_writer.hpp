@@ -12,6 +12,7 @@
 #include <string>
 #include <thread>
 #include <utility>
+#include <vector>
 
 namespace cutsim::render {
 
@@ -22,11 +23,12 @@ void writePng(const std::string& path, const Image& img);
 // Reads a PNG as RGBA. Throws std::runtime_error naming the path on failure.
 Image readPng(const std::string& path);
 
-// Writes PNGs on its own thread. push blocks while `capacity` frames wait, which bounds memory
+// Writes PNGs on a pool of threads. push blocks while `capacity` frames wait, which bounds memory
 // when encoding is slower than rendering. A write error is rethrown by the next push or flush.
 class PngWriter {
 public:
-    explicit PngWriter(std::size_t capacity = 4);
+    // threads = 0: one per core.
+    explicit PngWriter(std::size_t capacity = 4, unsigned threads = 0);
     ~PngWriter(); // finishes the queued frames; errors there are dropped (call flush to see them)
     PngWriter(const PngWriter&) = delete;
     PngWriter& operator=(const PngWriter&) = delete;
@@ -42,10 +44,11 @@ private:
     mutable std::mutex mutex_;
     std::condition_variable changed_;
     std::deque<std::pair<std::string, Image>> queue_;
-    bool busy_ = false, stop_ = false;
+    int busy_ = 0;          // frames being encoded
+    bool stop_ = false;
     std::size_t written_ = 0;
     std::exception_ptr error_;
-    std::thread thread_;
+    std::vector<std::thread> threads_;
 };
 
 } // namespace cutsim::render

@@ -270,36 +270,25 @@ struct Renderer::Gl {
     }
 };
 
-Renderer::Renderer(const RenderOptions& opts) : opts_(opts), ctx_(std::make_unique<EglContext>()), gl_(std::make_unique<Gl>()) {
+Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
+    : opts_(opts), ctx_(target == RenderTarget::Offscreen ? std::make_unique<EglContext>() : nullptr),
+      gl_(std::make_unique<Gl>()) {
     if (opts_.width <= 0 || opts_.height <= 0)
         throw std::runtime_error("render size must be positive, got " + std::to_string(opts_.width) + "x" +
                                  std::to_string(opts_.height));
+    const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+    if (!name) throw std::runtime_error("no current OpenGL context to render with");
+    glRenderer_ = name;
     Gl& g = *gl_;
     GLint maxSamples = 1;
     glGetIntegerv(GL_MAX_SAMPLES, &maxSamples);
     samples_ = std::clamp(opts_.samples, 1, std::max(1, static_cast<int>(maxSamples)));
-
-    // Multisampled colour + depth, resolved into a single-sample colour buffer for read-back.
     glGenFramebuffers(1, &g.msFbo);
     glGenRenderbuffers(1, &g.msColour);
     glGenRenderbuffers(1, &g.msDepth);
-    glBindRenderbuffer(GL_RENDERBUFFER, g.msColour);
-    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_RGBA8, opts_.width, opts_.height);
-    glBindRenderbuffer(GL_RENDERBUFFER, g.msDepth);
-    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_DEPTH_COMPONENT24, opts_.width, opts_.height);
-    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.msColour);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.msDepth);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-        throw std::runtime_error("multisampled framebuffer incomplete");
     glGenFramebuffers(1, &g.outFbo);
     glGenRenderbuffers(1, &g.outColour);
-    glBindRenderbuffer(GL_RENDERBUFFER, g.outColour);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, opts_.width, opts_.height);
-    glBindFramebuffer(GL_FRAMEBUFFER, g.outFbo);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.outColour);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-        throw std::runtime_error("read-back framebuffer incomplete");
+    allocateTargets();
 
     g.meshProg = link(kMeshVs, kMeshFs);
     g.lineProg = link(kLineVs, kLineFs);
@@ -333,8 +322,49 @@ Renderer::Renderer(const RenderOptions& opts) : opts_(opts), ctx_(std::make_uniq
         throw std::runtime_error("ImGui OpenGL3 backend failed to initialise");
 }
 
+void Renderer::allocateTargets() {
+    // Multisampled colour + depth, resolved into a single-sample colour buffer for read-back.
+    Gl& g = *gl_;
+    glBindRenderbuffer(GL_RENDERBUFFER, g.msColour);
+    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_RGBA8, opts_.width, opts_.height);
+    glBindRenderbuffer(GL_RENDERBUFFER, g.msDepth);
+    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_DEPTH_COMPONENT24, opts_.width, opts_.height);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.msColour);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.msDepth);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        throw std::runtime_error("multisampled framebuffer incomplete");
+    glBindRenderbuffer(GL_RENDERBUFFER, g.outColour);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, opts_.width, opts_.height);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.outFbo);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.outColour);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+        throw std::runtime_error("read-back framebuffer incomplete");
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+}
+
+void Renderer::resize(int width, int height) {
+    if (width <= 0 || height <= 0 || (width == opts_.width && height == opts_.height)) return;
+    makeCurrent();
+    opts_.width = width;
+    opts_.height = height;
+    allocateTargets();
+}
+
+void Renderer::makeCurrent() const {
+    if (ctx_) ctx_->makeCurrent();
+}
+
+void Renderer::present(unsigned fbo) const {
+    makeCurrent();
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, gl_->outFbo);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fbo);
+    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+}
+
 Renderer::~Renderer() {
-    ctx_->makeCurrent();
+    makeCurrent();
     Gl& g = *gl_;
     ImGui::SetCurrentContext(g.imgui);
     ImGui_ImplOpenGL3_Shutdown();
@@ -363,7 +393,7 @@ PixelRect Renderer::legendRect() const {
 }
 
 void Renderer::draw(const RenderSnapshot& snap) {
-    ctx_->makeCurrent();
+    makeCurrent();
     Gl& g = *gl_;
     const int n = snap.vertices();
     const bool useMap = snap.scalar.size() == n && n > 0;
@@ -652,20 +682,21 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
 }
 
 Image Renderer::read() const {
-    ctx_->makeCurrent();
+    makeCurrent();
     Image img;
     img.width = opts_.width;
     img.height = opts_.height;
     img.rgba.resize(4 * static_cast<size_t>(img.width) * static_cast<size_t>(img.height));
     glBindFramebuffer(GL_READ_FRAMEBUFFER, gl_->outFbo);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
-    std::vector<std::uint8_t> raw(img.rgba.size());
-    glReadPixels(0, 0, img.width, img.height, GL_RGBA, GL_UNSIGNED_BYTE, raw.data());
+    glReadPixels(0, 0, img.width, img.height, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
     glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-    // GL's first row is the bottom one.
+    // GL's first row is the bottom one: flip in place (no second frame-sized buffer per frame).
     const size_t row = 4 * static_cast<size_t>(img.width);
-    for (int y = 0; y < img.height; ++y)
-        std::copy_n(raw.data() + row * static_cast<size_t>(img.height - 1 - y), row, img.rgba.data() + row * static_cast<size_t>(y));
+    for (int y = 0; y < img.height / 2; ++y)
+        std::swap_ranges(img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y)),
+                         img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y + 1)),
+                         img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(img.height - 1 - y)));
     return img;
 }
 

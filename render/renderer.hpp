@@ -1,5 +1,6 @@
-// Draws a RenderSnapshot offscreen (EGL, OpenGL 3.3 core, 4x MSAA) with an ImGui HUD and reads
-// the frame back. One Renderer owns its GL context; use it from one thread.
+// Draws a RenderSnapshot (OpenGL 3.3 core, 4x MSAA) with an ImGui HUD and reads the frame back.
+// Offscreen, a Renderer owns its EGL context; in a window it uses the window's context and copies
+// each frame to the window's default framebuffer (present). Use it from one thread.
 #pragma once
 
 #include "image.hpp"
@@ -36,10 +37,17 @@ struct PixelRect {
     float x0 = 0, y0 = 0, x1 = 0, y1 = 0;
 };
 
+// Where a Renderer gets its GL context.
+enum class RenderTarget : std::uint8_t {
+    Offscreen,      // its own EGL context, no display needed
+    CurrentContext, // the context current on this thread (e.g. a GLFW window's); it must stay
+                    // current whenever the Renderer is used
+};
+
 class Renderer {
 public:
-    // Creates the GL context, framebuffers, shaders and ImGui. Throws std::runtime_error.
-    explicit Renderer(const RenderOptions& opts = {});
+    // Creates (or takes) the GL context, framebuffers, shaders and ImGui. Throws std::runtime_error.
+    explicit Renderer(const RenderOptions& opts = {}, RenderTarget target = RenderTarget::Offscreen);
     ~Renderer();
     Renderer(const Renderer&) = delete;
     Renderer& operator=(const Renderer&) = delete;
@@ -54,19 +62,28 @@ public:
         return read();
     }
 
-    // Toggles may change between frames; width, height and samples are fixed at construction.
+    // Copies the last frame into framebuffer `fbo` (0: a window's back buffer) at the same size.
+    void present(unsigned fbo = 0) const;
+    // New frame size (a resized window); the next draw uses it.
+    void resize(int width, int height);
+
+    // Toggles may change between frames; width and height change only through resize.
     RenderOptions& options() { return opts_; }
     const RenderOptions& options() const { return opts_; }
     int width() const { return opts_.width; }
     int height() const { return opts_.height; }
     int samples() const { return samples_; }       // MSAA samples in use
-    const EglContext& context() const { return *ctx_; }
+    const EglContext& context() const { return *ctx_; } // Offscreen only
+    const std::string& glRenderer() const { return glRenderer_; } // GL_RENDERER
     PixelRect legendRect() const;                  // where the legend bar is drawn
 
 private:
     struct Gl;
     void drawHudAndLegend(const RenderSnapshot& snap);
+    void makeCurrent() const;
+    void allocateTargets(); // framebuffers at opts_ size
     RenderOptions opts_;
+    std::string glRenderer_;
     int samples_ = 1;
     std::unique_ptr<EglContext> ctx_;
     std::unique_ptr<Gl> gl_;

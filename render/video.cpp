@@ -45,30 +45,69 @@ VideoEncoder::VideoEncoder(const std::string& path, int width, int height, doubl
     std::signal(SIGPIPE, SIG_IGN);
     std::ostringstream cmd;
     cmd << shellQuote(ffmpeg) << " -hide_banner -loglevel error -y -f rawvideo -pix_fmt rgba -s " << width << "x"
-        << height << " -r " << fps << " -i - -c:v libx264 -pix_fmt yuv420p -f mp4 " << shellQuote(tmp_);
+        << height << " -r " << fps << " -i - -c:v libx264 -preset veryfast -pix_fmt yuv420p -f mp4 " << shellQuote(tmp_);
     pipe_ = ::popen(cmd.str().c_str(), "w");
     if (!pipe_) throw std::runtime_error("cannot start ffmpeg for " + path);
+    writer_ = std::thread([this] { run(); });
+}
+
+void VideoEncoder::run() {
+    std::unique_lock lock(mutex_);
+    for (;;) {
+        changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+        if (queue_.empty()) return; // stop requested and nothing left
+        Image img = std::move(queue_.front());
+        queue_.pop_front();
+        changed_.notify_all();
+        if (failed_) continue; // drain: ffmpeg is gone
+        lock.unlock();
+        const bool ok = std::fwrite(img.rgba.data(), 1, img.rgba.size(), pipe_) == img.rgba.size();
+        lock.lock();
+        if (ok) ++frames_;
+        else failed_ = true;
+        changed_.notify_all();
+    }
+}
+
+void VideoEncoder::stopWriter() {
+    if (!writer_.joinable()) return;
+    {
+        std::lock_guard lock(mutex_);
+        stop_ = true;
+    }
+    changed_.notify_all();
+    writer_.join();
 }
 
 VideoEncoder::~VideoEncoder() {
+    stopWriter();
     if (pipe_) {
         ::pclose(pipe_);
         std::remove(tmp_.c_str());
     }
 }
 
-void VideoEncoder::addFrame(const Image& img) {
+void VideoEncoder::addFrame(Image img) {
     if (!pipe_) throw std::runtime_error("video " + path_ + " already finished");
     if (img.width != width_ || img.height != height_)
         throw std::runtime_error("video frame is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
                                  ", the video " + std::to_string(width_) + "x" + std::to_string(height_));
-    if (std::fwrite(img.rgba.data(), 1, img.rgba.size(), pipe_) != img.rgba.size())
-        throw std::runtime_error("ffmpeg stopped while writing " + path_);
-    ++frames_;
+    std::unique_lock lock(mutex_);
+    changed_.wait(lock, [&] { return queue_.size() < 4 || failed_; });
+    if (failed_) throw std::runtime_error("ffmpeg stopped while writing " + path_);
+    queue_.push_back(std::move(img));
+    changed_.notify_all();
 }
 
 void VideoEncoder::finish() {
     if (!pipe_) return;
+    stopWriter();
+    if (failed_) {
+        ::pclose(pipe_);
+        pipe_ = nullptr;
+        std::remove(tmp_.c_str());
+        throw std::runtime_error("ffmpeg stopped while writing " + path_);
+    }
     const int status = ::pclose(pipe_);
     pipe_ = nullptr;
     if (status == -1 || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {

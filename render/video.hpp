@@ -1,10 +1,16 @@
-// MP4 video through the ffmpeg program: raw RGBA frames piped to its stdin, H.264 out.
+// MP4 video through the ffmpeg program: raw RGBA frames piped to its stdin, H.264 out. Frames go
+// to the pipe from a writer thread, so the caller does not wait while ffmpeg encodes.
 #pragma once
 
 #include "image.hpp"
 
+#include <atomic>
+#include <condition_variable>
 #include <cstdio>
+#include <deque>
+#include <mutex>
 #include <string>
+#include <thread>
 
 namespace cutsim::render {
 
@@ -20,15 +26,23 @@ public:
     VideoEncoder(const VideoEncoder&) = delete;
     VideoEncoder& operator=(const VideoEncoder&) = delete;
 
-    void addFrame(const Image& img); // throws if the size differs or ffmpeg stopped
+    // Queues a frame (blocks while 4 wait); throws if the size differs or ffmpeg stopped.
+    void addFrame(Image img);
     void finish();                   // waits for ffmpeg, renames; throws with its exit status
-    int frames() const { return frames_; }
+    int frames() const { return frames_; } // frames written to ffmpeg
 
 private:
+    void run();       // writer thread
+    void stopWriter(); // lets the writer finish the queue and joins it
     std::string path_, tmp_;
     int width_, height_;
-    int frames_ = 0;
+    std::atomic<int> frames_ = 0;
     std::FILE* pipe_ = nullptr;
+    std::mutex mutex_;
+    std::condition_variable changed_;
+    std::deque<Image> queue_;
+    bool stop_ = false, failed_ = false;
+    std::thread writer_;
 };
 
 } // namespace cutsim::render

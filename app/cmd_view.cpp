@@ -1,0 +1,311 @@
+// `cutsim view SCENE`: the scene running live in a window, with an orbit camera and a panel.
+// Same scene loading and step as `cutsim run` (run.hpp), same frame content (frames.hpp).
+#include "commands.hpp"
+#include "frames.hpp"
+#include "run.hpp"
+
+#include "fem/forces.hpp"
+#include "mesh/mesh.hpp"
+
+#ifdef CUTSIM_HAVE_RENDER
+#include "png_writer.hpp"
+#include "renderer.hpp"
+#include "window.hpp"
+
+#define GLFW_INCLUDE_NONE
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+#endif
+
+#include <CLI/CLI.hpp>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+namespace cutsim::app {
+namespace {
+
+struct ViewArgs {
+    std::string scene;
+    std::vector<std::string> sets;
+    int width = 0, height = 0;  // 0: the scene's capture size
+    int frames = 0;             // > 0: draw this many frames, save the screenshot, exit
+    std::string screenshot;     // where p (and the end of --frames) writes
+    int threads = 0;
+};
+
+#ifdef CUTSIM_HAVE_RENDER
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+// A camera orbiting a target: drag rotates about the up axis and the screen's horizontal axis,
+// scroll changes the distance, right-drag moves the target in the view plane.
+struct Orbit {
+    Eigen::Vector3d target, dir, up; // dir: unit vector from target to eye
+    double distance = 1, fovY = 40;
+
+    explicit Orbit(const Camera& c)
+        : target(c.target), dir((c.eye - c.target).normalized()), up(c.up.normalized()),
+          distance((c.eye - c.target).norm()), fovY(c.fovY) {}
+    Camera camera() const {
+        Camera c;
+        c.eye = target + distance * dir;
+        c.target = target;
+        c.up = up;
+        c.fovY = fovY;
+        return c;
+    }
+    void rotate(double dx, double dy) { // pixels
+        const Eigen::Vector3d right = up.cross(dir).normalized();
+        Eigen::Vector3d d = Eigen::AngleAxisd(-0.008 * dx, up) * dir;
+        const Eigen::Vector3d tilted = Eigen::AngleAxisd(-0.008 * dy, right) * d;
+        // Stay off the poles, where the up vector and the view direction would align.
+        if (std::abs(tilted.normalized().dot(up)) < 0.995) d = tilted;
+        dir = d.normalized();
+    }
+    void zoom(double clicks) { distance *= std::pow(0.88, clicks); }
+    void pan(double dx, double dy, int heightPx) {
+        const Eigen::Vector3d right = up.cross(dir).normalized(), screenUp = dir.cross(right);
+        const double perPx = 2 * distance * std::tan(0.5 * fovY * M_PI / 180.0) / std::max(1, heightPx);
+        target += perPx * (-dx * right + dy * screenUp);
+    }
+};
+
+// A free file name view_NNN.png in the current folder.
+std::string nextShotName() {
+    for (int i = 1;; ++i) {
+        char name[32];
+        std::snprintf(name, sizeof name, "view_%03d.png", i);
+        if (!std::filesystem::exists(name)) return name;
+    }
+}
+
+constexpr const char* kColormaps[] = {"timestep", "displacement", "stress", "none"};
+constexpr Integrator kIntegrators[] = {Integrator::SymplecticEuler, Integrator::CentralDifference, Integrator::Newmark,
+                                       Integrator::BackwardEuler};
+
+int runView(const ViewArgs& a) {
+    SceneDef sc = loadScene(a.scene, a.sets);
+    setThreads(a.threads);
+    Simulation sim = prepareScene(sc);
+    const int width = a.width > 0 ? a.width : sc.capture.width, height = a.height > 0 ? a.height : sc.capture.height;
+    const bool headless = a.frames > 0;
+    render::Window win("cutsim view: " + sc.name, width, height, !headless);
+
+    render::RenderOptions ro;
+    ro.width = win.framebufferWidth();
+    ro.height = win.framebufferHeight();
+    ro.xray = sc.capture.xray;
+    ro.wireframe = true; // the snapshot has edges only when wireframe is on
+    ro.hud = false;      // the panel shows the HUD values
+    render::Renderer renderer(ro, render::RenderTarget::CurrentContext);
+
+    SceneSnapshot scene(sc, sim.model, sim.ta.estimates().r1r, sim.dt);
+    State state = makeState(sim.model);
+    Stepper stepper;
+    StepOptions so{sc.integrator, sim.dt};
+    if (sim.alphaElem.size()) so.alphaElem = &sim.alphaElem;
+    Orbit orbit(scene.defaultCamera(sim.model, 0));
+    const double frameDt = 1.0 / sc.capture.fps;
+
+    bool paused = false, stepOnce = false, shot = false;
+    std::string status = "running", message;
+    int exitCode = 0;
+    // Rates over the last half second of wall time.
+    double rateSteps = 0, rateSim = 0, rateWall = 0, stepsPerSecond = 0, realTime = 0;
+    auto last = Clock::now();
+    const auto start = Clock::now();
+    float fraction = static_cast<float>(sc.dt.fraction);
+    int integrator = static_cast<int>(std::find(std::begin(kIntegrators), std::end(kIntegrators), sc.integrator) -
+                                      std::begin(kIntegrators));
+    int colormap = static_cast<int>(std::find_if(std::begin(kColormaps), std::end(kColormaps),
+                                                 [&](const char* c) { return scene.colormap() == c; }) -
+                                    std::begin(kColormaps));
+
+    auto reset = [&] {
+        state = makeState(sim.model);
+        stepper.reset();
+        status = "running";
+        paused = false;
+    };
+    // New integrator or step fraction: the policy chooses again; a refused step keeps the old one.
+    auto applyPolicy = [&](Integrator integ, double frac) {
+        SceneDef next = sc;
+        next.integrator = integ;
+        next.dt.mode = DtPolicy::Mode::Fraction;
+        next.dt.fraction = frac;
+        try {
+            chooseStep(next, sim); // changes sim only when it accepts
+        } catch (const InputError& e) {
+            message = e.what();
+            fraction = static_cast<float>(sc.dt.fraction);
+            integrator = static_cast<int>(std::find(std::begin(kIntegrators), std::end(kIntegrators), sc.integrator) -
+                                          std::begin(kIntegrators));
+            return;
+        }
+        message.clear();
+        sc.integrator = next.integrator;
+        sc.dt = next.dt;
+        so = StepOptions{sc.integrator, sim.dt};
+        so.alphaElem = sim.alphaElem.size() ? &sim.alphaElem : nullptr;
+        stepper.reset();
+        scene.setStep(sim.dt, sc.capture.criticalFactor);
+    };
+
+    for (int frame = 0; !win.shouldClose(); ++frame) {
+        win.beginFrame();
+        ImGuiIO& io = ImGui::GetIO();
+        for (int key : win.takeKeys()) {
+            switch (key) {
+            case GLFW_KEY_SPACE: paused = !paused; break;
+            case GLFW_KEY_S: stepOnce = true; paused = true; break;
+            case GLFW_KEY_R: reset(); break;
+            case GLFW_KEY_C: renderer.options().xray = !renderer.options().xray; break;
+            case GLFW_KEY_W: scene.setWireframe(!scene.wireframe()); break;
+            case GLFW_KEY_P: shot = true; break;
+            case GLFW_KEY_Q:
+            case GLFW_KEY_ESCAPE: win.close(); break;
+            default: break;
+            }
+        }
+        if (!io.WantCaptureMouse) {
+            if (ImGui::IsMouseDown(ImGuiMouseButton_Left)) orbit.rotate(io.MouseDelta.x, io.MouseDelta.y);
+            if (ImGui::IsMouseDown(ImGuiMouseButton_Right)) orbit.pan(io.MouseDelta.x, io.MouseDelta.y, renderer.height());
+            if (io.MouseWheel != 0) orbit.zoom(io.MouseWheel);
+        }
+
+        // Simulate: a capture frame's worth of time when headless (reproducible), else the wall
+        // time since the last frame, stopping early to keep the window responsive.
+        const double wallFrame = std::min(since(last), 0.1);
+        last = Clock::now();
+        const auto simStart = Clock::now();
+        long steps = 0;
+        const double t0 = state.time;
+        if (status == "running" && (!paused || stepOnce)) {
+            const double target = stepOnce ? state.time : state.time + (headless ? frameDt : wallFrame);
+            do {
+                stepScene(sc, sim, state, stepper, so);
+                ++steps;
+                if (state.flags.nonFinite > 0) {
+                    status = "diverged at t = " + std::to_string(state.time) + " s (r resets)";
+                    exitCode = 3;
+                    break;
+                }
+            } while (state.time < target - 1e-12 && (headless || since(simStart) < 0.05));
+            stepOnce = false;
+            if (state.time >= sc.duration - 1e-12 && status == "running") {
+                status = "end of scene (r resets)";
+            }
+        }
+        rateSteps += static_cast<double>(steps);
+        rateSim += state.time - t0;
+        rateWall += wallFrame;
+        if (rateWall >= 0.5) {
+            stepsPerSecond = rateSteps / rateWall;
+            realTime = rateSim / rateWall;
+            rateSteps = rateSim = rateWall = 0;
+        }
+
+        // Panel: HUD values and controls.
+        ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+        ImGui::SetNextWindowBgAlpha(0.75f);
+        ImGui::Begin("cutsim", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+        ImGui::Text("%s: %d tets, %d nodes", sc.name.c_str(), sim.model.elements(), sim.model.nodes());
+        ImGui::Text("%s%s", status.c_str(), paused && status == "running" ? " (paused)" : "");
+        ImGui::Separator();
+        ImGui::Text("t          %.4f s", state.time);
+        ImGui::Text("dt used    %.3e s", sim.dt);
+        ImGui::Text("dt cert    %.3e s", sim.certified);
+        ImGui::Text("dt exact   %.3e s", sim.exact.dt);
+        // Until the first half second is over, the rates so far.
+        const bool early = stepsPerSecond == 0 && rateWall > 0;
+        ImGui::Text("steps/s    %.0f", early ? rateSteps / rateWall : stepsPerSecond);
+        ImGui::Text("real time  %.3f x", early ? rateSim / rateWall : realTime);
+        ImGui::Text("critical   %d elements", sim.criticalElements);
+        ImGui::Separator();
+        const char* integNames[] = {integratorName(kIntegrators[0]), integratorName(kIntegrators[1]),
+                                    integratorName(kIntegrators[2]), integratorName(kIntegrators[3])};
+        const bool integChanged = ImGui::Combo("integrator", &integrator, integNames, 4);
+        ImGui::SliderFloat("dt fraction", &fraction, 0.05f, 1.2f, "%.2f");
+        if (integChanged || ImGui::IsItemDeactivatedAfterEdit()) // the slider applies on release
+            applyPolicy(kIntegrators[integrator], fraction);
+        ImGui::SameLine();
+        ImGui::TextDisabled("of %s", sc.dt.of.c_str());
+        if (ImGui::Combo("colour map", &colormap, kColormaps, 4)) scene.setColormap(kColormaps[colormap]);
+        if (!message.empty()) ImGui::TextWrapped("%s", message.c_str());
+        if (ImGui::CollapsingHeader("keys and mouse")) {
+            ImGui::TextUnformatted("space pause/resume   s single step   r reset\n"
+                                   "c critical elements  w wireframe     p screenshot\n"
+                                   "q, Esc quit\n"
+                                   "drag rotate   scroll zoom   right-drag pan");
+        }
+        ImGui::End();
+
+        // Scene, then the panel over it.
+        renderer.resize(win.framebufferWidth(), win.framebufferHeight());
+        FrameInfo fi{state.time, sim.dt, sim.certified, sim.exact.dt, sim.criticalElements, 0, since(start)};
+        RenderSnapshot& snap = scene.update(sim.model, state, fi);
+        snap.camera = orbit.camera();
+        renderer.draw(snap);
+        renderer.present(0);
+        win.endFrame();
+
+        const bool lastFrame = headless && frame + 1 >= a.frames;
+        if (shot || (lastFrame && !a.screenshot.empty())) {
+            const std::string path = a.screenshot.empty() ? nextShotName() : a.screenshot;
+            render::writePng(path, win.readBackBuffer());
+            std::fprintf(stderr, "screenshot: %s\n", path.c_str());
+            shot = false;
+        }
+        win.swap();
+        if (lastFrame) break;
+    }
+    return exitCode;
+}
+#endif
+
+} // namespace
+
+void addViewCommand(CLI::App& app) {
+    auto args = std::make_shared<ViewArgs>();
+    CLI::App* cmd = app.add_subcommand(
+        "view", "Run a scene live in a window: drag rotates, scroll zooms, right-drag pans; keys: space pause/resume, "
+                "s single step, r reset, c critical elements, w wireframe, p screenshot, q or Esc quit. "
+                "Exit codes: 2 bad scene, 3 diverged (--frames), 4 no display");
+    cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
+    cmd->add_option("--set", args->sets, "Override a scene value: key.path=value (JSON value)");
+    cmd->add_option("--width", args->width, "Window width [px] (default: the scene's capture width)")
+        ->check(CLI::Range(64, 8192));
+    cmd->add_option("--height", args->height, "Window height [px] (default: the scene's capture height)")
+        ->check(CLI::Range(64, 8192));
+    cmd->add_option("--frames", args->frames,
+                    "Draw N frames of 1/fps simulated seconds each, write --screenshot, exit (for scripts and tests)")
+        ->check(CLI::Range(1, 1000000));
+    cmd->add_option("--screenshot", args->screenshot, "PNG that p (and the end of --frames) writes (default view_NNN.png)");
+    cmd->add_option("--threads", args->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
+    cmd->callback([args] {
+#ifdef CUTSIM_HAVE_RENDER
+        try {
+            setExitCode(runView(*args));
+        } catch (const render::NoDisplayError& e) {
+            std::fprintf(stderr, "error: %s\n", e.what());
+            setExitCode(4);
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "error: %s\n", e.what());
+            setExitCode(2);
+        }
+#else
+        std::fprintf(stderr, "error: this cutsim was built without the renderer (-DCUTSIM_RENDER=OFF)\n");
+        setExitCode(2);
+#endif
+    });
+}
+
+} // namespace cutsim::app

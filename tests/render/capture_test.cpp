@@ -1,0 +1,69 @@
+// `cutsim run` captures: PNG frames can be decimated or left to the video alone.
+#include "png_writer.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+
+#include <unistd.h>
+
+namespace cutsim {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Its own folder: runCutsim would wipe test::tempDir().
+std::string outDir(const std::string& name) {
+    const fs::path dir = fs::temp_directory_path() / ("cutsim_capture_" + name + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    return dir.string();
+}
+
+int framesOf(const std::string& out) {
+    std::ifstream in(out + "/report.json");
+    return nlohmann::json::parse(in)["frames"].get<int>();
+}
+
+int pngsIn(const std::string& dir) {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(dir)) n += e.path().extension() == ".png";
+    return n;
+}
+
+const std::string kSmall = " --quiet --set duration=0.2 --set capture.width=64 --set capture.height=48 --set capture.video=false";
+
+TEST(Capture, PngEveryTwoWritesEveryOtherFrame) {
+    const std::string out = outDir("every2");
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out + kSmall +
+                                  " --set capture.png_every=2",
+                              nullptr, &err),
+              0)
+        << err;
+    const int frames = framesOf(out);
+    ASSERT_GE(frames, 7); // t = 0, 1/30, ..., 6/30 and the last state
+    EXPECT_EQ(pngsIn(out + "/frames"), (frames + 1) / 2);
+    EXPECT_TRUE(fs::exists(out + "/frames/frame_000000.png"));
+    EXPECT_FALSE(fs::exists(out + "/frames/frame_000001.png"));
+    const render::Image img = render::readPng(out + "/frames/frame_000002.png");
+    EXPECT_EQ(img.width, 64);
+    EXPECT_EQ(img.height, 48);
+}
+
+TEST(Capture, PngEveryZeroWritesNoPng) {
+    const std::string out = outDir("every0");
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out + kSmall +
+                                  " --set capture.png_every=0",
+                              nullptr, &err),
+              0)
+        << err;
+    EXPECT_GE(framesOf(out), 7);
+    EXPECT_EQ(fs::exists(out + "/frames") ? pngsIn(out + "/frames") : 0, 0);
+}
+
+} // namespace
+} // namespace cutsim

@@ -1,0 +1,78 @@
+// `cutsim view`: a headless run under a virtual X server draws the scene and saves a screenshot;
+// without a display it stops with a clear message.
+#include "png_writer.hpp"
+#include "renderer.hpp"
+#include "test_support.hpp"
+#include "video.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <sys/wait.h>
+
+namespace cutsim {
+namespace {
+
+// Runs a shell command; returns its exit code, stderr in err.
+int shell(const std::string& cmd, const std::string& dir, std::string* err) {
+    const std::string e = dir + "/stderr.txt";
+    const int status = std::system((cmd + " >" + dir + "/stdout.txt 2>" + e).c_str());
+    *err = test::readText(e);
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+TEST(View, HeadlessFramesWriteAScreenshotOfTheScene) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    const std::string png = dir + "/out.png";
+    std::string err;
+    const int code = shell("xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(CUTSIM_BINARY) + " view " +
+                               test::source("assets/scenes/bar_sag.json") + " --frames 5 --width 960 --height 540 --screenshot " + png,
+                           dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    ASSERT_TRUE(std::filesystem::exists(png)) << err;
+    const render::Image img = render::readPng(png);
+    ASSERT_EQ(img.width, 960);
+    ASSERT_EQ(img.height, 540);
+
+    // The bar is at the centre of the scene's camera: there most pixels are neither the
+    // background nor the floor grid (background + 31 per channel), but colour-mapped surface.
+    const auto bg = render::RenderOptions{}.background;
+    int object = 0, total = 0;
+    for (int y = img.height / 2 - 40; y < img.height / 2 + 40; ++y)
+        for (int x = img.width / 2 - 80; x < img.width / 2 + 80; ++x) {
+            const auto p = img.pixel(x, y);
+            int d = 0;
+            for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(int(p[c]) - int(bg[c])));
+            object += d > 45;
+            ++total;
+        }
+    EXPECT_GT(object, total / 3) << object << " of " << total << " centre pixels differ from the background";
+    // Corners: background or grid, not surface.
+    const auto corner = img.pixel(img.width - 2, 2);
+    for (int c = 0; c < 3; ++c) EXPECT_LE(std::abs(int(corner[c]) - int(bg[c])), 45);
+}
+
+TEST(View, WithoutADisplayExitsWithAClearMessage) {
+    const std::string dir = test::tempDir();
+    std::string err;
+    const int code = shell("env -u DISPLAY -u WAYLAND_DISPLAY " + std::string(CUTSIM_BINARY) + " view " +
+                               test::source("assets/scenes/bar_sag.json") + " --frames 1 --screenshot " + dir + "/x.png",
+                           dir, &err);
+    EXPECT_EQ(code, 4) << err;
+    EXPECT_NE(err.find("display"), std::string::npos) << err;
+    EXPECT_NE(err.find("DISPLAY is not set"), std::string::npos) << err;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/x.png"));
+}
+
+TEST(View, BadSceneIsAnInputError) {
+    const std::string dir = test::tempDir();
+    std::string err;
+    const int code = shell(std::string(CUTSIM_BINARY) + " view " + dir + "/missing.json --frames 1", dir, &err);
+    EXPECT_EQ(code, 2) << err;
+    EXPECT_NE(err.find("missing.json"), std::string::npos) << err;
+}
+
+} // namespace
+} // namespace cutsim
