@@ -128,6 +128,14 @@ public:
         h.criticalElements = info.criticalElements;
         h.cuts = info.cuts;
         h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) + " nodes");
+        snap.tools = info.tools;
+        if (!sc_.tools.empty()) {
+            char line[96];
+            std::snprintf(line, sizeof line, "tool F   %.3f N (%.3f, %.3f, %.3f)", info.toolForce.norm(), info.toolForce.x(),
+                          info.toolForce.y(), info.toolForce.z());
+            h.lines.push_back(line);
+            h.forcePlot = info.forceHistory;
+        }
         render::Image img = renderer_->render(snap);
         const auto t0 = Clock::now();
         char name[32];

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "fem/state.hpp"
+#include "snapshot/snapshot.hpp"
 #include "scene.hpp"
 
 #include <memory>
@@ -18,6 +19,9 @@ struct FrameInfo {
     int criticalElements = 0;
     int cuts = 0;
     double wall = 0;          // wall time since the loop started [s]
+    std::vector<ToolShape> tools;        // tools to draw
+    Eigen::Vector3d toolForce = Eigen::Vector3d::Zero(); // reaction force on the tools [N]
+    std::vector<float> forceHistory;     // recent |tool force| samples, oldest first [N]
 };
 
 class FrameSink {

@@ -1,5 +1,6 @@
 #include "run.hpp"
 
+#include "contact/contact.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "frames.hpp"
@@ -97,6 +98,44 @@ void writeJsonFile(const fs::path& p, const json& j) {
     fs::rename(tmp, p);
 }
 
+// Tool contact of a run: the Bullet world, its penalty parameters and the force record.
+struct ToolRun {
+    std::unique_ptr<ContactWorld> world;
+    double stiffnessLimit = 0;     // stable penalty stiffness per point [N/m]
+    std::vector<std::string> clamped;  // tools whose stiffness was lowered to the limit
+    double maxForce = 0;           // largest |reaction| at full rate [N]
+    double maxDepth = 0;           // deepest surface point inside a tool at any step [m]
+    long contactSteps = 0;         // steps with at least one point in contact
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(); // reaction of the last step [N]
+    json series = {{"time", json::array()}, {"fx", json::array()}, {"fy", json::array()}, {"fz", json::array()},
+                   {"max", json::array()}};
+    double nextSample = 0, blockMax = 0, sampleDt = 1e-3;
+    std::vector<float> history;    // |F| at the HUD's rate, last 200 samples [N]
+
+    // After a step at time t: the full-rate maximum and one sample per sampleDt.
+    void record(double t) {
+        const ContactStep& st = world->last();
+        force.setZero();
+        for (const auto& r : st.reaction) force += r;
+        const double mag = force.norm();
+        maxForce = std::max(maxForce, mag);
+        maxDepth = std::max(maxDepth, st.maxDepth);
+        contactSteps += st.contacts > 0;
+        blockMax = std::max(blockMax, mag);
+        if (t >= nextSample - 1e-12) {
+            series["time"].push_back(t);
+            series["fx"].push_back(force.x());
+            series["fy"].push_back(force.y());
+            series["fz"].push_back(force.z());
+            series["max"].push_back(blockMax);
+            blockMax = 0;
+            nextSample += sampleDt;
+            history.push_back(static_cast<float>(mag));
+            if (history.size() > 200) history.erase(history.begin());
+        }
+    }
+};
+
 } // namespace
 
 int runScene(const SceneDef& sc, const RunOptions& opt) {
@@ -177,6 +216,45 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         fs::remove(probe);
     }
 
+    // Contact: a Bullet world only when the scene has tools. Penalty stiffness stays below the
+    // limit that keeps this step stable (contact/contact.hpp stableStiffness).
+    ToolRun tools;
+    if (!sc.tools.empty()) {
+        tools.world = std::make_unique<ContactWorld>(sc.tools);
+        double spacing = sc.contactSpacing;
+        if (spacing <= 0) {
+            // half the smallest tool feature, so a tool cannot slip between points
+            spacing = 1e300;
+            for (const auto& t : sc.tools)
+                for (const auto& p : toolParts(t, 0))
+                    spacing = std::min(spacing, 0.5 * (p.hull || p.shape == ToolShape::Kind::Box
+                                                          ? std::max({p.size.x(), p.size.y(), p.size.z()}) : p.size.x()));
+        }
+        tools.world->setSurface(contactPoints(boundarySurface(model.tets, model.X), model.tets, model.X, spacing));
+        // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
+        tools.stiffnessLimit = explicitScheme ? stableStiffness(tools.world->points(), model.invMass, std::min(dt, 0.9 * exact.dt), exact.dt)
+                                              : std::numeric_limits<double>::infinity();
+        double mMin = 1e300;  // lightest free node under the surface points
+        const ContactPoints& P = tools.world->points();
+        for (int p = 0; p < P.points(); ++p)
+            for (int i = 0; i < ContactPoints::kMaxNodes; ++i)
+                if (P.weights(i, p) > 0 && model.invMass(P.nodes(i, p)) > 0) mMin = std::min(mMin, model.mass(P.nodes(i, p)));
+        for (auto& t : tools.world->tools()) {
+            if (t.stiffness <= 0) {
+                if (!std::isfinite(tools.stiffnessLimit)) throw InputError(sc.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
+                t.stiffness = 0.8 * tools.stiffnessLimit;
+            } else if (t.stiffness > tools.stiffnessLimit) {
+                std::fprintf(stderr, "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; using the limit\n",
+                             t.name.c_str(), t.stiffness, tools.stiffnessLimit, dt);
+                t.stiffness = tools.stiffnessLimit;
+                tools.clamped.push_back(t.name);
+            }
+            // damping ratio 0.3 on the lightest node: c dt / m stays well below the explicit limit 2
+            if (t.damping < 0) t.damping = mMin < 1e300 ? 0.6 * std::sqrt(t.stiffness * mMin) : 0.0;
+        }
+        tools.sampleDt = 1.0 / sc.forceRate;
+    }
+
     const bool capturing = opt.render && sc.capture.enabled;
     std::unique_ptr<FrameSink> sink;
     if (capturing) sink = makeFrameSink(sc, opt.out, model, ta.estimates().r1r, dt);
@@ -202,7 +280,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         const double ek = kineticEnergy(model, state), ee = elasticEnergy(model, state), eg = gravityEnergy(model, state);
         energy.push_back({{"time", state.time}, {"kinetic", ek}, {"elastic", ee}, {"gravity", eg}, {"total", ek + ee + eg}});
         if (sink) {
-            FrameInfo fi{state.time, dt, certified, exact.dt, criticalElements, 0, since(loopStart)};
+            FrameInfo fi{state.time, dt, certified, exact.dt, criticalElements, 0, since(loopStart), {}, tools.force, tools.history};
+            for (const auto& t : sc.tools) appendToolShapes(t, state.time, fi.tools);
             const auto tr = Clock::now();
             sink->frame(model, state, fi);
             stages.render += since(tr) - sink->lastEncodeSeconds();
@@ -215,15 +294,21 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             recordFrame();
             nextFrame += frameDt;
         }
-        // 1. contact stage: no tools yet, so it stays 0. Applied loads go to fExt.
+        // 1. applied loads and tool contact forces go to fExt
         auto ts = Clock::now();
-        if (!sc.forces.empty()) {
+        if (!sc.forces.empty() || tools.world) {
             state.fExt.setZero();
             for (size_t l = 0; l < sc.forces.size(); ++l) {
                 const Eigen::Vector3d f = sc.forces[l].force * sc.forces[l].profile.at(state.time) /
                                           static_cast<double>(loadNodes[l].size());
                 for (int n : loadNodes[l]) state.fExt.col(n) += f;
             }
+        }
+        if (tools.world) {
+            const auto tc = Clock::now();
+            tools.world->addForces(state.x, state.v, state.time, dt, state.fExt);
+            stages.contact += since(tc);
+            ts = Clock::now();
         }
         // 2-4. forces, integrate, checks (fem/integrate.hpp)
         stepper.step(model, state, so);
@@ -241,6 +326,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             exitCode = 3;
             break;
         }
+        if (tools.world) tools.record(state.time);
         progress.update(state.time);
     }
     if (exitCode == 0) recordFrame();
@@ -284,6 +370,21 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["energy"] = energy;
     report["inverted"] = {{"steps", invertedSteps}, {"max_elements", maxInverted}};
     report["stages"] = stages.toJson();
+    if (tools.world) {
+        json names = json::array(), k = json::array(), c = json::array();
+        for (const auto& t : tools.world->tools()) {
+            names.push_back(t.name);
+            k.push_back(t.stiffness);
+            c.push_back(t.damping);
+        }
+        report["tool"] = {{"names", names}, {"max_force", tools.maxForce}, {"contact_steps", tools.contactSteps},
+                          {"max_depth", tools.maxDepth}, {"final_depth", tools.world->last().maxDepth},
+                          {"final_force", {tools.force.x(), tools.force.y(), tools.force.z()}},
+                          {"stiffness", k}, {"damping", c}, {"stiffness_limit", std::isfinite(tools.stiffnessLimit) ? json(tools.stiffnessLimit) : json(nullptr)},
+                          {"stiffness_clamped", tools.clamped}, {"contact_points", tools.world->points().points()},
+                          {"seconds_per_step", state.steps > 0 ? stages.contact / state.steps : 0.0},
+                          {"force_rate", sc.forceRate}, {"series", tools.series}};
+    }
     report["frames"] = sink ? sink->frames() : 0;
     report["video"] = sink ? sink->videoPath() : "";
     const double simWall = since(loopStart);
