@@ -4,6 +4,7 @@
 #include "contact/contact.hpp"
 #include "contact/tool.hpp"
 #include "fem/model.hpp"
+#include "mesh/io.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -96,6 +97,28 @@ TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
     st = s.press(cap);
     ASSERT_EQ(st.contacts, 1);
     EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
+}
+
+TEST(Contact, HullFromObjActsLikeItsShape) {
+    // an 8 x 8 x 4 mm cube written as OBJ (in mm, scale 0.001): the same depth as the box blade
+    std::string obj;
+    for (int i = 0; i < 8; ++i)
+        obj += "v " + std::to_string(i & 1 ? 4 : -4) + " " + std::to_string(i & 2 ? 4 : -4) + " " +
+               std::to_string(i & 4 ? 2 : -2) + "\n";
+    obj += "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\nf 2 6 8 4\n";
+    const std::string path = test::writeText(test::tempDir() + "/cube.obj", obj);
+    ToolDef hull;
+    hull.kind = ToolDef::Kind::Hull;
+    hull.hull = readSurfaceMesh(path, 0.001).V;
+    const double k = 2000, d = 3e-4;
+    hull.stiffness = k;
+    hull.damping = 0;
+    hull.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.002 - d), Eigen::Quaterniond::Identity()}, 0});
+    Slab s;
+    const ContactStep st = s.press(hull);
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
+    EXPECT_NEAR(st.reaction[0].head<2>().norm(), 0, 1e-9);
 }
 
 TEST(Contact, DampingOpposesApproachOnly) {
