@@ -82,6 +82,26 @@ TEST(Probe, SceneWithoutToolHasNoContactStage) {
     EXPECT_EQ(r["stages"]["contact"].get<double>(), 0.0);
 }
 
+TEST(Probe, TooStiffPenaltyIsLoweredToTheStableLimit) {
+    const std::string dir = workDir("stiff");
+    std::ifstream in(test::source("assets/scenes/probe.json"));
+    json j = json::parse(in);
+    j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    j["duration"] = 0.01;
+    j["tools"][0]["stiffness"] = 1e9;
+    const std::string p = dir + "/s.json";
+    std::ofstream(p) << j.dump();
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + p + " --out " + dir + "/out --no-render --quiet", nullptr, &err), 0) << err;
+    EXPECT_NE(err.find("above the stable limit"), std::string::npos) << err;
+    std::ifstream rin(dir + "/out/report.json");
+    const json r = json::parse(rin);
+    const json& tool = r["tool"];
+    EXPECT_EQ(tool["stiffness_clamped"], json::array({"probe"}));
+    EXPECT_EQ(tool["stiffness"][0].get<double>(), tool["stiffness_limit"].get<double>());
+    EXPECT_LT(tool["stiffness_limit"].get<double>(), 1e9);
+}
+
 TEST(Probe, BadToolKeysAreRefusedWithTheirPath) {
     const std::string scene = test::source("assets/scenes/probe.json");
     const std::string dir = workDir("bad");
