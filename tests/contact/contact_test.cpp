@@ -121,6 +121,27 @@ TEST(Contact, HullFromObjActsLikeItsShape) {
     EXPECT_NEAR(st.reaction[0].head<2>().norm(), 0, 1e-9);
 }
 
+TEST(Contact, GrasperJawsPushAVertexTowardTheGap) {
+    // jaws 4 mm cubes facing each other across y, 2 mm apart, centred 1.5 mm beside the vertex:
+    // the vertex sits 0.5 mm inside the lower jaw and is pushed into the gap (+y)
+    Slab s;
+    const double k = 1000;
+    ToolDef g;
+    g.kind = ToolDef::Kind::Grasper;
+    g.size << 0.004, 0.004, 0.004;
+    g.stiffness = k;
+    g.damping = 0;
+    g.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05 + 0.0015, 0.02), Eigen::Quaterniond::Identity()}, 0.002});
+    ContactStep st = s.press(g);
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.reaction[0].y(), -k * 5e-4, 1e-9);
+    EXPECT_NEAR(s.f.rowwise().sum().y(), k * 5e-4, 1e-9);
+    // centred on the vertex, it sits in the gap: no contact
+    g.keys[0].pose.position.y() = 0.05;
+    st = s.press(g);
+    EXPECT_EQ(st.contacts, 0);
+}
+
 TEST(Contact, DampingOpposesApproachOnly) {
     Slab s;
     const double k = 1000, c = 2, d = 1e-3, r = 0.005;
