@@ -60,41 +60,52 @@ ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& te
     auto pieces = [&](int a, int b) {
         return spacing > 0 ? std::max(1, static_cast<int>(std::ceil((rest.col(a) - rest.col(b)).norm() / spacing))) : 1;
     };
-    if (spacing > 0) {
-        // edge points once per edge, so a shared edge is not sampled twice
-        std::map<std::pair<int, int>, int> edges;
-        for (int t = 0; t < s.faces(); ++t)
-            for (int k = 0; k < 3; ++k) {
-                const int a = s.triangles(k, t), b = s.triangles((k + 1) % 3, t);
-                edges.emplace(std::minmax(a, b), 0);
-            }
-        for (const auto& [e, unused] : edges) {
-            const int n = pieces(e.first, e.second);
-            for (int i = 1; i < n; ++i) {
+    // edge points once per edge, so a shared edge is not sampled twice
+    std::map<std::pair<int, int>, std::vector<int>> edgePoints;
+    for (int t = 0; t < s.faces(); ++t)
+        for (int k = 0; k < 3; ++k) {
+            const int a = s.triangles(k, t), b = s.triangles((k + 1) % 3, t);
+            edgePoints.emplace(std::minmax(a, b), std::vector<int>{});
+        }
+    for (auto& [e, ids] : edgePoints) {
+        const int n = pieces(e.first, e.second);
+        for (int i = 1; i < n; ++i) {
+            Acc p;
+            addVertex(p, e.first, 1.0 - double(i) / n);
+            addVertex(p, e.second, double(i) / n);
+            ids.push_back(static_cast<int>(acc.size()));
+            acc.push_back(p);
+        }
+    }
+    // per triangle: its vertices, its edges' points, and interior points on a barycentric grid as
+    // fine as its longest edge needs
+    std::vector<int> triStart{0}, triPoints;
+    for (int t = 0; t < s.faces(); ++t) {
+        const int a = s.triangles(0, t), b = s.triangles(1, t), c = s.triangles(2, t);
+        triPoints.insert(triPoints.end(), {a, b, c});
+        for (int k = 0; k < 3; ++k) {
+            const auto& ids = edgePoints.at(std::minmax(s.triangles(k, t), s.triangles((k + 1) % 3, t)));
+            triPoints.insert(triPoints.end(), ids.begin(), ids.end());
+        }
+        const int n = std::max({pieces(a, b), pieces(b, c), pieces(c, a)});
+        for (int i = 1; i < n; ++i)
+            for (int j = 1; i + j < n; ++j) {
                 Acc p;
-                addVertex(p, e.first, 1.0 - double(i) / n);
-                addVertex(p, e.second, double(i) / n);
+                addVertex(p, a, double(i) / n);
+                addVertex(p, b, double(j) / n);
+                addVertex(p, c, double(n - i - j) / n);
+                triPoints.push_back(static_cast<int>(acc.size()));
                 acc.push_back(p);
             }
-        }
-        // interior points on a barycentric grid as fine as the longest edge needs
-        for (int t = 0; t < s.faces(); ++t) {
-            const int a = s.triangles(0, t), b = s.triangles(1, t), c = s.triangles(2, t);
-            const int n = std::max({pieces(a, b), pieces(b, c), pieces(c, a)});
-            for (int i = 1; i < n; ++i)
-                for (int j = 1; i + j < n; ++j) {
-                    Acc p;
-                    addVertex(p, a, double(i) / n);
-                    addVertex(p, b, double(j) / n);
-                    addVertex(p, c, double(n - i - j) / n);
-                    acc.push_back(p);
-                }
-        }
+        triStart.push_back(static_cast<int>(triPoints.size()));
     }
     ContactPoints out;
     out.nodes.setZero(ContactPoints::kMaxNodes, static_cast<Eigen::Index>(acc.size()));
     out.weights.setZero(ContactPoints::kMaxNodes, static_cast<Eigen::Index>(acc.size()));
     out.count.resize(acc.size());
+    out.triangles = s.triangles;
+    out.triStart = std::move(triStart);
+    out.triPoints = std::move(triPoints);
     for (size_t p = 0; p < acc.size(); ++p) {
         out.count[p] = static_cast<std::uint8_t>(acc[p].n);
         for (int i = 0; i < acc[p].n; ++i) {
@@ -166,11 +177,13 @@ struct ContactWorld::Impl {
     std::vector<double> partRadius;   // radius of a sphere about the part origin holding the part [m]
 
     ContactPoints pts;
-    btDbvt tree;                      // contact points, fattened by `fat`
-    std::vector<btDbvtNode*> leaves;
+    btDbvt tree;                      // triangle boxes, fattened by `fat`
+    std::vector<btDbvtNode*> leaves;  // (nTris)
     double fat = 1e-3;                // [m]
-    Eigen::Matrix3Xd xp;              // point positions (3 x nPoints) [m]
-    std::vector<int> candidates;
+    Eigen::Matrix3Xd xp;              // point positions (3 x nPoints) [m]; vertices every step, others on demand
+    std::vector<int> stamp;           // last query that visited each point (nPoints)
+    int query = 0;
+    std::vector<int> candidates;      // triangles, then points
     btNodeStack stack;
     std::vector<btTransform> now, next; // part transforms at t and t + dt
     ContactStep last;
@@ -233,34 +246,42 @@ void ContactWorld::setSurface(ContactPoints pts) {
     m.clearTree();
     m.pts = std::move(pts);
     m.xp.resize(3, m.pts.points());
+    m.stamp.assign(static_cast<size_t>(m.pts.points()), -1);
+    m.query = 0;
 }
 
-void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double t, double dt,
+void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double time, double dt,
                              Eigen::Matrix3Xd& f) {
     Impl& m = *impl_;
     const ContactPoints& P = m.pts;
-    const int np = P.points();
-    // 1. point positions by interpolation
-    for (int p = 0; p < np; ++p) {
+    const int nv = P.triangles.size() ? P.triangles.maxCoeff() + 1 : 0;
+    const int nt = static_cast<int>(P.triangles.cols());
+    auto interpolate = [&](int p) {
         Eigen::Vector3d xs = Eigen::Vector3d::Zero();
         for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) xs += P.weights(i, p) * x.col(P.nodes(i, p));
         m.xp.col(p) = xs;
-    }
-    // 2. refit the point tree: a leaf moves only when its point left the fattened box
-    if (static_cast<int>(m.leaves.size()) != np) {
+    };
+    // 1. vertex positions by interpolation; edge and face points lie in their triangle's box
+    for (int p = 0; p < nv; ++p) interpolate(p);
+    // 2. refit the triangle tree: a leaf moves only when its triangle left the fattened box
+    auto triBox = [&](int t) {
+        const Eigen::Vector3d a = m.xp.col(P.triangles(0, t)), b = m.xp.col(P.triangles(1, t)), c = m.xp.col(P.triangles(2, t));
+        return btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))), bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
+    };
+    if (static_cast<int>(m.leaves.size()) != nt) {
         m.clearTree();
-        m.leaves.resize(static_cast<size_t>(np));
-        for (int p = 0; p < np; ++p) {
-            btDbvtVolume vol = btDbvtVolume::FromCR(bt(Eigen::Vector3d(m.xp.col(p))), m.fat);
-            m.leaves[static_cast<size_t>(p)] = m.tree.insert(vol, nullptr);
-            m.leaves[static_cast<size_t>(p)]->dataAsInt = p;
+        m.leaves.resize(static_cast<size_t>(nt));
+        for (int t = 0; t < nt; ++t) {
+            btDbvtVolume vol = triBox(t);
+            vol.Expand(btVector3(m.fat, m.fat, m.fat));
+            m.leaves[static_cast<size_t>(t)] = m.tree.insert(vol, nullptr);
+            m.leaves[static_cast<size_t>(t)]->dataAsInt = t;
         }
     } else {
-        for (int p = 0; p < np; ++p) {
-            btDbvtNode* leaf = m.leaves[static_cast<size_t>(p)];
-            const btVector3 c = bt(Eigen::Vector3d(m.xp.col(p)));
-            if (leaf->volume.Contain(btDbvtVolume::FromMM(c, c))) continue;  // inside its fattened box
-            btDbvtVolume vol = btDbvtVolume::FromMM(c, c);
+        for (int t = 0; t < nt; ++t) {
+            btDbvtNode* leaf = m.leaves[static_cast<size_t>(t)];
+            btDbvtVolume vol = triBox(t);
+            if (leaf->volume.Contain(vol)) continue;  // inside its fattened box
             m.tree.update(leaf, vol, m.fat);
         }
     }
@@ -271,8 +292,8 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
     next.resize(m.objects.size());
     for (size_t t0 = 0, o = 0; t0 < m.tools.size(); ++t0) {
         const ToolDef& tool = m.tools[t0];
-        const Pose pa = toolPose(tool, t), pb = toolPose(tool, t + dt);
-        const auto partsA = toolParts(tool, t), partsB = toolParts(tool, t + dt);
+        const Pose pa = toolPose(tool, time), pb = toolPose(tool, time + dt);
+        const auto partsA = toolParts(tool, time), partsB = toolParts(tool, time + dt);
         for (size_t i = 0; i < partsA.size(); ++i, ++o) {
             now[o] = bt(pa) * bt(partsA[i].local);
             next[o] = bt(pb) * bt(partsB[i].local);
@@ -293,6 +314,23 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
         const btDbvtVolume box = btDbvtVolume::FromMM(proxy->m_aabbMin, proxy->m_aabbMax);
         m.candidates.clear();
         if (m.tree.m_root) m.tree.collideTVNoStackAlloc(m.tree.m_root, box, m.stack, collect);
+        // the candidate triangles' points, each once; edge and face points interpolated now
+        const size_t ntri = m.candidates.size();
+        if (++m.query == std::numeric_limits<int>::max()) {
+            std::fill(m.stamp.begin(), m.stamp.end(), -1);
+            m.query = 0;
+        }
+        for (size_t c = 0; c < ntri; ++c) {
+            const int t = m.candidates[c];
+            for (int k = P.triStart[static_cast<size_t>(t)]; k < P.triStart[static_cast<size_t>(t) + 1]; ++k) {
+                const int p = P.triPoints[static_cast<size_t>(k)];
+                if (m.stamp[static_cast<size_t>(p)] == m.query) continue;
+                m.stamp[static_cast<size_t>(p)] = m.query;
+                if (p >= nv) interpolate(p);
+                m.candidates.push_back(p);
+            }
+        }
+        m.candidates.erase(m.candidates.begin(), m.candidates.begin() + static_cast<std::ptrdiff_t>(ntri));
         const btConvexShape* shape = m.shapes[o].get();
         const btTransform toolNext = next[o] * now[o].inverse();
         // bounding sphere of the part about its origin: points outside it need no GJK

@@ -6,7 +6,9 @@
 // its edges and faces, at most `spacing` apart) in a btDbvt refitted every step with a fat margin,
 // queried with each tool part's box; each candidate point then gets its signed distance to the
 // tool's convex core from Bullet's GJK/EPA (btGjkEpaSolver2::SignedDistance, as Bullet's own
-// soft-body nodes do against rigid bodies). Per-point objects in the btCollisionWorld's broad
+// soft-body nodes do against rigid bodies). Only the vertices are interpolated every step: the
+// tree's leaves are triangle boxes, and edge and face points are interpolated when their triangle
+// is a candidate. Per-point objects in the btCollisionWorld's broad
 // phase cost several times more per step (every proxy is moved through the pair cache), and a
 // refitted btBvhTriangleMeshShape gives triangle contacts with no depth for points already inside
 // the tool; points against a convex tool catch both, and the depth is exact.
@@ -28,12 +30,17 @@
 
 namespace cutsim {
 
-// Contact points of an embedded surface; each point follows up to 12 nodes.
+// Contact points of an embedded surface; each point follows up to 12 nodes. Points 0..nVerts-1
+// are the surface vertices; every other point lies on one triangle (edge or face), inside the
+// triangle's box, so a tree over triangle boxes finds them.
 struct ContactPoints {
     static constexpr int kMaxNodes = 12;
     Eigen::Matrix<int, kMaxNodes, Eigen::Dynamic> nodes;      // node indices (12 x nPoints); unused slots: node 0
     Eigen::Matrix<double, kMaxNodes, Eigen::Dynamic> weights; // interpolation weights (12 x nPoints) [-]; unused: 0
     std::vector<std::uint8_t> count;                           // used slots of each point, packed first (nPoints)
+    Eigen::Matrix3Xi triangles;   // surface triangles as vertex point indices (3 x nTris)
+    std::vector<int> triStart;    // CSR: points of triangle t are triPoints[triStart[t] .. triStart[t+1]) (nTris + 1)
+    std::vector<int> triPoints;   // its vertices, edge points and face points
     int points() const { return static_cast<int>(nodes.cols()); }
 };
 
