@@ -112,7 +112,8 @@ struct ToolRun {
     double nextSample = 0, blockMax = 0, sampleDt = 1e-3;
     std::vector<float> history;    // |F| at the HUD's rate, last 200 samples [N]
 
-    // After a step at time t: the full-rate maximum and one sample per sampleDt.
+    // After a step from time t (the contact forces were found at t): the full-rate maximum and
+    // one sample per sampleDt.
     void record(double t) {
         const ContactStep& st = world->last();
         force.setZero();
@@ -204,18 +205,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     for (Eigen::Index e = 0; e < ta.estimates().r1r.size(); ++e)
         criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
 
-    // Output folder: created and probed before the first step.
-    const fs::path out(opt.out);
-    std::error_code ec;
-    fs::create_directories(out, ec);
-    {
-        const fs::path probe = out / ".write_probe";
-        std::ofstream p(probe);
-        if (ec || !p) throw InputError(opt.out, 0, "output folder is not writable");
-        p.close();
-        fs::remove(probe);
-    }
-
     // Contact: a Bullet world only when the scene has tools. Penalty stiffness stays below the
     // limit that keeps this step stable (contact/contact.hpp stableStiffness).
     ToolRun tools;
@@ -253,6 +242,18 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             if (t.damping < 0) t.damping = mMin < 1e300 ? 0.6 * std::sqrt(t.stiffness * mMin) : 0.0;
         }
         tools.sampleDt = 1.0 / sc.forceRate;
+    }
+
+    // Output folder: created and probed before the first step.
+    const fs::path out(opt.out);
+    std::error_code ec;
+    fs::create_directories(out, ec);
+    {
+        const fs::path probe = out / ".write_probe";
+        std::ofstream p(probe);
+        if (ec || !p) throw InputError(opt.out, 0, "output folder is not writable");
+        p.close();
+        fs::remove(probe);
     }
 
     const bool capturing = opt.render && sc.capture.enabled;
@@ -295,6 +296,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             nextFrame += frameDt;
         }
         // 1. applied loads and tool contact forces go to fExt
+        const double tStep = state.time;
         auto ts = Clock::now();
         if (!sc.forces.empty() || tools.world) {
             state.fExt.setZero();
@@ -326,7 +328,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             exitCode = 3;
             break;
         }
-        if (tools.world) tools.record(state.time);
+        if (tools.world) tools.record(tStep);
         progress.update(state.time);
     }
     if (exitCode == 0) recordFrame();
