@@ -250,7 +250,13 @@ int runView(const ViewArgs& a) {
 
         // Scene, then the panel over it.
         renderer.resize(win.framebufferWidth(), win.framebufferHeight());
-        FrameInfo fi{state.time, sim.dt, sim.certified, sim.exact.dt, sim.criticalElements, 0, since(start)};
+        FrameInfo fi;
+        fi.time = state.time;
+        fi.dt = sim.dt;
+        fi.dtCertified = sim.certified;
+        fi.dtExact = sim.exact.dt;
+        fi.criticalElements = sim.criticalElements;
+        fi.wall = since(start);
         RenderSnapshot& snap = scene.update(sim.model, state, fi);
         snap.camera = orbit.camera();
         renderer.draw(snap);

@@ -165,7 +165,16 @@ public:
     }
 
     void frame(const Model& model, const State& state, const FrameInfo& info) override {
-        const RenderSnapshot& snap = scene_.update(model, state, info);
+        RenderSnapshot& snap = scene_.update(model, state, info);
+        snap.tools = info.tools;
+        if (!sc_.tools.empty()) {
+            HudValues& h = snap.hud;
+            char line[96];
+            std::snprintf(line, sizeof line, "tool F   %.3f N (%.3f, %.3f, %.3f)", info.toolForce.norm(), info.toolForce.x(),
+                          info.toolForce.y(), info.toolForce.z());
+            h.lines.push_back(line);
+            h.forcePlot = info.forceHistory;
+        }
         render::Image img = renderer_->render(snap);
         const auto t0 = Clock::now();
         char name[32];

@@ -4,6 +4,7 @@
 
 #include "fem/state.hpp"
 #include "mesh/embedding.hpp"
+#include "snapshot/snapshot.hpp"
 #include "scene.hpp"
 #include "snapshot/snapshot.hpp"
 
@@ -20,6 +21,9 @@ struct FrameInfo {
     int criticalElements = 0;
     int cuts = 0;
     double wall = 0;          // wall time since the loop started [s]
+    std::vector<ToolShape> tools;        // tools to draw
+    Eigen::Vector3d toolForce = Eigen::Vector3d::Zero(); // reaction force on the tools [N]
+    std::vector<float> forceHistory;     // recent |tool force| samples, oldest first [N]
 };
 
 // What a frame of a scene shows (surface, colour map, critical elements, HUD values), built from

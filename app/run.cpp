@@ -1,6 +1,7 @@
 #include "run.hpp"
 
 #include "cut/xfem.hpp"
+#include "contact/contact.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "frames.hpp"
@@ -98,6 +99,46 @@ void writeJsonFile(const fs::path& p, const json& j) {
     fs::rename(tmp, p);
 }
 
+// Tool contact of a run: the Bullet world, its penalty parameters and the force record.
+struct ToolRun {
+    std::unique_ptr<ContactWorld> world;
+    double stiffnessLimit = 0;     // stable penalty stiffness per point [N/m]
+    double spacing = 0;            // largest gap between surface contact points [m]
+    std::vector<std::string> clamped;  // tools whose stiffness was lowered to the limit
+    double maxForce = 0;           // largest |reaction| at full rate [N]
+    double maxDepth = 0;           // deepest surface point inside a tool at any step [m]
+    long contactSteps = 0;         // steps with at least one point in contact
+    Eigen::Vector3d force = Eigen::Vector3d::Zero(); // reaction of the last step [N]
+    json series = {{"time", json::array()}, {"fx", json::array()}, {"fy", json::array()}, {"fz", json::array()},
+                   {"max", json::array()}};
+    double nextSample = 0, blockMax = 0, sampleDt = 1e-3;
+    std::vector<float> history;    // |F| at the HUD's rate, last 200 samples [N]
+
+    // After a step from time t (the contact forces were found at t): the full-rate maximum and
+    // one sample per sampleDt.
+    void record(double t) {
+        const ContactStep& st = world->last();
+        force.setZero();
+        for (const auto& r : st.reaction) force += r;
+        const double mag = force.norm();
+        maxForce = std::max(maxForce, mag);
+        maxDepth = std::max(maxDepth, st.maxDepth);
+        contactSteps += st.contacts > 0;
+        blockMax = std::max(blockMax, mag);
+        if (t >= nextSample - 1e-12) {
+            series["time"].push_back(t);
+            series["fx"].push_back(force.x());
+            series["fy"].push_back(force.y());
+            series["fz"].push_back(force.z());
+            series["max"].push_back(blockMax);
+            blockMax = 0;
+            nextSample += sampleDt;
+            history.push_back(static_cast<float>(mag));
+            if (history.size() > 200) history.erase(history.begin());
+        }
+    }
+};
+
 } // namespace
 
 Simulation prepareScene(const SceneDef& sc) {
@@ -182,9 +223,8 @@ void chooseStep(const SceneDef& sc, Simulation& sim) {
     sim.criticalElements = criticalElements;
 }
 
-void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper& stepper, const StepOptions& so) {
-    // 1. contact stage: no tools yet. Applied loads go to fExt.
-    if (!sc.forces.empty()) {
+void applyLoads(const SceneDef& sc, const Simulation& sim, State& state) {
+    if (!sc.forces.empty() || !sc.tools.empty()) {
         state.fExt.setZero();
         for (size_t l = 0; l < sc.forces.size(); ++l) {
             const Eigen::Vector3d f = sc.forces[l].force * sc.forces[l].profile.at(state.time) /
@@ -192,6 +232,10 @@ void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper&
             for (int n : sim.loadNodes[l]) state.fExt.col(n) += f;
         }
     }
+}
+
+void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper& stepper, const StepOptions& so) {
+    applyLoads(sc, sim, state);
     // 2-4. forces, integrate, checks (fem/integrate.hpp)
     stepper.step(sim.model, state, so);
 }
@@ -211,6 +255,46 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Eigen::VectorXd alphaElem = sim.alphaElem;
     int criticalElements = sim.criticalElements;
     const bool explicitScheme = sc.integrator != Integrator::BackwardEuler;
+
+    // Contact: a Bullet world only when the scene has tools. Penalty stiffness stays below the
+    // limit that keeps this step stable (contact/contact.hpp stableStiffness).
+    ToolRun tools;
+    if (!sc.tools.empty()) {
+        tools.world = std::make_unique<ContactWorld>(sc.tools);
+        double spacing = sc.contactSpacing;
+        if (spacing <= 0) {
+            // half the smallest tool feature, so a tool cannot slip between points
+            spacing = 1e300;
+            for (const auto& t : sc.tools)
+                for (const auto& p : toolParts(t, 0))
+                    spacing = std::min(spacing, 0.5 * (p.hull || p.shape == ToolShape::Kind::Box
+                                                          ? std::max({p.size.x(), p.size.y(), p.size.z()}) : p.size.x()));
+        }
+        tools.spacing = spacing;
+        tools.world->setSurface(contactPoints(boundarySurface(model.tets, model.X), model.tets, model.X, spacing));
+        // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
+        tools.stiffnessLimit = explicitScheme ? stableStiffness(tools.world->points(), model.invMass, std::min(dt, 0.9 * exact.dt), exact.dt)
+                                              : std::numeric_limits<double>::infinity();
+        double mMin = 1e300;  // lightest free node under the surface points
+        const ContactPoints& P = tools.world->points();
+        for (int p = 0; p < P.points(); ++p)
+            for (int i = 0; i < ContactPoints::kMaxNodes; ++i)
+                if (P.weights(i, p) > 0 && model.invMass(P.nodes(i, p)) > 0) mMin = std::min(mMin, model.mass(P.nodes(i, p)));
+        for (auto& t : tools.world->tools()) {
+            if (t.stiffness <= 0) {
+                if (!std::isfinite(tools.stiffnessLimit)) throw InputError(sc.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
+                t.stiffness = 0.8 * tools.stiffnessLimit;
+            } else if (t.stiffness > tools.stiffnessLimit) {
+                std::fprintf(stderr, "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; using the limit\n",
+                             t.name.c_str(), t.stiffness, tools.stiffnessLimit, dt);
+                t.stiffness = tools.stiffnessLimit;
+                tools.clamped.push_back(t.name);
+            }
+            // damping ratio 0.3 on the lightest node: c dt / m stays well below the explicit limit 2
+            if (t.damping < 0) t.damping = mMin < 1e300 ? 0.6 * std::sqrt(t.stiffness * mMin) : 0.0;
+        }
+        tools.sampleDt = 1.0 / sc.forceRate;
+    }
 
     // Output folder: created and probed before the first step.
     const fs::path out(opt.out);
@@ -261,8 +345,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         const double ek = kineticEnergy(model, state), ee = elasticEnergy(model, state), eg = gravityEnergy(model, state);
         energy.push_back({{"time", state.time}, {"kinetic", ek}, {"elastic", ee}, {"gravity", eg}, {"total", ek + ee + eg}});
         if (sink) {
-            FrameInfo fi{state.time, dt, dtCertifiedNow, dtExactNow, criticalElements, cutter ? cutter->cuts() : 0,
-                         since(loopStart)};
+            FrameInfo fi{state.time,       dt,  dtCertifiedNow, dtExactNow,   criticalElements, cutter ? cutter->cuts() : 0,
+                         since(loopStart), {},  tools.force,    tools.history};
+            for (const auto& t : sc.tools) appendToolShapes(t, state.time, fi.tools);
             const auto tr = Clock::now();
             sink->frame(model, state, fi);
             stages.render += since(tr) - sink->lastEncodeSeconds();
@@ -322,7 +407,12 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             criticalElements = 0;
             for (Eigen::Index e = 0; e < ta.estimates().r1r.size(); ++e)
                 criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
-            if (sink) sink->topologyChanged(model, cutter->surface(model), ta.estimates().r1r, dt);
+            if (sink || tools.world) {
+                EmbeddedSurface cutSurface = cutter->surface(model);
+                // tools touch the new cut faces too
+                if (tools.world) tools.world->setSurface(contactPoints(cutSurface, model.tets, model.X, tools.spacing));
+                if (sink) sink->topologyChanged(model, std::move(cutSurface), ta.estimates().r1r, dt);
+            }
             json dtAfter = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)},
                             {"certified", dtCertifiedNow}, {"estimate", ta.minDt().r1r}};
             cutsJson.push_back({{"time", state.time}, {"key", cd.path}, {"crossed", r.crossed}, {"split", r.split},
@@ -354,9 +444,18 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             recordFrame();
             nextFrame += frameDt;
         }
-        // stages 1-4: loads, forces, integrate, checks
+        // 1. applied loads and tool contact forces go to fExt
+        const double tStep = state.time;
         auto ts = Clock::now();
-        stepScene(sc, sim, state, stepper, so);
+        applyLoads(sc, sim, state);
+        if (tools.world) {
+            const auto tc = Clock::now();
+            tools.world->addForces(state.x, state.v, state.time, dt, state.fExt);
+            stages.contact += since(tc);
+            ts = Clock::now();
+        }
+        // 2-4. forces, integrate, checks (fem/integrate.hpp)
+        stepper.step(model, state, so);
         const double stepTime = since(ts);
         const double fshare = stepper.lastForceSeconds();
         stages.forces += fshare;
@@ -371,6 +470,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             exitCode = 3;
             break;
         }
+        if (tools.world) tools.record(tStep);
         progress.update(state.time);
     }
     if (exitCode == 0) recordFrame();
@@ -415,6 +515,21 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["energy"] = energy;
     report["inverted"] = {{"steps", invertedSteps}, {"max_elements", maxInverted}};
     report["stages"] = stages.toJson();
+    if (tools.world) {
+        json names = json::array(), k = json::array(), c = json::array();
+        for (const auto& t : tools.world->tools()) {
+            names.push_back(t.name);
+            k.push_back(t.stiffness);
+            c.push_back(t.damping);
+        }
+        report["tool"] = {{"names", names}, {"max_force", tools.maxForce}, {"contact_steps", tools.contactSteps},
+                          {"max_depth", tools.maxDepth}, {"final_depth", tools.world->last().maxDepth},
+                          {"final_force", {tools.force.x(), tools.force.y(), tools.force.z()}},
+                          {"stiffness", k}, {"damping", c}, {"stiffness_limit", std::isfinite(tools.stiffnessLimit) ? json(tools.stiffnessLimit) : json(nullptr)},
+                          {"stiffness_clamped", tools.clamped}, {"contact_points", tools.world->points().points()},
+                          {"seconds_per_step", state.steps > 0 ? stages.contact / state.steps : 0.0},
+                          {"force_rate", sc.forceRate}, {"series", tools.series}};
+    }
     report["frames"] = sink ? sink->frames() : 0;
     report["video"] = sink ? sink->videoPath() : "";
     const double simWall = since(loopStart);

@@ -38,6 +38,8 @@ Simulation prepareScene(const SceneDef& sc);
 // (Re)chooses sim.dt, limitAction, alphaElem and criticalElements from the scene's integrator
 // and dt policy and the limits already in sim. Throws InputError when the policy refuses.
 void chooseStep(const SceneDef& sc, Simulation& sim);
+// The scene's applied loads at state.time into state.fExt (zeroed first when the scene has loads or tools).
+void applyLoads(const SceneDef& sc, const Simulation& sim, State& state);
 // One step: the scene's loads into state.fExt, then forces, integrate, checks (fem/integrate.hpp).
 void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper& stepper, const StepOptions& so);
 

@@ -1,6 +1,7 @@
 #include "scene.hpp"
 
 #include "json_reader.hpp"
+#include "mesh/io.hpp"
 
 #include "cut/xfem.hpp"
 
@@ -82,6 +83,65 @@ Profile readProfile(ObjectReader& r) {
     p.period = r.number("period", 1, 0, 1e300, true);
     r.finish();
     return p;
+}
+
+// A tool: shape, path of keyframes, penalty parameters (docs/scene-format.md, "tools").
+ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
+    ToolDef t;
+    t.name = r.string("name", "tool" + std::to_string(index));
+    const std::string kind = r.string("kind", "sphere", {"sphere", "capsule", "blade", "grasper", "hull"});
+    t.kind = kind == "capsule" ? ToolDef::Kind::Capsule : kind == "blade" ? ToolDef::Kind::Blade
+           : kind == "grasper" ? ToolDef::Kind::Grasper : kind == "hull" ? ToolDef::Kind::Hull : ToolDef::Kind::Sphere;
+    if (t.kind == ToolDef::Kind::Sphere || t.kind == ToolDef::Kind::Capsule) {
+        t.radius = r.requiredNumber("radius", 0, 1e3);
+        if (!(t.radius > 0)) r.fail("radius", "must be > 0");
+    }
+    if (t.kind == ToolDef::Kind::Capsule) t.length = r.number("length", 2 * t.radius, 0, 1e3);
+    if (t.kind == ToolDef::Kind::Blade || t.kind == ToolDef::Kind::Grasper) {
+        t.size = r.requiredVec3("size");
+        if ((t.size.array() <= 0).any()) r.fail("size", "must be positive in every axis");
+    }
+    if (t.kind == ToolDef::Kind::Hull) {
+        fs::path p(r.requiredString("obj"));
+        if (p.is_relative()) p = fs::path(dir) / p;
+        if (!fs::exists(p)) r.fail("obj", "file not found: " + p.string());
+        const double scale = r.number("scale", 1, 0, 1e300, true);
+        t.hull = readSurfaceMesh(p.lexically_normal().string(), scale).V;
+        if (t.hull.cols() < 4) r.fail("obj", "needs at least 4 vertices for a convex hull");
+        const Eigen::Vector3d ext = t.hull.rowwise().maxCoeff() - t.hull.rowwise().minCoeff();
+        if ((ext.array() <= 0).any()) r.fail("obj", "is flat: a hull needs volume");
+    }
+    t.stiffness = r.number("stiffness", 0, 0, 1e300);
+    t.damping = r.number("damping", -1, 0, 1e300);  // absent: -1, automatic
+    const double d2r = std::numbers::pi / 180.0;
+    for (auto& k : r.array("keyframes")) {
+        ToolKey key;
+        key.time = k.number("time", 0, 0);
+        key.pose.position = k.requiredVec3("position");
+        if (k.has("rotation_deg") && k.has("quaternion")) k.fail("quaternion", "give at most one of rotation_deg and quaternion");
+        if (k.has("rotation_deg")) {
+            const Eigen::Vector3d a = k.vec3("rotation_deg", Eigen::Vector3d::Zero()) * d2r;  // XYZ, as object.rotate_deg
+            key.pose.orientation = Eigen::AngleAxisd(a.z(), Eigen::Vector3d::UnitZ()) *
+                                   Eigen::AngleAxisd(a.y(), Eigen::Vector3d::UnitY()) *
+                                   Eigen::AngleAxisd(a.x(), Eigen::Vector3d::UnitX());
+        }
+        if (k.has("quaternion")) {
+            const json& q = k.raw("quaternion");
+            bool ok = q.is_array() && q.size() == 4;
+            for (size_t i = 0; ok && i < 4; ++i) ok = q[i].is_number() && std::isfinite(q[i].get<double>());
+            if (!ok) k.fail("quaternion", "must be an array of 4 finite numbers [w, x, y, z]");
+            key.pose.orientation = Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(), q[3].get<double>());
+            if (key.pose.orientation.norm() < 1e-12) k.fail("quaternion", "must not be zero");
+            key.pose.orientation.normalize();
+            k.touch("quaternion");
+        }
+        key.opening = t.kind == ToolDef::Kind::Grasper ? k.number("opening", 0, 0, 1e3) : 0.0;
+        k.finish();
+        if (!t.keys.empty() && key.time < t.keys.back().time) k.fail("time", "keyframes must be in time order");
+        t.keys.push_back(key);
+    }
+    if (t.keys.empty()) r.fail("keyframes", "is required (at least one keyframe)");
+    return t;
 }
 
 void setPath(json& j, const std::string& assignment) {
@@ -267,6 +327,19 @@ SceneDef parseScene(const json& j, const std::string& file) {
             if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time) k.fail("time", "cuts must be in time order");
             s.cutting.cuts.push_back(cd);
         }
+        c.finish();
+    }
+    {
+        int i = 0;
+        for (auto& t : root.array("tools")) {
+            s.tools.push_back(readTool(t, s.dir, i++));
+            t.finish();
+        }
+    }
+    if (root.has("contact")) {
+        ObjectReader c = root.object("contact");
+        s.contactSpacing = c.number("spacing", 0, 0, 1e3);
+        s.forceRate = c.number("force_rate", 1000, 0, 1e9, true);
         c.finish();
     }
     if (root.has("camera")) {

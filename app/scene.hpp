@@ -1,6 +1,7 @@
 // The scene: one JSON format drives runs, tests, benchmarks and recordings (docs/scene-format.md).
 #pragma once
 
+#include "contact/tool.hpp"
 #include "fem/integrate.hpp"
 #include "fem/material.hpp"
 #include "fem/model.hpp"
@@ -117,6 +118,9 @@ struct SceneDef {
     double duration = 1;          // [s]
 
     Cutting cutting;
+    std::vector<ToolDef> tools;     // rigid tools in contact with the object; empty: no Bullet world
+    double contactSpacing = 0;      // largest gap between surface contact points [m]; 0 = automatic
+    double forceRate = 1000;        // samples per second of the tool force series in report.json [1/s]
 
     std::vector<CameraKey> camera;  // empty: frame the object
     Capture capture;

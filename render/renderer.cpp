@@ -629,6 +629,14 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
         ImGui::Text("critical %d", h.criticalElements);
         ImGui::Text("cuts     %d", h.cuts);
         for (const auto& line : h.lines) ImGui::TextUnformatted(line.c_str());
+        if (!h.forcePlot.empty()) {
+            float top = 0;
+            for (float f : h.forcePlot) top = std::max(top, f);
+            char label[48];
+            std::snprintf(label, sizeof label, "max %.3f N", top);
+            ImGui::PlotLines("##force", h.forcePlot.data(), static_cast<int>(h.forcePlot.size()), 0, label, 0.0f,
+                             top > 0 ? 1.1f * top : 1.0f, ImVec2(220, 60));
+        }
         ImGui::End();
     };
 

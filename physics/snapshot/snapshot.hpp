@@ -45,6 +45,7 @@ struct HudValues {
     int criticalElements = 0;    // elements that limit the time step [-]
     int cuts = 0;                // cuts applied so far [-]
     std::vector<std::string> lines; // free text, one entry per line
+    std::vector<float> forcePlot;   // recent tool force magnitudes, oldest first [N]; plotted when not empty
 };
 
 // Everything one frame draws.

@@ -1,0 +1,35 @@
+// Broad phase over the elements of a deformed tet mesh: Bullet's btDbvt over element bounding
+// boxes. The blade cut asks it for the elements whose boxes overlap the blade's swept box
+// (contact/tool.hpp sweptAabb) before the exact swept-surface test.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <vector>
+
+namespace cutsim {
+
+class ElementBroadphase {
+public:
+    // margin: how far a box is fattened so small motions need no tree update [m].
+    explicit ElementBroadphase(double margin = 0);
+    ~ElementBroadphase();
+    ElementBroadphase(const ElementBroadphase&) = delete;
+    ElementBroadphase& operator=(const ElementBroadphase&) = delete;
+
+    // Boxes of elements tets (4 x nElems) at node positions x (3 x nNodes) [m]: rebuilds the tree
+    // when the element count changed, else moves the leaves whose box left its fattened box.
+    void refit(const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& x);
+
+    // Elements whose (fattened) box overlaps [lo, hi], ascending. Exact boxes when margin = 0.
+    void query(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::vector<int>& out) const;
+
+    int elements() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+} // namespace cutsim

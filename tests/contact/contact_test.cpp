@@ -1,0 +1,303 @@
+// Tool contact: penalty forces against hand-computed depths, the spread to nodes by embedding
+// weights, the stable stiffness bound, tool paths, and the element broad phase against a scan.
+#include "contact/broadphase.hpp"
+#include "contact/contact.hpp"
+#include "contact/tool.hpp"
+#include "fem/model.hpp"
+#include "mesh/io.hpp"
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <random>
+
+namespace cutsim {
+namespace {
+
+ToolDef sphereAt(const Eigen::Vector3d& c, double r, double k) {
+    ToolDef t;
+    t.kind = ToolDef::Kind::Sphere;
+    t.radius = r;
+    t.stiffness = k;
+    t.damping = 0;
+    ToolKey key;
+    key.pose.position = c;
+    t.keys.push_back(key);
+    return t;
+}
+
+// A 10 x 10 x 2 cm slab of 1 cm cubes: its top face z = 0.02 has a vertex every centimetre.
+struct Slab {
+    TetMesh mesh = test::boxMesh(0.1, 0.1, 0.02, 10, 10, 2);
+    EmbeddedSurface surf = boundarySurface(mesh.tets, mesh.X);
+    Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, mesh.X.cols());
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, mesh.X.cols());
+
+    ContactStep press(const ToolDef& tool) {
+        ContactWorld w({tool});
+        w.setSurface(contactPoints(surf, mesh.tets, mesh.X, 0));
+        f.setZero();
+        w.addForces(mesh.X, v, 0, 1e-4, f);
+        return w.last();
+    }
+};
+
+TEST(Contact, SpherePressedOnOneVertexGivesKTimesDepth) {
+    Slab s;
+    const double k = 1000, d = 1e-3, r = 0.005;
+    const ContactStep st = s.press(sphereAt({0.05, 0.05, 0.02 + r - d}, r, k));
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.maxDepth, d, 1e-9);
+    // the vertex is pushed down out of the sphere; the probe is pushed up
+    EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
+    EXPECT_NEAR(st.reaction[0].head<2>().norm(), 0, 1e-9);
+    EXPECT_NEAR(s.f.rowwise().sum().z(), -k * d, 1e-9);
+    EXPECT_NEAR(s.f.cwiseAbs().sum(), k * d, 1e-9);  // all of it on one node
+}
+
+TEST(Contact, SphereOverFiveVerticesSumsPenaltyForces) {
+    Slab s;
+    // centre 11 mm above the surface, radius 15 mm: the vertex below at depth 4 mm and its four
+    // neighbours 1 cm away at depth r - sqrt(0.01^2 + 0.011^2), pushed along their radius
+    const double k = 500, r = 0.015, h = 0.011;
+    const ContactStep st = s.press(sphereAt({0.05, 0.05, 0.02 + h}, r, k));
+    ASSERT_EQ(st.contacts, 5);
+    const double l = std::sqrt(0.01 * 0.01 + h * h);
+    const double expected = k * ((r - h) + 4 * (r - l) * h / l);
+    EXPECT_NEAR(st.reaction[0].z(), expected, 1e-9);
+    EXPECT_NEAR(st.reaction[0].head<2>().norm(), 0, 1e-9);
+    EXPECT_NEAR(st.maxDepth, r - h, 1e-9);
+    EXPECT_LT((s.f.rowwise().sum() + st.reaction[0]).norm(), 1e-12);  // action = -reaction
+}
+
+TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
+    Slab s;
+    const double k = 2000, d = 4e-4;
+    ToolDef blade;
+    blade.kind = ToolDef::Kind::Blade;
+    blade.size << 0.008, 0.008, 0.004;   // half extents 4, 4, 2 mm: only the vertex below is inside
+    blade.stiffness = k;
+    blade.damping = 0;
+    blade.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.002 - d), Eigen::Quaterniond::Identity()}, 0});
+    ContactStep st = s.press(blade);
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
+    EXPECT_NEAR(st.reaction[0].head<2>().norm(), 0, 1e-9);
+
+    ToolDef cap;
+    cap.kind = ToolDef::Kind::Capsule;
+    cap.radius = 0.003;
+    cap.length = 0.004;   // lying along x (local z turned onto x)
+    cap.stiffness = k;
+    cap.damping = 0;
+    cap.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.003 - d),
+                            Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitY()))}, 0});
+    st = s.press(cap);
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
+}
+
+TEST(Contact, HullFromObjActsLikeItsShape) {
+    // an 8 x 8 x 4 mm cube written as OBJ (in mm, scale 0.001): the same depth as the box blade
+    std::string obj;
+    for (int i = 0; i < 8; ++i)
+        obj += "v " + std::to_string(i & 1 ? 4 : -4) + " " + std::to_string(i & 2 ? 4 : -4) + " " +
+               std::to_string(i & 4 ? 2 : -2) + "\n";
+    obj += "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\nf 2 6 8 4\n";
+    const std::string path = test::writeText(test::tempDir() + "/cube.obj", obj);
+    ToolDef hull;
+    hull.kind = ToolDef::Kind::Hull;
+    hull.hull = readSurfaceMesh(path, 0.001).V;
+    const double k = 2000, d = 3e-4;
+    hull.stiffness = k;
+    hull.damping = 0;
+    hull.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.002 - d), Eigen::Quaterniond::Identity()}, 0});
+    Slab s;
+    const ContactStep st = s.press(hull);
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
+    EXPECT_NEAR(st.reaction[0].head<2>().norm(), 0, 1e-9);
+}
+
+TEST(Contact, GrasperJawsPushAVertexTowardTheGap) {
+    // jaws 4 mm cubes facing each other across y, 2 mm apart, centred 1.5 mm beside the vertex:
+    // the vertex sits 0.5 mm inside the lower jaw and is pushed into the gap (+y)
+    Slab s;
+    const double k = 1000;
+    ToolDef g;
+    g.kind = ToolDef::Kind::Grasper;
+    g.size << 0.004, 0.004, 0.004;
+    g.stiffness = k;
+    g.damping = 0;
+    g.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05 + 0.0015, 0.02), Eigen::Quaterniond::Identity()}, 0.002});
+    ContactStep st = s.press(g);
+    ASSERT_EQ(st.contacts, 1);
+    EXPECT_NEAR(st.reaction[0].y(), -k * 5e-4, 1e-9);
+    EXPECT_NEAR(s.f.rowwise().sum().y(), k * 5e-4, 1e-9);
+    // centred on the vertex, it sits in the gap: no contact
+    g.keys[0].pose.position.y() = 0.05;
+    st = s.press(g);
+    EXPECT_EQ(st.contacts, 0);
+}
+
+TEST(Contact, DampingOpposesApproachOnly) {
+    Slab s;
+    const double k = 1000, c = 2, d = 1e-3, r = 0.005;
+    ToolDef t = sphereAt({0.05, 0.05, 0.02 + r - d}, r, k);
+    t.damping = c;
+    // the surface moves up into the probe at 0.1 m/s: the penalty grows by c * 0.1
+    s.v.row(2).setConstant(0.1);
+    ContactStep st = s.press(t);
+    EXPECT_NEAR(st.reaction[0].z(), k * d + c * 0.1, 1e-9);
+    // moving away fast enough, the force would pull: it is cut at zero
+    s.v.row(2).setConstant(-10);
+    st = s.press(t);
+    EXPECT_EQ(st.reaction[0].norm(), 0);
+}
+
+TEST(Contact, ForceOnEmbeddedVertexSpreadsByItsWeights) {
+    // one tet; three surface vertices inside it, only the first under the probe
+    Eigen::Matrix3Xd X(3, 4);
+    X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+    Eigen::Matrix4Xi tets(4, 1);
+    tets << 0, 1, 2, 3;
+    EmbeddedSurface es;
+    es.triangles.resize(3, 1);
+    es.triangles << 0, 1, 2;
+    es.element = {0, 0, 0};
+    es.weights.resize(4, 3);
+    es.weights.col(0) << 0.1, 0.2, 0.3, 0.4;
+    es.weights.col(1) << 0.7, 0.1, 0.1, 0.1;
+    es.weights.col(2) << 0.1, 0.1, 0.7, 0.1;
+    Eigen::Matrix3Xd p;
+    embeddedPositions(es, tets, X, p);   // vertex 0 at (0.2, 0.3, 0.4)
+    const double k = 100, d = 0.01, r = 0.05;
+    ContactWorld w({sphereAt(Eigen::Vector3d(p.col(0)) + Eigen::Vector3d(0, 0, r - d), r, k)});
+    w.setSurface(contactPoints(es, tets, X, 0));
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, 4), v = Eigen::Matrix3Xd::Zero(3, 4);
+    w.addForces(X, v, 0, 1e-3, f);
+    ASSERT_EQ(w.last().contacts, 1);
+    const Eigen::Vector3d fv(0, 0, -k * d);
+    for (int a = 0; a < 4; ++a) EXPECT_NEAR((f.col(a) - es.weights(a, 0) * fv).norm(), 0, 1e-12) << a;
+    EXPECT_NEAR((f.rowwise().sum() - fv).norm(), 0, 1e-12);
+}
+
+TEST(Contact, PointsOnEdgesAndFacesAtMostSpacingApart) {
+    // right triangle with legs 1: spacing 0.5 splits the legs in 2, the hypotenuse (1.41) in 3,
+    // and the face grid (3 divisions) has one interior point: 3 + 1 + 1 + 2 + 1 = 8 points
+    Eigen::Matrix3Xd X(3, 4);
+    X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+    Eigen::Matrix4Xi tets(4, 1);
+    tets << 0, 1, 2, 3;
+    EmbeddedSurface es;
+    es.triangles.resize(3, 1);
+    es.triangles << 0, 1, 2;
+    es.element = {0, 0, 0};
+    es.weights = Eigen::Matrix4Xd::Zero(4, 3);
+    es.weights(0, 0) = es.weights(1, 1) = es.weights(2, 2) = 1;
+    const ContactPoints pts = contactPoints(es, tets, X, 0.5);
+    ASSERT_EQ(pts.points(), 8);
+    for (int p = 0; p < pts.points(); ++p) {
+        EXPECT_NEAR(pts.weights.col(p).sum(), 1, 1e-12);
+        Eigen::Vector3d x = Eigen::Vector3d::Zero();
+        for (int i = 0; i < pts.count[p]; ++i) x += pts.weights(i, p) * X.col(pts.nodes(i, p));
+        EXPECT_NEAR(x.z(), 0, 1e-12);                    // on the face z = 0
+        EXPECT_LE(x.x() + x.y(), 1 + 1e-12);
+    }
+}
+
+TEST(Contact, StableStiffnessIsHeadroomTimesLightestNodeForVertices) {
+    Model m = buildModel(test::boxMesh(0.02, 0.02, 0.02, 2, 2, 2), Material{});
+    const ContactPoints pts = contactPoints(boundarySurface(m.tets, m.X), m.tets, m.X, 0);
+    const double dtc = 1e-3, dt = 0.8e-3;
+    // one point per boundary node with weight 1: the Gershgorin row of node a is 1 / m_a
+    double mMin = 1e300;
+    for (int p = 0; p < pts.points(); ++p) mMin = std::min(mMin, m.mass(pts.nodes(0, p)));
+    const double expected = (4 / (dt * dt) - 4 / (dtc * dtc)) * mMin;
+    EXPECT_NEAR(stableStiffness(pts, m.invMass, dt, dtc), expected, 1e-9 * expected);
+    EXPECT_EQ(stableStiffness(pts, m.invMass, dtc, dtc), 0);
+}
+
+TEST(Tool, KeyframesInterpolateLinearlyAndSlerp) {
+    ToolDef t;
+    t.keys.push_back({1.0, {Eigen::Vector3d(0, 0, 0), Eigen::Quaterniond::Identity()}, 0.0});
+    t.keys.push_back({3.0, {Eigen::Vector3d(2, 4, 0), Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()))}, 0.01});
+    const Pose mid = toolPose(t, 2.0);
+    EXPECT_NEAR((mid.position - Eigen::Vector3d(1, 2, 0)).norm(), 0, 1e-12);
+    EXPECT_NEAR(Eigen::AngleAxisd(mid.orientation).angle(), std::numbers::pi / 4, 1e-12);
+    EXPECT_NEAR((toolPose(t, 0).position - Eigen::Vector3d(0, 0, 0)).norm(), 0, 1e-12);  // held before
+    EXPECT_NEAR((toolPose(t, 9).position - Eigen::Vector3d(2, 4, 0)).norm(), 0, 1e-12);  // and after
+    EXPECT_NEAR(toolOpening(t, 2.0), 0.005, 1e-15);
+}
+
+TEST(Tool, GrasperJawsAndSweptBox) {
+    ToolDef g;
+    g.kind = ToolDef::Kind::Grasper;
+    g.size << 0.02, 0.004, 0.006;
+    g.keys.push_back({0, {}, 0.01});
+    const auto parts = toolParts(g, 0);
+    ASSERT_EQ(parts.size(), 2u);
+    // inner faces of the jaws are `opening` apart
+    EXPECT_NEAR((parts[0].local.position.y() - 0.002) - (parts[1].local.position.y() + 0.002), 0.01, 1e-15);
+
+    ToolDef b;
+    b.kind = ToolDef::Kind::Blade;
+    b.size << 0.04, 0.02, 0.002;
+    b.keys.push_back({0, {Eigen::Vector3d(0, 0, 0), Eigen::Quaterniond::Identity()}, 0});
+    b.keys.push_back({1, {Eigen::Vector3d(0, 0, 0.1), Eigen::Quaterniond::Identity()}, 0});
+    Eigen::Vector3d lo, hi;
+    sweptAabb(b, 0, 1, lo, hi);
+    // pure translation: exactly the union of the end boxes
+    EXPECT_NEAR((lo - Eigen::Vector3d(-0.02, -0.01, -0.001)).norm(), 0, 1e-12);
+    EXPECT_NEAR((hi - Eigen::Vector3d(0.02, 0.01, 0.101)).norm(), 0, 1e-12);
+    Eigen::Vector3d a, e;
+    bladeEdge(b, 0, a, e);
+    EXPECT_NEAR((a - Eigen::Vector3d(-0.02, -0.01, 0)).norm(), 0, 1e-15);
+    EXPECT_NEAR((e - Eigen::Vector3d(0.02, -0.01, 0)).norm(), 0, 1e-15);
+}
+
+std::vector<int> bruteForce(const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& lo,
+                            const Eigen::Vector3d& hi) {
+    std::vector<int> out;
+    for (int e = 0; e < tets.cols(); ++e) {
+        Eigen::Vector3d a = x.col(tets(0, e)), b = a;
+        for (int k = 1; k < 4; ++k) {
+            a = a.cwiseMin(x.col(tets(k, e)));
+            b = b.cwiseMax(x.col(tets(k, e)));
+        }
+        if ((a.array() <= hi.array()).all() && (b.array() >= lo.array()).all()) out.push_back(e);
+    }
+    return out;
+}
+
+TEST(ElementBroadphase, EqualsBruteForceBeforeAndAfterRefit) {
+    const TetMesh mesh = test::boxMesh(0.06, 0.06, 0.06, 6, 6, 6);
+    Eigen::Matrix3Xd x = mesh.X;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-0.01, 0.07), jitter(-0.003, 0.003), ext(0.001, 0.03);
+    ElementBroadphase bp;
+    bp.refit(mesh.tets, x);
+    EXPECT_EQ(bp.elements(), mesh.tets.cols());
+    std::vector<int> got;
+    for (int round = 0; round < 3; ++round) {
+        for (int q = 0; q < 40; ++q) {
+            const Eigen::Vector3d lo(u(rng), u(rng), u(rng));
+            const Eigen::Vector3d hi = lo + Eigen::Vector3d(ext(rng), ext(rng), ext(rng));
+            bp.query(lo, hi, got);
+            EXPECT_EQ(got, bruteForce(mesh.tets, x, lo, hi)) << "round " << round << " query " << q;
+        }
+        for (int i = 0; i < x.cols(); ++i) x.col(i) += Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+        bp.refit(mesh.tets, x);
+    }
+    // a fattened tree returns a superset
+    ElementBroadphase fat(0.002);
+    fat.refit(mesh.tets, x);
+    const Eigen::Vector3d lo(0.02, 0.02, 0.02), hi(0.03, 0.03, 0.03);
+    fat.query(lo, hi, got);
+    for (int e : bruteForce(mesh.tets, x, lo, hi)) EXPECT_TRUE(std::binary_search(got.begin(), got.end(), e)) << e;
+}
+
+} // namespace
+} // namespace cutsim
