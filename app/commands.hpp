@@ -13,5 +13,6 @@ void setExitCode(int code);
 void addDtCommand(CLI::App& app);     // cmd_dt.cpp: time-step analysis of a mesh
 void addMeshCommand(CLI::App& app);   // cmd_mesh.cpp: mesh conversion and checks
 void addRunCommand(CLI::App& app);    // cmd_run.cpp: run a scene
+void addMiCommand(CLI::App& app);     // cmd_mi.cpp: mesh intersection of a surface
 
 } // namespace cutsim::app

@@ -42,8 +42,8 @@ Camera cameraAt(const std::vector<CameraKey>& keys, double t) {
 class RenderSink final : public FrameSink {
 public:
     RenderSink(const SceneDef& sc, const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt,
-               double dt)
-        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), elementDt_(elementDt), dt_(dt) {
+               double dt, const EmbeddedSurface* surface)
+        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), elementDt_(elementDt), dt_(dt), surface_(surface) {
         render::RenderOptions ro;
         ro.width = sc.capture.width;
         ro.height = sc.capture.height;
@@ -88,7 +88,8 @@ public:
         }
         // The surface is extracted once; later frames move its vertices and refresh changing fields.
         if (!ms_) {
-            ms_ = std::make_unique<MeshSnapshot>(snapshotFromTetMesh(mesh_, state.x, so));
+            ms_ = std::make_unique<MeshSnapshot>(surface_ ? snapshotFromSurface(mesh_, state.x, *surface_, so)
+                                                          : snapshotFromTetMesh(mesh_, state.x, so));
         } else {
             updateSnapshotPositions(*ms_, mesh_, state.x, so);
             if (cmap == "stress") setElementValues(*ms_, mesh_, so);
@@ -151,6 +152,7 @@ private:
     std::filesystem::path dir_;
     Eigen::VectorXd elementDt_;
     double dt_;
+    const EmbeddedSurface* surface_;  // embedded object's surface, or null: the mesh boundary
     TetMesh mesh_;
     Eigen::Vector3d up_;
     std::vector<int> critical_;
@@ -168,16 +170,16 @@ private:
 #endif
 
 std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
-                                         const Eigen::VectorXd& elementDt, double dt) {
+                                         const Eigen::VectorXd& elementDt, double dt, const EmbeddedSurface* surface) {
 #ifdef CUTSIM_HAVE_RENDER
     try {
-        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt);
+        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt, surface);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
         return nullptr;
     }
 #else
-    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt;
+    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt, (void)surface;
     std::fprintf(stderr, "frames: this build has no renderer; running without frames\n");
     return nullptr;
 #endif

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "fem/state.hpp"
+#include "mesh/embedding.hpp"
 #include "scene.hpp"
 
 #include <memory>
@@ -31,8 +32,10 @@ public:
 };
 
 // A sink for the scene's capture settings, or nullptr with a message on stderr when this build
-// has no renderer or no GL context can be made (the run goes on without frames).
+// has no renderer or no GL context can be made (the run goes on without frames). surface, when
+// given, is drawn instead of the mesh's boundary (an embedded object's fine surface; not owned).
 std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
-                                         const Eigen::VectorXd& elementDt, double dt);
+                                         const Eigen::VectorXd& elementDt, double dt,
+                                         const EmbeddedSurface* surface = nullptr);
 
 } // namespace cutsim::app
