@@ -126,8 +126,11 @@ int runMi(const MiArgs& a) {
         std::printf("volume:    embedded %.6g m^3, surface %.6g m^3, error %+.3e\n", vEmb, vSurf,
                     vSurf != 0 ? (vEmb - vSurf) / vSurf : 0.0);
         for (const auto& lv : j.value("volume_refined", nlohmann::json::array()))
-            std::printf("           refined %d levels: %.6g m^3, error vs exact %+.3e\n", lv["level"].get<int>(),
-                        lv["volume"].get<double>(), lv["error_vs_exact"].get<double>());
+            if (r.closed)
+                std::printf("           refined %d levels: %.6g m^3, error vs exact %+.3e\n", lv["level"].get<int>(),
+                            lv["volume"].get<double>(), lv["error_vs_exact"].get<double>());
+            else
+                std::printf("           refined %d levels: %.6g m^3\n", lv["level"].get<int>(), lv["volume"].get<double>());
         std::printf("dt:        exact %.4f ms, certified %.4f ms; background lattice exact %.4f ms (ratio %.3f)\n",
                     ex.dt * 1e3, dtCert * 1e3, exBg.dt * 1e3, ex.dt / exBg.dt);
         std::printf("seconds:   read %.3f, lattice %.3f, hash %.3f, nodes %.3f, volumes %.3f, model %.3f, embed %.3f"

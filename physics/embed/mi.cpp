@@ -164,7 +164,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     t0 = Clock::now();
     const int ne = r.lattice.elements();
     r.fractionExact = Eigen::VectorXd::Zero(ne);
-    const int levels = r.closed ? opts.refineLevels : std::max(opts.refineLevels, 3);
+    const int levels = r.closed ? opts.refineLevels : std::max(opts.refineLevels, 2);
     if (levels > 0) r.fractionRefined.assign(static_cast<size_t>(levels) + 1, Eigen::VectorXd::Zero(ne));
     std::vector<int> interfaceCubes;
     for (int c = 0; c < nCubes; ++c) {

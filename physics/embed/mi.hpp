@@ -50,7 +50,8 @@ struct MiResult {
     Eigen::VectorXd fractionExact;          // inside share by clipping, not clamped (nLatticeTets) [-]
     std::vector<Eigen::VectorXd> fractionRefined; // [l] = share after l refinement levels (levels+1 x nLatticeTets) [-]
     bool closed = true;                     // the surface is closed and oriented: shares are exact;
-                                            // otherwise they come from refinement with winding numbers
+                                            // otherwise they come from max(2, refineLevels) refinement
+                                            // levels with winding numbers (the region where w > 1/2)
 
     // The embedded model: inside and interface lattice tets, nodes no kept tet uses dropped.
     Model model;

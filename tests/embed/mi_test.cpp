@@ -3,6 +3,7 @@
 #include "embed/clip.hpp"
 #include "embed/mi.hpp"
 #include "embed/winding.hpp"
+#include "mesh/embedding.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/timestep.hpp"
@@ -131,8 +132,8 @@ TEST(Mi, UnitCubeExactVolumesSumToOne) {
 TEST(Mi, SphereExactVolumeAndRefinementConverges) {
     const SurfaceMesh s = icosphere(3, 1.0, {0.013, -0.021, 0.034});
     MiOptions o;
-    o.cells = 6;
-    o.refineLevels = 4;
+    o.cells = 5;
+    o.refineLevels = 3;
     const MiResult r = buildMi(s, Material{}, o);
     const double V = enclosedVolume(s);
     EXPECT_NEAR(latticeSum(r), V, 1e-9);
@@ -143,7 +144,7 @@ TEST(Mi, SphereExactVolumeAndRefinementConverges) {
         for (int t = 0; t < r.lattice.elements(); ++t) v += tetSignedVolume(r.lattice, t) * fr(t);
         err.push_back(std::abs(v - V) / V);
     }
-    ASSERT_EQ(err.size(), 5u);
+    ASSERT_EQ(err.size(), 4u);
     for (size_t l = 1; l < err.size(); ++l) EXPECT_LT(err[l], err[l - 1]) << "level " << l;
     EXPECT_LT(err.back(), 0.01);
 }
@@ -167,6 +168,143 @@ TEST(Mi, BarOnLatticePlanesIsTheConformingBar) {
     EXPECT_NEAR(dtMi / dtBox, 1.0, 1e-7);
     // lattice nodes on the bar's faces are boundary nodes
     EXPECT_EQ(r.count(NodeClass::Boundary), box.nodes() - 3 * 1 * 1);
+}
+
+
+// Broken surfaces (open holes, non-manifold and duplicated faces, self-intersections; see
+// data/SOURCES.md): never a crash; the object is the region where the winding number exceeds 1/2,
+// with shares from refinement. Documented results: the tree classifies every lattice node as the
+// exact winding-number sum does; the dragon (closed but non-manifold) keeps its volume within 1%;
+// the open camel head and Suzanne get a finite, positive volume that closes their holes.
+TEST(Mi, BrokenSurfacesGiveTheWindingNumberRegion) {
+    for (const char* f : {"broken/igl_camelhead.off", "broken/sofa_dragon.obj", "broken/sofa_suzanne.stl"}) {
+        SCOPED_TRACE(f);
+        const SurfaceMesh s = readSurfaceMesh(test::data(f));
+        EXPECT_FALSE(checkSurface(s).closed());
+        MiOptions o;
+        o.cells = 6;
+        MiResult r;
+        ASSERT_NO_THROW(r = buildMi(s, Material{}, o));
+        EXPECT_FALSE(r.closed);
+        EXPECT_GT(r.model.elements(), 0);
+        const double v = r.embeddedVolume();
+        EXPECT_TRUE(std::isfinite(v));
+        EXPECT_GT(v, 0);
+        const Eigen::Vector3d lo = s.V.rowwise().minCoeff(), hi = s.V.rowwise().maxCoeff();
+        EXPECT_LT(v, (hi - lo).prod());
+        // nodes whose exact winding number is clear of 1/2 (near a hole it is not) are classified alike
+        int clear = 0, agree = 0;
+        for (int n = 0; n < r.lattice.nodes(); ++n) {
+            const double w = windingNumberExact(s, r.lattice.X.col(n));
+            if (std::abs(w - 0.5) < 0.1) continue;
+            ++clear;
+            agree += (w > 0.5) == bool(r.nodeInside[n]);
+        }
+        EXPECT_EQ(agree, clear);
+        EXPECT_GT(clear, r.lattice.nodes() * 9 / 10);
+        if (std::string(f) == "broken/sofa_dragon.obj") {
+            EXPECT_NEAR(v / enclosedVolume(s), 1.0, 0.01);
+        }
+    }
+}
+
+// Linear static sag of a cantilever under gravity: K u = m g on the free DOFs; returns u (3 x n).
+Eigen::Matrix3Xd staticSag(const Model& m, const std::vector<int>& fixed, const Eigen::Vector3d& g) {
+    const int n = m.nodes();
+    std::vector<int> dof(static_cast<size_t>(3 * n), -1);
+    std::vector<char> isFixed(static_cast<size_t>(n), 0);
+    for (int i : fixed) isFixed[static_cast<size_t>(i)] = 1;
+    int nf = 0;
+    for (int i = 0; i < n; ++i)
+        if (!isFixed[static_cast<size_t>(i)])
+            for (int k = 0; k < 3; ++k) dof[static_cast<size_t>(3 * i + k)] = nf++;
+    const Eigen::SparseMatrix<double> K = assembleStiffness(m);
+    std::vector<Eigen::Triplet<double>> trips;
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it)
+            if (dof[static_cast<size_t>(it.row())] >= 0 && dof[static_cast<size_t>(it.col())] >= 0)
+                trips.emplace_back(dof[static_cast<size_t>(it.row())], dof[static_cast<size_t>(it.col())], it.value());
+    Eigen::SparseMatrix<double> Kf(nf, nf);
+    Kf.setFromTriplets(trips.begin(), trips.end());
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(nf);
+    for (int i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k)
+            if (dof[static_cast<size_t>(3 * i + k)] >= 0) f(dof[static_cast<size_t>(3 * i + k)]) = m.mass(i) * g[k];
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Kf);
+    const Eigen::VectorXd uf = ldlt.solve(f);
+    Eigen::Matrix3Xd u = Eigen::Matrix3Xd::Zero(3, n);
+    for (int i = 0; i < n; ++i)
+        for (int k = 0; k < 3; ++k)
+            if (dof[static_cast<size_t>(3 * i + k)] >= 0) u(k, i) = uf(dof[static_cast<size_t>(3 * i + k)]);
+    return u;
+}
+
+TEST(Mi, CantileverTipMatchesTheConformingBar) {
+    // assets/scenes/bar_sag.json: 1 x 0.1 x 0.1 m in 40 x 4 x 4 cubes, E = 1 MPa, nu = 0.3, rho = 1000,
+    // clamped at x = 0, gravity; compared through the linear static sag (its damped equilibrium).
+    Material mat;
+    mat.E = 1e6;
+    const Eigen::Vector3d g(0, 0, -9.81);
+    const int nx = 40, ny = 4;
+    const double h = 1.0 / nx;
+    const Model ref = buildModel(boxMesh(1.0, 0.1, 0.1, nx, ny, ny), mat);
+    std::vector<int> refFixed, refTip;
+    for (int i = 0; i < ref.nodes(); ++i) {
+        if (ref.X(0, i) < 1e-9) refFixed.push_back(i);
+        if (ref.X(0, i) > 1 - 1e-9) refTip.push_back(i);
+    }
+    const Eigen::Matrix3Xd uRef = staticSag(ref, refFixed, g);
+    double tipRef = 0;
+    for (int i : refTip) tipRef += uRef(2, i) / static_cast<double>(refTip.size());
+
+    // MI: the same bar in a lattice of the same cell size, shifted across so the bar's sides cut
+    // through cells (interface elements with shares 0.3 / 0.7); the clamp stays on the plane x = 0.
+    MiOptions o;
+    o.h = h;
+    o.latticeCells = Eigen::Vector3i(nx, ny + 1, ny + 1);
+    o.latticeOrigin = Eigen::Vector3d(0, -0.3 * h, -0.3 * h);
+    const MiResult r = buildMi(boxSurface({0, 0, 0}, {1.0, 0.1, 0.1}), mat, o);
+    EXPECT_GT(r.count(ElementClass::Interface), 0);
+    EXPECT_NEAR(r.embeddedVolume(), 0.01, 1e-9);
+    std::vector<int> fixed;
+    for (int i = 0; i < r.model.nodes(); ++i)
+        if (r.model.X(0, i) < 1e-9) fixed.push_back(i);
+    const Eigen::Matrix3Xd u = staticSag(r.model, fixed, g);
+    // tip: the surface's 4 corners at x = 1, through their embedding weights
+    Eigen::Matrix3Xd rest, moved;
+    embeddedPositions(r.surface, r.model.tets, r.model.X, rest);
+    embeddedPositions(r.surface, r.model.tets, r.model.X + u, moved);
+    double tip = 0;
+    int nTip = 0;
+    for (int v = 0; v < r.surface.vertices(); ++v)
+        if (rest(0, v) > 1 - 1e-9) {
+            tip += moved(2, v) - rest(2, v);
+            ++nTip;
+        }
+    ASSERT_EQ(nTip, 4);
+    tip /= nTip;
+    EXPECT_LT(tipRef, 0);
+    RecordProperty("tip_ratio", std::to_string(tip / tipRef));
+    EXPECT_NEAR(tip / tipRef, 1.0, 0.02) << "MI tip " << tip << " m, conforming " << tipRef << " m";
+}
+
+TEST(Mi, BarRowsKeepTheLatticeStep) {
+    MiBarOptions o;
+    o.cellsAcross = 2;
+    const auto rows = miBarRows(o);
+    ASSERT_EQ(rows.size(), 4u);
+    const double V = 10 * std::pow(o.scale, 3);
+    for (const auto& row : rows) {
+        SCOPED_TRACE(row.kept);
+        RecordProperty("dt_ratio_" + std::to_string(row.kept), std::to_string(row.dtExact / row.dtLattice));
+        EXPECT_NEAR(row.volume, row.kept * V, 1e-9 * V);
+        EXPECT_LE(row.dtCertified, row.dtExact * (1 + 1e-9));
+        // A shorter free bar already differs from the full one by a few 1e-4 (lumped masses at its
+        // ends); what MI must not do is let small shares shrink the step (fraction-scaled K and M).
+        EXPECT_GE(row.dtExact, row.dtLattice * 0.99);
+    }
+    EXPECT_EQ(rows[0].nodes, 3 * 3 * 21);
+    EXPECT_EQ(rows[0].elements, 6 * 2 * 2 * 20);
 }
 
 } // namespace
