@@ -290,7 +290,7 @@ TEST(Mi, CantileverTipMatchesTheConformingBar) {
 
 TEST(Mi, BarRowsKeepTheLatticeStep) {
     MiBarOptions o;
-    o.cellsAcross = 2;
+    o.cellsAcross = 3;  // h = 1/3: the cuts at 75% and 25% fall inside cells, 50% on a lattice plane
     const auto rows = miBarRows(o);
     ASSERT_EQ(rows.size(), 4u);
     const double V = 10 * std::pow(o.scale, 3);
@@ -303,8 +303,12 @@ TEST(Mi, BarRowsKeepTheLatticeStep) {
         // ends); what MI must not do is let small shares shrink the step (fraction-scaled K and M).
         EXPECT_GE(row.dtExact, row.dtLattice * 0.99);
     }
-    EXPECT_EQ(rows[0].nodes, 3 * 3 * 21);
-    EXPECT_EQ(rows[0].elements, 6 * 2 * 2 * 20);
+    EXPECT_EQ(rows[0].nodes, 4 * 4 * 31);
+    EXPECT_EQ(rows[0].elements, 6 * 3 * 3 * 30);
+    EXPECT_NEAR(rows[0].dtExact / rows[0].dtLattice, 1.0, 1e-7);
+    EXPECT_GT(rows[1].interfaceElements, 0);
+    EXPECT_EQ(rows[2].interfaceElements, 0);
+    EXPECT_GT(rows[3].interfaceElements, 0);
 }
 
 } // namespace
