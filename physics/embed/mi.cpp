@@ -270,6 +270,11 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
         const int t = r.latticeElement[static_cast<size_t>(e)];
         r.model.fraction(e) = r.elementClass[t] == ElementClass::Inside ? 1.0 : std::clamp(r.fractionExact(t), 0.0, 1.0);
     }
+    if (opts.fixOutsideNodes)
+        for (int i = 0; i < r.model.nodes(); ++i) {
+            const int n = r.latticeNode[static_cast<size_t>(i)];
+            if (r.nodeClass[n] == NodeClass::Outside) r.model.fixed[i] = 1;
+        }
     updateMasses(r.model);
     r.seconds.model = since(t0);
 
@@ -357,6 +362,9 @@ std::vector<MiBarRow> miBarRows(const MiBarOptions& o, const std::vector<double>
         row.dtExact = exactCriticalDt(r.model, sr).dt;
         row.dtCertified = certifiedDt(r.model, sr);
         row.dtLattice = dtLattice;
+        MiOptions fixedOpts = mo;
+        fixedOpts.fixOutsideNodes = true;
+        row.dtOutsideFixed = exactCriticalDt(buildMi(bar, o.material, fixedOpts).model).dt;
         rows.push_back(row);
     }
     return rows;

@@ -24,6 +24,8 @@ struct MiOptions {
     double boundaryTol = 1e-3;    // a node closer than boundaryTol * h to the surface is a boundary node [-]
     double minFraction = 1e-6;    // inside share below it: outside; above 1 - it: inside (share 1) [-]
     int refineLevels = 0;         // also estimate interface shares by this many refinement levels (0: skip)
+    bool fixOutsideNodes = false; // the thesis's literal reading: outside corners of interface tets fixed
+                                  // (removes DOFs, so the step can only grow; pins the boundary layer)
     long maxTets = 20'000'000;    // refuse larger lattices (InputError)
 };
 
@@ -89,6 +91,7 @@ struct MiBarRow {
     double dtExact = 0;       // exact critical step of the MI model [s]
     double dtCertified = 0;   // certified lower bound [s]
     double dtLattice = 0;     // exact step of the uncut lattice [s]
+    double dtOutsideFixed = 0; // exact step with the outside corners fixed (MiOptions::fixOutsideNodes) [s]
 };
 std::vector<MiBarRow> miBarRows(const MiBarOptions& opts = {}, const std::vector<double>& kept = {1.0, 0.75, 0.5, 0.25});
 
