@@ -3,6 +3,11 @@
 // a mesh of that resolution can have. Lattice tets cut by the surface become virtual elements
 // (XFEM, thesis 2.3) with stiffness and mass scaled by their inside volume share, so an isolated one
 // keeps the parent's eigenvalues and the embedded model keeps the lattice's step.
+//
+// Lattice: cubes split into 6 Kuhn tets (mesh/generate.hpp boxMesh). Measured at equal cell size
+// (E = 30 kPa, h = 1 cm, 6^3 and 10^3 cubes): exact dt 1.055 ms against 0.884 ms for the 5-tet
+// split with alternating parity, i.e. 19% larger, and every tet is congruent, so no cube parity
+// has to follow the object. (A body-centred cubic lattice was not measured.)
 #pragma once
 
 #include "fem/model.hpp"
