@@ -93,8 +93,9 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     r.closed = check.closed();
 
     // Spatial hash (thesis Algorithm 1): cube -> triangles whose box overlaps it (CSR).
-    auto cubeOf = [&](double x, int axis) {
-        return std::clamp(static_cast<int>(std::floor((x - r.origin[axis]) / r.h)), 0, r.cells[axis] - 1);
+    auto cubeOf = [&](double x, int axis) {  // clamped before the cast: a given lattice may not hold the surface
+        const double c = std::clamp(std::floor((x - r.origin[axis]) / r.h), 0.0, static_cast<double>(r.cells[axis] - 1));
+        return static_cast<int>(c);
     };
     std::vector<int> cubeStart(static_cast<size_t>(nCubes) + 1, 0), cubeTris;
     {
