@@ -107,7 +107,7 @@ int runView(const ViewArgs& a) {
     ro.hud = false;      // the panel shows the HUD values
     render::Renderer renderer(ro, render::RenderTarget::CurrentContext);
 
-    SceneSnapshot scene(sc, sim.model, sim.ta.estimates().r1r, sim.dt);
+    SceneSnapshot scene(sc, sim.model, sim.ta.estimates().r1r, sim.dt, sim.surface.get());
     State state = makeState(sim.model);
     Stepper stepper;
     StepOptions so{sc.integrator, sim.dt};

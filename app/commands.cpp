@@ -15,6 +15,7 @@ void registerCommands(CLI::App& app) {
     addDtCommand(app);
     addMeshCommand(app);
     addRunCommand(app);
+    addMiCommand(app);
     addRenderCommand(app);
     addViewCommand(app);
 }

@@ -14,5 +14,6 @@ void addDtCommand(CLI::App& app);     // cmd_dt.cpp: time-step analysis of a mes
 void addMeshCommand(CLI::App& app);   // cmd_mesh.cpp: mesh conversion and checks
 void addRunCommand(CLI::App& app);    // cmd_run.cpp: run a scene
 void addViewCommand(CLI::App& app);   // cmd_view.cpp: run a scene live in a window
+void addMiCommand(CLI::App& app);     // cmd_mi.cpp: mesh intersection of a surface
 
 } // namespace cutsim::app

@@ -35,8 +35,10 @@ Camera cameraAt(const std::vector<CameraKey>& keys, double t) {
 }
 } // namespace
 
-SceneSnapshot::SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen::VectorXd& elementDt, double dt)
+SceneSnapshot::SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen::VectorXd& elementDt, double dt,
+                             const EmbeddedSurface* surface)
     : sc_(sc), elementDt_(elementDt), dt_(dt), colormap_(sc.capture.colormap), wireframe_(sc.capture.wireframe) {
+    if (surface) surface_ = std::make_unique<EmbeddedSurface>(*surface);
     mesh_.X = model.X;
     mesh_.tets = model.tets;
     up_ = model.gravity.norm() > 0 ? Eigen::Vector3d(-model.gravity.normalized()) : Eigen::Vector3d::UnitZ();
@@ -142,8 +144,8 @@ using Clock = std::chrono::steady_clock;
 class RenderSink final : public FrameSink {
 public:
     RenderSink(const SceneDef& sc, const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt,
-               double dt)
-        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), scene_(sc, model, elementDt, dt) {
+               double dt, const EmbeddedSurface* surface)
+        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), scene_(sc, model, elementDt, dt, surface) {
         render::RenderOptions ro;
         ro.width = sc.capture.width;
         ro.height = sc.capture.height;
@@ -216,16 +218,16 @@ private:
 #endif
 
 std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
-                                         const Eigen::VectorXd& elementDt, double dt) {
+                                         const Eigen::VectorXd& elementDt, double dt, const EmbeddedSurface* surface) {
 #ifdef CUTSIM_HAVE_RENDER
     try {
-        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt);
+        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt, surface);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
         return nullptr;
     }
 #else
-    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt;
+    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt, (void)surface;
     std::fprintf(stderr, "frames: this build has no renderer; running without frames\n");
     return nullptr;
 #endif

@@ -31,7 +31,9 @@ struct FrameInfo {
 // frames move its vertices.
 class SceneSnapshot {
 public:
-    SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen::VectorXd& elementDt, double dt);
+    // surface, when given, is drawn instead of the mesh's boundary (an embedded object's fine surface).
+    SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen::VectorXd& elementDt, double dt,
+                  const EmbeddedSurface* surface = nullptr);
     RenderSnapshot& update(const Model& model, const State& state, const FrameInfo& info);
 
     // Changes that rebuild the surface on the next update.
@@ -72,8 +74,10 @@ public:
 };
 
 // A sink for the scene's capture settings, or nullptr with a message on stderr when this build
-// has no renderer or no GL context can be made (the run goes on without frames).
+// has no renderer or no GL context can be made (the run goes on without frames). surface, when
+// given, is drawn instead of the mesh's boundary (an embedded object's fine surface; not owned).
 std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
-                                         const Eigen::VectorXd& elementDt, double dt);
+                                         const Eigen::VectorXd& elementDt, double dt,
+                                         const EmbeddedSurface* surface = nullptr);
 
 } // namespace cutsim::app

@@ -3,6 +3,7 @@
 #include "cut/xfem.hpp"
 #include "contact/contact.hpp"
 #include "fem/forces.hpp"
+#include "embed/mi.hpp"
 #include "fem/integrate.hpp"
 #include "frames.hpp"
 #include "mesh/generate.hpp"
@@ -146,15 +147,35 @@ Simulation prepareScene(const SceneDef& sc) {
     ReadOptions ro;
     ro.scale = sc.scale;
     ro.reorient = sc.reorient;
-    TetMesh mesh = sc.mesh.empty() ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
-                                             sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
-                                   : readTetMesh(sc.mesh, ro);
     const double d2r = M_PI / 180.0;
     const Eigen::Matrix3d R = (Eigen::AngleAxisd(sc.rotateDeg.z() * d2r, Eigen::Vector3d::UnitZ()) *
                                Eigen::AngleAxisd(sc.rotateDeg.y() * d2r, Eigen::Vector3d::UnitY()) *
                                Eigen::AngleAxisd(sc.rotateDeg.x() * d2r, Eigen::Vector3d::UnitX())).toRotationMatrix();
-    mesh.X = (R * mesh.X).colwise() + sc.translate;
-    Model model = buildModel(mesh, sc.material, sc.element);
+    Model model;
+    std::unique_ptr<EmbeddedSurface> embedded;  // the fine render surface of an MI object
+    json embedding;
+    if (!sc.surface.empty()) {
+        // Mesh intersection: the placed surface in a regular lattice (thesis ch. 6).
+        const auto te = Clock::now();
+        SurfaceMesh surf = readSurfaceMesh(sc.surface, sc.scale);
+        surf.V = (R * surf.V).colwise() + sc.translate;
+        MiOptions mo;
+        mo.cells = sc.surfaceCells;
+        mo.h = sc.surfaceH;
+        MiResult mi = buildMi(surf, sc.material, mo);
+        embedding = {{"h", mi.h}, {"interface_elements", mi.count(ElementClass::Interface)},
+                     {"volume_embedded", mi.embeddedVolume()}, {"volume_surface", enclosedVolume(surf)},
+                     {"closed", mi.closed}, {"seconds", since(te)}};
+        model = std::move(mi.model);
+        model.elementModel = sc.element;
+        embedded = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
+    } else {
+        TetMesh mesh = sc.mesh.empty() ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
+                                                 sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
+                                       : readTetMesh(sc.mesh, ro);
+        mesh.X = (R * mesh.X).colwise() + sc.translate;
+        model = buildModel(mesh, sc.material, sc.element);
+    }
     model.gravity = sc.gravity;
     model.massDamping = sc.damping;
     for (const auto& reg : sc.fixed) {
@@ -182,6 +203,8 @@ Simulation prepareScene(const SceneDef& sc) {
     sim.certified = certified;
     sim.estimate = estimate;
     sim.loadNodes = std::move(loadNodes);
+    sim.surface = std::move(embedded);
+    sim.embedding = std::move(embedding);
     sim.timestepSeconds = since(t0);
     chooseStep(sc, sim);
     return sim;
@@ -310,7 +333,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
 
     const bool capturing = opt.render && sc.capture.enabled;
     std::unique_ptr<FrameSink> sink;
-    if (capturing) sink = makeFrameSink(sc, opt.out, model, ta.estimates().r1r, dt);
+    if (capturing) sink = makeFrameSink(sc, opt.out, model, ta.estimates().r1r, dt, sim.surface.get());
 
     State state = makeState(model);
     Stepper stepper;
@@ -506,8 +529,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["dt_limit_action"] = limitAction;
     report["dt_initial"] = {{"exact", exact.dt}, {"certified", certified}, {"estimate", estimate}};
     report["critical_elements"] = criticalElements;
-    report["mesh"] = {{"file", sc.mesh.empty() ? std::string("box") : sc.mesh}, {"nodes", nodes0}, {"elements", elements0},
-                      {"fixed_nodes", fixed0}, {"nodes_final", model.nodes()}, {"elements_final", model.elements()}};
+    report["mesh"] = {{"file", !sc.surface.empty() ? sc.surface : sc.mesh.empty() ? std::string("box") : sc.mesh},
+                      {"nodes", nodes0}, {"elements", elements0}, {"fixed_nodes", fixed0},
+                      {"nodes_final", model.nodes()}, {"elements_final", model.elements()}};
+    if (!sim.embedding.is_null()) report["embedding"] = sim.embedding;
     report["cuts"] = cutsJson;
     report["dt_final"] = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)}, {"certified", dtCertifiedNow}};
     report["pieces"] = countPieces(model);

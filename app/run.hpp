@@ -2,7 +2,12 @@
 #pragma once
 
 #include "scene.hpp"
+#include "mesh/embedding.hpp"
 #include "timestep/analyzer.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
 
 #include <string>
 #include <vector>
@@ -30,6 +35,8 @@ struct Simulation {
     int criticalElements = 0;        // elements whose estimate is below criticalFactor * dt
     std::vector<std::vector<int>> loadNodes; // nodes of each scene load (sc.forces order)
     double timestepSeconds = 0;      // wall time of the analysis [s]
+    std::unique_ptr<EmbeddedSurface> surface; // an MI object's fine surface riding the lattice, else null
+    nlohmann::json embedding;        // MI set-up for the report (null: a tet mesh object)
 };
 
 // Reads and builds the scene's object, analyses its time step and chooses the step. Throws

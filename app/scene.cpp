@@ -208,12 +208,24 @@ SceneDef parseScene(const json& j, const std::string& file) {
 
     {
         ObjectReader o = root.object("object");
-        if (o.has("mesh") == o.has("box")) o.fail("mesh", "give exactly one of mesh (a file) and box");
+        if (int(o.has("mesh")) + int(o.has("box")) + int(o.has("surface")) != 1)
+            o.fail("mesh", "give exactly one of mesh (a tet mesh file), box and surface");
         if (o.has("mesh")) {
             fs::path p(o.requiredString("mesh"));
             if (p.is_relative()) p = fs::path(s.dir) / p;
             if (!fs::exists(p)) o.fail("mesh", "file not found: " + p.string());
             s.mesh = p.lexically_normal().string();
+        } else if (o.has("surface")) {
+            // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.
+            ObjectReader su = o.object("surface");
+            fs::path p(su.requiredString("path"));
+            if (p.is_relative()) p = fs::path(s.dir) / p;
+            if (!fs::exists(p)) su.fail("path", "file not found: " + p.string());
+            s.surface = p.lexically_normal().string();
+            if (su.has("cells") == su.has("h")) su.fail("cells", "give exactly one of cells and h");
+            s.surfaceCells = su.has("cells") ? su.integer("cells", 16, 1, 1000) : 0;
+            s.surfaceH = su.has("h") ? su.number("h", 0, 0, 1e300, true) : 0;
+            su.finish();
         } else {
             ObjectReader b = o.object("box");
             s.boxSize = b.requiredVec3("size");
