@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "bench.hpp"
 #include "cmd_render.hpp"
 
 #include <CLI/CLI.hpp>
@@ -16,6 +17,7 @@ void registerCommands(CLI::App& app) {
     addMeshCommand(app);
     addRunCommand(app);
     addRenderCommand(app);
+    addBenchCommand(app);
 }
 
 } // namespace cutsim::app
