@@ -52,6 +52,10 @@ TEST(BenchAccuracy, ParetoFrontAndSummaryOfHandMadePoints) {
     EXPECT_DOUBLE_EQ(j["summary"]["p"]["implicit_cost_at_1pct"].get<double>(), 50.0);
     EXPECT_TRUE(j["summary"]["q"]["best_explicit_cost_at_1pct"].is_null());
     EXPECT_TRUE(j["summary"]["q"]["implicit_cost_at_1pct"].is_null());
+    // finest error both reach on p: explicit 0.009, implicit 0.005 -> 0.009; costs 8 and none
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["common_error"].get<double>(), 0.009);
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["explicit_cost_at_common_error"].get<double>(), 8.0);
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["implicit_cost_at_common_error"].get<double>(), 50.0);
     EXPECT_NE(test::readText(dir + "/out.csv").find("p,f,0.009,8,0.0001,explicit,1"), std::string::npos);
 }
 
