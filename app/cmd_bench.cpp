@@ -853,7 +853,9 @@ void addBenchCommand(CLI::App& app) {
         auto* c = bench->add_subcommand("accuracy", "Error against wall time per simulated second on the cantilever "
                                                     "(static tip deflection, first bending frequency)");
         c->add_flag("--json", a->json, "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
-                                       "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct}}, references}");
+                                       "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, ...}}, "
+                                       "references}; error is null for a run that diverged or gave no frequency, "
+                                       "a cost is null when no point reaches the error");
         c->add_option("--csv", a->csv, "Write the points to this CSV file");
         c->add_option("--plot", a->plot, "Draw error against cost with the Pareto front to this PNG (needs gnuplot)");
         c->add_option("--from", a->from, "Take the points from a CSV (problem,config,error,wall_per_sim_second,dt[,implicit]) "
