@@ -1,4 +1,5 @@
 #include "commands.hpp"
+#include "bench.hpp"
 #include "cmd_render.hpp"
 
 #include <CLI/CLI.hpp>
@@ -18,6 +19,7 @@ void registerCommands(CLI::App& app) {
     addMiCommand(app);
     addRenderCommand(app);
     addViewCommand(app);
+    addBenchCommand(app);
 }
 
 } // namespace cutsim::app

@@ -62,10 +62,13 @@ Eigen::Matrix3d muellerRotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d&
 
 } // namespace
 
-Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
+namespace {
+
+// extractRotation with det F already known (the force loop needs it for the inverted count).
+inline Eigen::Matrix3d polarRotation(const Eigen::Matrix3d& F, double detF, const Eigen::Matrix3d& Rprev) {
     // Newton needs det F well away from 0: its first step divides by it.
     const double scale = F.squaredNorm() / 3.0;
-    if (!(F.determinant() > 1e-6 * scale * std::sqrt(scale))) return muellerRotation(F, Rprev);
+    if (!(detF > 1e-6 * scale * std::sqrt(scale))) return muellerRotation(F, Rprev);
     Eigen::Matrix3d X = F;
     for (int it = 0; it < 30; ++it) {
         // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
@@ -73,12 +76,19 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d&
         C.col(0) = X.col(1).cross(X.col(2));
         C.col(1) = X.col(2).cross(X.col(0));
         C.col(2) = X.col(0).cross(X.col(1));
-        const Eigen::Matrix3d Xn = 0.5 * (X + C / X.col(0).dot(C.col(0)));
+        const double halfInvDet = 0.5 / X.col(0).dot(C.col(0));
+        const Eigen::Matrix3d Xn = 0.5 * X + halfInvDet * C;
         const double d = (Xn - X).squaredNorm();
         X = Xn;
         if (d < 1e-12) break;  // quadratic convergence: the error of X is now ~d/2 <= 1e-12
     }
     return X;
+}
+
+} // namespace
+
+Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
+    return polarRotation(F, F.determinant(), Rprev);
 }
 
 void elementForces(const Model& m, State& s, const double* alpha, int begin, int end, int* inverted) {
@@ -92,11 +102,12 @@ void elementForces(const Model& m, State& s, const double* alpha, int begin, int
         Ds << s.x.col(n[1]) - x0, s.x.col(n[2]) - x0, s.x.col(n[3]) - x0;
         const Eigen::Map<const Eigen::Matrix3d> DmInv(m.DmInv.col(e).data());
         const Eigen::Matrix3d F = Ds * DmInv;
-        if (F.determinant() <= 0) ++inv;
+        const double detF = F.determinant();
+        if (detF <= 0) ++inv;
         Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
         if (corot) {
             Eigen::Map<Eigen::Matrix3d> Rs(s.rot.col(e).data());
-            R = extractRotation(F, Rs);
+            R = polarRotation(F, detF, Rs);
             Rs = R;
         }
         // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a

@@ -1,0 +1,76 @@
+// `cutsim bench`: accuracy against cost, stability sweeps, step throughput and per-scene cost.
+// Other files extend it by one call each: addAccuracyConfig() adds configurations to
+// `bench accuracy` (e.g. MI background meshes, lumping after cuts), addBenchSubcommand() adds a
+// whole subcommand. Both are listed in registerBenchExtensions() in cmd_bench.cpp.
+#pragma once
+
+#include "fem/integrate.hpp"
+#include "fem/model.hpp"
+#include "fem/state.hpp"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace CLI { class App; }
+
+namespace cutsim::app {
+
+// One configuration's result on one reference problem.
+struct BenchPoint {
+    std::string problem;            // cantilever_static | cantilever_frequency | ...
+    std::string config;             // e.g. "conforming 40x4x4 f=0.9", "backward_euler 40x4x4 dt=0.01"
+    double error = 0;               // relative error against the problem's reference [-]
+    double wallPerSimSecond = 0;    // wall time of the stepping loop / simulated time [s/s]
+    double dt = 0;                  // time step used [s]
+    bool explicitScheme = true;     // false for the implicit reference
+    bool pareto = false;            // on the error-cost Pareto front of its problem
+};
+
+// Marks, per problem, the points no other point beats in both error and cost (ties: not beaten).
+void markPareto(std::vector<BenchPoint>& points);
+// Smallest cost among the problem's points with error <= maxError, explicit or implicit ones;
+// negative when none reaches it.
+double costAtError(const std::vector<BenchPoint>& points, const std::string& problem, double maxError, bool explicitScheme);
+
+// The cantilever of the accuracy problems: length L along x, square section h, clamped at x = 0,
+// gravity -z. Meshes of nyz cubes through the section and 10 nyz along the length.
+struct Cantilever {
+    double L = 1.0, h = 0.1;            // [m]
+    Material material{1e8, 0.3, 1000};  // [Pa, -, kg/m^3]
+    double damping = 60;                // mass damping of the static runs, near critical for mode 1 [1/s]
+    double staticTime = 0.6;            // simulated time of a static run [s]
+    double frequencyTime = 1.0;         // simulated time of an undamped frequency run [s]
+};
+Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational);
+// Mean z displacement of the nodes at x = L [m].
+double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x);
+
+// What a configuration needs to compute its points: the problem and its converged references.
+struct AccuracyContext {
+    Cantilever bar;
+    double tipReference = 0;        // converged static tip deflection (negative, along -z) [m]
+    double frequencyReference = 0;  // converged first bending frequency (z) [Hz]
+    bool tiny = false;              // test size: small meshes, short runs
+};
+
+// Runs model from rest under gravity for bar.staticTime with the model's damping and returns the
+// point (error of the final tip deflection against the reference).
+BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config);
+// Runs model from rest under gravity without damping for bar.frequencyTime and returns the point
+// (error of the tip's oscillation frequency, from its zero crossings, against the reference).
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config);
+// Frequency [Hz] of a sampled signal from its upward crossings of its mean (linear
+// interpolation between samples); 0 with fewer than two crossings.
+double crossingFrequency(const std::vector<double>& t, const std::vector<double>& y);
+
+using AccuracyConfig = std::function<std::vector<BenchPoint>(const AccuracyContext&)>;
+// Adds a configuration to `bench accuracy` (its points join the table, CSV, plot and summary).
+void addAccuracyConfig(const std::string& name, AccuracyConfig fn);
+// Adds a subcommand under `cutsim bench`; setup receives the bench command and adds to it.
+void addBenchSubcommand(std::function<void(CLI::App& bench)> setup);
+
+// Registers the `bench` command with its built-in and registered subcommands.
+void addBenchCommand(CLI::App& app);
+
+} // namespace cutsim::app

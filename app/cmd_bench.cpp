@@ -1,0 +1,897 @@
+// `cutsim bench`: accuracy against cost on reference problems with known answers, stability
+// sweeps of the step size, step throughput with its stages, and what each subsystem of a scene
+// costs. Results are described in BENCHMARKS.md.
+#include "bench.hpp"
+#include "commands.hpp"
+#include "run.hpp"
+#include "scene.hpp"
+
+#include "fem/forces.hpp"
+#include "mesh/generate.hpp"
+#include "mesh/io.hpp"
+#include "timestep/timestep.hpp"
+
+#include <CLI/CLI.hpp>
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+#include <Spectra/MatOp/SparseSymShiftSolve.h>
+#include <Spectra/SymEigsShiftSolver.h>
+#include <nlohmann/json.hpp>
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <unistd.h>
+
+namespace cutsim::app {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+struct Registry {
+    std::vector<std::pair<std::string, AccuracyConfig>> configs;
+    std::vector<std::function<void(CLI::App&)>> subcommands;
+};
+Registry& registry() {
+    static Registry r;
+    return r;
+}
+
+// Writes text through a temporary file and a rename: never a half-written output.
+void writeFileAtomic(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        if (!out) throw InputError(path, 0, "cannot write");
+        out << text;
+        if (!out) throw InputError(path, 0, "write failed");
+    }
+    fs::rename(tmp, path);
+}
+
+// gnuplot on PATH, for the plots (Debian package gnuplot-nox).
+bool haveGnuplot() {
+    const char* path = std::getenv("PATH");
+    if (!path) return false;
+    std::stringstream ss(path);
+    std::string dir;
+    while (std::getline(ss, dir, ':'))
+        if (!dir.empty() && ::access((fs::path(dir) / "gnuplot").c_str(), X_OK) == 0) return true;
+    return false;
+}
+
+json jsonNumber(double v) { return std::isfinite(v) && v >= 0 ? json(v) : json(nullptr); }
+
+} // namespace
+
+// ---- registry and Pareto front ----
+
+void addAccuracyConfig(const std::string& name, AccuracyConfig fn) { registry().configs.emplace_back(name, std::move(fn)); }
+void addBenchSubcommand(std::function<void(CLI::App&)> setup) { registry().subcommands.push_back(std::move(setup)); }
+
+void markPareto(std::vector<BenchPoint>& pts) {
+    for (auto& p : pts) {
+        p.pareto = std::isfinite(p.error) && std::isfinite(p.wallPerSimSecond);
+        for (const auto& q : pts) {
+            if (&q == &p || q.problem != p.problem || !std::isfinite(q.error) || !std::isfinite(q.wallPerSimSecond)) continue;
+            const bool noWorse = q.error <= p.error && q.wallPerSimSecond <= p.wallPerSimSecond;
+            const bool better = q.error < p.error || q.wallPerSimSecond < p.wallPerSimSecond;
+            if (noWorse && better) { p.pareto = false; break; }
+        }
+    }
+}
+
+double costAtError(const std::vector<BenchPoint>& pts, const std::string& problem, double maxError, bool explicitScheme) {
+    double best = -1;
+    for (const auto& p : pts)
+        if (p.problem == problem && p.explicitScheme == explicitScheme && p.error <= maxError &&
+            (best < 0 || p.wallPerSimSecond < best))
+            best = p.wallPerSimSecond;
+    return best;
+}
+
+// ---- the cantilever ----
+
+Model cantileverModel(const Cantilever& c, int nyz, ElementModel em) {
+    Model m = buildModel(boxMesh(c.L, c.h, c.h, 10 * nyz, nyz, nyz), c.material, em);
+    std::vector<int> clamp;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) < 1e-9 * c.L) clamp.push_back(i);
+    fixNodes(m, clamp);
+    m.gravity << 0, 0, -9.81;
+    return m;
+}
+
+double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x) {
+    const double L = m.X.row(0).maxCoeff();
+    double sum = 0;
+    int n = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) > L * (1 - 1e-9)) { sum += x(2, i) - m.X(2, i); ++n; }
+    return n ? sum / n : 0.0;
+}
+
+double crossingFrequency(const std::vector<double>& t, const std::vector<double>& y) {
+    if (y.size() < 3) return 0;
+    double mean = 0;
+    for (double v : y) mean += v;
+    mean /= static_cast<double>(y.size());
+    std::vector<double> up;
+    for (size_t k = 1; k < y.size(); ++k)
+        if (y[k - 1] < mean && y[k] >= mean) up.push_back(t[k - 1] + (mean - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]));
+    // The mean of a window that is not a whole number of periods is off; re-centre on the mean
+    // between the first and the last crossing, then count again.
+    if (up.size() >= 2) {
+        double s = 0, w = 0;
+        for (size_t k = 1; k < y.size(); ++k)
+            if (t[k] > up.front() && t[k] <= up.back()) { s += y[k] * (t[k] - t[k - 1]); w += t[k] - t[k - 1]; }
+        if (w > 0) mean = s / w;
+        up.clear();
+        for (size_t k = 1; k < y.size(); ++k)
+            if (y[k - 1] < mean && y[k] >= mean) up.push_back(t[k - 1] + (mean - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]));
+    }
+    if (up.size() < 2) return 0;
+    return static_cast<double>(up.size() - 1) / (up.back() - up.front());
+}
+
+BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config) {
+    Model m = m0;
+    m.massDamping = ctx.bar.damping;
+    State s = makeState(m);
+    Stepper st;
+    const long n = static_cast<long>(std::ceil(ctx.bar.staticTime / opt.dt - 1e-9));
+    const auto t0 = Clock::now();
+    for (long k = 0; k < n && s.flags.nonFinite == 0; ++k) st.step(m, s, opt);
+    const double wall = since(t0);
+    BenchPoint p;
+    p.problem = "cantilever_static";
+    p.config = config;
+    p.dt = opt.dt;
+    p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
+    p.wallPerSimSecond = wall / s.time;
+    const double tip = tipDeflection(m, s.x);
+    p.error = s.flags.nonFinite ? INFINITY : std::abs(tip - ctx.tipReference) / std::abs(ctx.tipReference);
+    return p;
+}
+
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config) {
+    Model m = m0;
+    m.massDamping = 0;
+    State s = makeState(m);
+    Stepper st;
+    const long n = static_cast<long>(std::ceil(ctx.bar.frequencyTime / opt.dt - 1e-9));
+    std::vector<double> t, y;
+    t.reserve(n + 1);
+    y.reserve(n + 1);
+    double wall = 0;
+    for (long k = 0; k < n && s.flags.nonFinite == 0; ++k) {
+        const auto t0 = Clock::now();
+        st.step(m, s, opt);
+        wall += since(t0);
+        t.push_back(s.time);
+        y.push_back(tipDeflection(m, s.x));  // outside the timed part: a measurement, not the method
+    }
+    BenchPoint p;
+    p.problem = "cantilever_frequency";
+    p.config = config;
+    p.dt = opt.dt;
+    p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
+    p.wallPerSimSecond = wall / s.time;
+    const double f = crossingFrequency(t, y);
+    p.error = s.flags.nonFinite || f <= 0 ? INFINITY : std::abs(f - ctx.frequencyReference) / ctx.frequencyReference;
+    return p;
+}
+
+namespace {
+
+// Free-DOF numbering of a model: global DOF 3i+k -> free index or -1.
+std::vector<int> freeDofMap(const Model& m, int* nFree) {
+    std::vector<int> map(3 * m.nodes(), -1);
+    int nf = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0)
+            for (int k = 0; k < 3; ++k) map[3 * i + k] = nf++;
+    *nFree = nf;
+    return map;
+}
+
+Eigen::SparseMatrix<double> freeStiffness(const Model& m, const std::vector<int>& map, int nf, const Eigen::VectorXd* scale) {
+    const Eigen::SparseMatrix<double> K = assembleStiffness(m);
+    std::vector<Eigen::Triplet<double>> t;
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it) {
+            const int r = map[it.row()], cc = map[it.col()];
+            if (r >= 0 && cc >= 0) t.emplace_back(r, cc, scale ? it.value() * (*scale)(r) * (*scale)(cc) : it.value());
+        }
+    Eigen::SparseMatrix<double> Kf(nf, nf);
+    Kf.setFromTriplets(t.begin(), t.end());
+    return Kf;
+}
+
+// Linear static tip deflection K u = M g (small-displacement limit of the corotational model).
+double staticTip(const Model& m) {
+    int nf = 0;
+    const auto map = freeDofMap(m, &nf);
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(freeStiffness(m, map, nf, nullptr));
+    Eigen::VectorXd f(nf);
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (map[3 * i + k] >= 0) f(map[3 * i + k]) = m.mass(i) * m.gravity(k);
+    const Eigen::VectorXd u = ldlt.solve(f);
+    Eigen::Matrix3Xd x = m.X;
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (map[3 * i + k] >= 0) x(k, i) += u(map[3 * i + k]);
+    return tipDeflection(m, x);
+}
+
+// First bending frequency in z with the lumped mass: the lowest eigenpairs of M^-1/2 K M^-1/2
+// (shift-invert Lanczos about 0); of those, the mode whose tip moves most along z.
+double bendingFrequency(const Model& m) {
+    int nf = 0;
+    const auto map = freeDofMap(m, &nf);
+    Eigen::VectorXd s(nf);
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (map[3 * i + k] >= 0) s(map[3 * i + k]) = 1.0 / std::sqrt(m.mass(i));
+    const Eigen::SparseMatrix<double> A = freeStiffness(m, map, nf, &s);
+    Spectra::SparseSymShiftSolve<double> op(A);
+    const int nev = 4;
+    Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, nev, std::min(nf, 20), 0.0);
+    eigs.init();
+    eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10);
+    if (eigs.info() != Spectra::CompInfo::Successful) throw EigenSolveError("bending frequency: Lanczos did not converge");
+    const Eigen::VectorXd lam = eigs.eigenvalues();
+    const Eigen::MatrixXd vec = eigs.eigenvectors();
+    const double L = m.X.row(0).maxCoeff();
+    double best = -1, lambda = 0;
+    for (int j = 0; j < lam.size(); ++j) {
+        double z = 0, other = 0;
+        for (int i = 0; i < m.nodes(); ++i)
+            if (m.X(0, i) > L * (1 - 1e-9) && map[3 * i] >= 0) {
+                z += std::abs(vec(map[3 * i + 2], j));
+                other += std::abs(vec(map[3 * i], j)) + std::abs(vec(map[3 * i + 1], j));
+            }
+        const double share = z / (z + other + 1e-300);
+        if (share > best || (share > 0.9 && lam(j) < lambda)) { best = share; lambda = lam(j); }
+    }
+    return std::sqrt(lambda) / (2 * M_PI);
+}
+
+// Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
+double richardson(double coarse, double fine) { return fine + (fine - coarse) / 3.0; }
+
+// ---- bench accuracy ----
+
+struct AccuracyArgs {
+    bool json = false, tiny = false;
+    std::string csv, plot, from;
+    int maxRes = 4;
+};
+
+std::vector<BenchPoint> readPointsCsv(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw InputError(path, 0, "cannot read");
+    std::vector<BenchPoint> pts;
+    std::string line;
+    int lineNo = 0;
+    while (std::getline(in, line)) {
+        ++lineNo;
+        if (lineNo == 1 || line.empty()) continue;  // header problem,config,error,wall_per_sim_second,dt[,implicit]
+        std::vector<std::string> f;
+        std::stringstream ss(line);
+        std::string cell;
+        while (std::getline(ss, cell, ',')) f.push_back(cell);
+        if (f.size() < 5) throw InputError(path, lineNo, "need problem,config,error,wall_per_sim_second,dt");
+        BenchPoint p;
+        p.problem = f[0];
+        p.config = f[1];
+        try {
+            p.error = std::stod(f[2]);
+            p.wallPerSimSecond = std::stod(f[3]);
+            p.dt = std::stod(f[4]);
+        } catch (const std::exception&) {
+            throw InputError(path, lineNo, "error, wall_per_sim_second and dt must be numbers");
+        }
+        p.explicitScheme = !(f.size() > 5 && (f[5] == "1" || f[5] == "implicit"));
+        pts.push_back(p);
+    }
+    return pts;
+}
+
+std::string pointsCsv(const std::vector<BenchPoint>& pts) {
+    std::ostringstream o;
+    o << "problem,config,error,wall_per_sim_second,dt,scheme,pareto\n";
+    o.precision(8);
+    for (const auto& p : pts)
+        o << p.problem << "," << p.config << "," << p.error << "," << p.wallPerSimSecond << "," << p.dt << ","
+          << (p.explicitScheme ? "explicit" : "implicit") << "," << (p.pareto ? 1 : 0) << "\n";
+    return o.str();
+}
+
+// Error against cost, log-log, one panel per problem; explicit, implicit and the Pareto front.
+void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
+    std::vector<std::string> problems;
+    for (const auto& p : pts)
+        if (std::find(problems.begin(), problems.end(), p.problem) == problems.end()) problems.push_back(p.problem);
+    const fs::path dir = fs::temp_directory_path() / ("cutsim_plot_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    std::ostringstream g;
+    g << "set terminal pngcairo size " << 700 * std::max<size_t>(1, problems.size()) << ",560 noenhanced\n";
+    g << "set output '" << out << ".tmp.png'\n";
+    g << "set multiplot layout 1," << std::max<size_t>(1, problems.size()) << "\n";
+    g << "set logscale xy\nset grid\nset key bottom left\n";
+    g << "set xlabel 'wall time per simulated second [s/s]'\nset ylabel 'relative error'\n";
+    for (size_t k = 0; k < problems.size(); ++k) {
+        const std::string base = (dir / ("p" + std::to_string(k))).string();
+        std::ofstream ex(base + "_explicit.dat"), im(base + "_implicit.dat"), pf(base + "_pareto.dat");
+        std::vector<const BenchPoint*> front;
+        for (const auto& p : pts) {
+            if (p.problem != problems[k] || !std::isfinite(p.error) || p.error <= 0) continue;
+            (p.explicitScheme ? ex : im) << p.wallPerSimSecond << " " << p.error << "\n";
+            if (p.pareto) front.push_back(&p);
+        }
+        std::sort(front.begin(), front.end(), [](auto* a, auto* b) { return a->wallPerSimSecond < b->wallPerSimSecond; });
+        for (auto* p : front) pf << p->wallPerSimSecond << " " << p->error << "\n";
+        const bool hasEx = ex.tellp() > 0, hasIm = im.tellp() > 0;
+        ex.close(); im.close(); pf.close();
+        g << "set title '" << problems[k] << "'\n";
+        g << "plot 0.01 with lines dt 2 lc rgb 'gray' title '1%'";
+        if (hasEx) g << ", '" << base << "_explicit.dat' with points pt 7 ps 1.2 lc rgb '#1f77b4' title 'explicit'";
+        if (hasIm) g << ", '" << base << "_implicit.dat' with points pt 5 ps 1.2 lc rgb '#d62728' title 'backward Euler'";
+        if (!front.empty()) g << ", '" << base << "_pareto.dat' with linespoints pt 6 ps 2 lw 2 lc rgb 'black' title 'Pareto front'";
+        g << "\n";
+    }
+    g << "unset multiplot\n";
+    const std::string script = (dir / "plot.gp").string();
+    std::ofstream(script) << g.str();
+    const std::string cmd = "gnuplot '" + script + "' 2>'" + (dir / "err.txt").string() + "'";
+    const int rc = std::system(cmd.c_str());
+    std::string err;
+    {
+        std::ifstream e(dir / "err.txt");
+        std::getline(e, err, '\0');
+    }
+    fs::remove_all(dir);
+    if (rc != 0 || !fs::exists(out + ".tmp.png")) {
+        fs::remove(out + ".tmp.png");
+        throw std::runtime_error("gnuplot failed to draw " + out + ": " + err);
+    }
+    fs::rename(out + ".tmp.png", out);
+}
+
+std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, int maxRes, bool quiet) {
+    std::vector<BenchPoint> pts;
+    auto log = [&](const BenchPoint& p) {
+        pts.push_back(p);
+        if (!quiet) std::fprintf(stderr, "  %-22s %-40s error %.3e  cost %.4g s/s\n", p.problem.c_str(), p.config.c_str(), p.error, p.wallPerSimSecond);
+    };
+    std::vector<int> res;
+    for (int r = 1; r <= maxRes; ++r) res.push_back(r);
+    char name[160];
+    // Conforming meshes at 0.9 of their exact limit, plain symplectic Euler.
+    for (int r : res) {
+        const Model m = cantileverModel(ctx.bar, r);
+        const double dtExact = exactCriticalDt(m).dt;
+        const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
+        std::snprintf(name, sizeof name, "explicit %dx%dx%d f=0.9", 10 * r, r, r);
+        log(runStaticPoint(ctx, m, opt, name));
+        log(runFrequencyPoint(ctx, m, opt, name));
+    }
+    // Per-element damping beyond the limit (thesis eq. 3.16) on the finest explicit mesh.
+    {
+        const int r = res.back();
+        const Model m = cantileverModel(ctx.bar, r);
+        const double dtExact = exactCriticalDt(m).dt;
+        const Eigen::VectorXd r1r = estimateElements(m).r1r;
+        for (double f : {1.5, 2.0}) {
+            const Eigen::VectorXd alpha = elementAlpha(0.95 * r1r, f * dtExact);  // margin: see bench stability
+            StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
+            opt.alphaElem = &alpha;
+            std::snprintf(name, sizeof name, "explicit alpha_e_0.95 %dx%dx%d f=%.1f", 10 * r, r, r, f);
+            log(runStaticPoint(ctx, m, opt, name));
+            log(runFrequencyPoint(ctx, m, opt, name));
+        }
+    }
+    // The implicit reference: backward Euler at several steps.
+    const std::vector<double> dts = ctx.tiny ? std::vector<double>{0.01} : std::vector<double>{0.1, 0.03, 0.01, 0.003};
+    for (int r : res) {
+        if (r < 2 && !ctx.tiny) continue;
+        const Model m = cantileverModel(ctx.bar, r);
+        for (double dt : dts) {
+            const StepOptions opt{Integrator::BackwardEuler, dt};
+            std::snprintf(name, sizeof name, "backward_euler %dx%dx%d dt=%g", 10 * r, r, r, dt);
+            log(runStaticPoint(ctx, m, opt, name));
+            log(runFrequencyPoint(ctx, m, opt, name));
+        }
+    }
+    return pts;
+}
+
+int runAccuracy(const AccuracyArgs& a) {
+    if (!a.plot.empty() && !haveGnuplot()) {
+        std::fprintf(stderr, "error: --plot needs gnuplot, which is not installed (Debian package gnuplot-nox)\n");
+        return 2;
+    }
+    std::vector<BenchPoint> pts;
+    json refs = json::object();
+    if (!a.from.empty()) {
+        pts = readPointsCsv(a.from);
+    } else {
+        AccuracyContext ctx;
+        ctx.tiny = a.tiny;
+        if (a.tiny) { ctx.bar.staticTime = 0.2; ctx.bar.frequencyTime = 0.5; }
+        // Converged references: Richardson extrapolation of the two finest reference meshes
+        // (linear tets converge as h^2); the coarser pair shows how well converged they are.
+        const std::vector<int> levels = a.tiny ? std::vector<int>{2, 4} : std::vector<int>{2, 4, 8};
+        std::vector<double> tips, freqs;
+        for (int r : levels) {
+            const Model m = cantileverModel(ctx.bar, r);
+            tips.push_back(staticTip(m));
+            freqs.push_back(bendingFrequency(m));
+        }
+        const size_t k = levels.size() - 1;
+        ctx.tipReference = richardson(tips[k - 1], tips[k]);
+        ctx.frequencyReference = richardson(freqs[k - 1], freqs[k]);
+        // Euler-Bernoulli with Timoshenko's shear term (kappa = 5/6) and the first bending frequency.
+        const auto& bar = ctx.bar;
+        const double E = bar.material.E, G = E / (2 * (1 + bar.material.nu)), A = bar.h * bar.h, I = A * A / 12;
+        const double q = bar.material.rho * 9.81 * A, L = bar.L;
+        const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
+        const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
+        refs["cantilever_static"] = {{"reference", ctx.tipReference}, {"levels", levels}, {"values", tips},
+                                     {"beam_theory", beamTip}, {"reference_over_beam", ctx.tipReference / beamTip}};
+        refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference}, {"levels", levels}, {"values", freqs},
+                                        {"beam_theory", beamFreq}, {"reference_over_beam", ctx.frequencyReference / beamFreq}};
+        if (!a.json)
+            std::fprintf(stderr, "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
+                         ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
+        pts = builtinAccuracyPoints(ctx, a.tiny ? 1 : a.maxRes, a.json);
+        for (auto& [name, fn] : registry().configs) {
+            auto more = fn(ctx);
+            pts.insert(pts.end(), more.begin(), more.end());
+        }
+    }
+    markPareto(pts);
+
+    json j;
+    j["points"] = json::array();
+    for (const auto& p : pts)
+        j["points"].push_back({{"problem", p.problem}, {"config", p.config}, {"error", jsonNumber(p.error)},
+                               {"wall_per_sim_second", p.wallPerSimSecond}, {"dt", p.dt},
+                               {"scheme", p.explicitScheme ? "explicit" : "implicit"}, {"pareto", p.pareto}});
+    j["summary"] = json::object();
+    for (const auto& p : pts) {
+        if (j["summary"].contains(p.problem)) continue;
+        const double ex = costAtError(pts, p.problem, 0.01, true), im = costAtError(pts, p.problem, 0.01, false);
+        // When 1% is out of reach: the finest error both kinds reach, and their costs there.
+        double minEx = INFINITY, minIm = INFINITY;
+        for (const auto& q : pts)
+            if (q.problem == p.problem) (q.explicitScheme ? minEx : minIm) = std::min(q.explicitScheme ? minEx : minIm, q.error);
+        const double common = std::max(minEx, minIm);
+        const double exC = costAtError(pts, p.problem, common, true), imC = costAtError(pts, p.problem, common, false);
+        j["summary"][p.problem] = {{"best_explicit_cost_at_1pct", jsonNumber(ex)}, {"implicit_cost_at_1pct", jsonNumber(im)},
+                                   {"speedup_at_1pct", ex > 0 && im > 0 ? json(im / ex) : json(nullptr)},
+                                   {"best_explicit_error", jsonNumber(minEx)}, {"best_implicit_error", jsonNumber(minIm)},
+                                   {"common_error", jsonNumber(common)}, {"explicit_cost_at_common_error", jsonNumber(exC)},
+                                   {"implicit_cost_at_common_error", jsonNumber(imC)}};
+    }
+    if (!refs.empty()) j["references"] = refs;
+    if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
+    if (!a.plot.empty()) plotPoints(pts, a.plot);
+    if (a.json) {
+        std::cout << j.dump(2) << "\n";
+        return 0;
+    }
+    std::printf("%-22s %-42s %12s %14s %12s %s\n", "problem", "config", "error", "wall/sim [s/s]", "dt [s]", "pareto");
+    for (const auto& p : pts)
+        std::printf("%-22s %-42s %12.4e %14.5g %12.4g %s\n", p.problem.c_str(), p.config.c_str(), p.error, p.wallPerSimSecond,
+                    p.dt, p.pareto ? "*" : "");
+    std::printf("\ncost at 1%% error (wall s per simulated s; - = not reached):\n");
+    for (auto& [problem, s] : j["summary"].items()) {
+        auto show = [](const json& v) { return v.is_null() ? std::string("-") : std::to_string(v.get<double>()); };
+        std::printf("  %-22s explicit %s  implicit %s;  at the finest error both reach (%s): explicit %s  implicit %s\n",
+                    problem.c_str(), show(s["best_explicit_cost_at_1pct"]).c_str(), show(s["implicit_cost_at_1pct"]).c_str(),
+                    show(s["common_error"]).c_str(), show(s["explicit_cost_at_common_error"]).c_str(),
+                    show(s["implicit_cost_at_common_error"]).c_str());
+    }
+    return 0;
+}
+
+// ---- bench stability ----
+
+struct StabilityArgs {
+    bool json = false, tiny = false;
+    int steps = 2000;
+};
+
+// The sweep's meshes: the clamped cantilever 20x2x2 and, when present, the liver mesh.
+struct SweepModel {
+    std::string name;
+    Model model;
+};
+
+// Fraction grid: 0.5 .. 1.2 step 0.05, finer near 1.
+std::vector<double> fractionGrid(double top) {
+    std::vector<double> f;
+    for (int k = 0; k <= 14; ++k) f.push_back(0.5 + 0.05 * k);
+    for (double x : {0.97, 0.98, 0.99, 0.995, 1.005, 1.01, 1.02}) f.push_back(x);
+    for (double x = 1.3; x <= top + 1e-9; x += 0.1) f.push_back(x);
+    for (double& x : f) x = std::round(x * 1000) / 1000;  // exact decimals in the output
+    std::sort(f.begin(), f.end());
+    f.erase(std::unique(f.begin(), f.end(), [](double a, double b) { return std::abs(a - b) < 1e-9; }), f.end());
+    return f;
+}
+
+// Runs steps from a perturbed state without gravity; stable when the energy (kinetic + elastic)
+// stays below 1e3 times its start and everything stays finite.
+bool stableRun(const Model& m0, const StepOptions& opt, int steps, double* growth) {
+    Model m = m0;
+    m.gravity.setZero();
+    m.massDamping = 0;
+    State s = makeState(m);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    const double vScale = 1e-3 * m.material.pWaveSpeed() * 1e-3;  // small: the linear regime
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0) s.v.col(i) << vScale * u(rng), vScale * u(rng), vScale * u(rng);
+    const double e0 = kineticEnergy(m, s);
+    Stepper st;
+    double emax = e0;
+    for (int k = 0; k < steps; ++k) {
+        st.step(m, s, opt);
+        if (s.flags.nonFinite) { *growth = INFINITY; return false; }
+        if (k % 50 == 49 || k == steps - 1) {
+            const double e = kineticEnergy(m, s) + elasticEnergy(m, s);
+            emax = std::max(emax, e);
+            if (!(e < 1e3 * e0)) { *growth = e / e0; return false; }
+        }
+    }
+    *growth = emax / e0;
+    return true;
+}
+
+int runStability(const StabilityArgs& a) {
+    std::vector<SweepModel> models;
+    Cantilever bar;
+    models.push_back({a.tiny ? "single tet" : "cantilever 20x2x2", Model{}});
+    if (a.tiny) {
+        TetMesh t;
+        t.X.resize(3, 4);
+        t.X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+        t.tets.resize(4, 1);
+        t.tets << 0, 1, 2, 3;
+        t.source = "single tet";
+        models[0].model = buildModel(t, bar.material);
+    } else {
+        models[0].model = cantileverModel(bar, 2);
+        const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
+        if (fs::exists(liver)) {
+            Model m = buildModel(readTetMesh(liver, ReadOptions{}), Material{});
+            models.push_back({"liver (sofa_liver.msh)", std::move(m)});
+        }
+    }
+    const int steps = a.tiny ? std::min(a.steps, 400) : a.steps;
+    // alpha_e: eq. 3.16 as written, which puts each damped element exactly at its own limit;
+    // alpha_e_0.95: the same with a 5% margin on the element steps (dt_e -> 0.95 dt_e).
+    struct Scheme { Integrator integrator; double margin; };
+    const std::vector<Scheme> schemes = {{Integrator::SymplecticEuler, 0}, {Integrator::CentralDifference, 0},
+                                         {Integrator::Newmark, 0}, {Integrator::SymplecticEuler, 1.0},
+                                         {Integrator::SymplecticEuler, 0.95}};
+    json j;
+    j["steps"] = steps;
+    j["energy_factor"] = 1e3;
+    j["sweeps"] = json::array();
+    if (!a.json) std::printf("%-26s %-22s %-9s %18s\n", "mesh", "integrator", "scheme", "largest stable f");
+    for (const auto& sm : models) {
+        const Model& m = sm.model;
+        const double dtExact = exactCriticalDt(m).dt;
+        const Eigen::VectorXd r1r = estimateElements(m).r1r;
+        for (const auto& sc : schemes) {
+            const bool damped = sc.margin > 0;
+            const auto grid = fractionGrid(damped ? 3.0 : 1.2);
+            json runs = json::array();
+            double largest = 0;
+            bool allBelow = true;
+            for (double f : grid) {
+                StepOptions opt{sc.integrator, f * dtExact};
+                Eigen::VectorXd alpha;
+                if (damped) { alpha = elementAlpha(sc.margin * r1r, opt.dt); opt.alphaElem = &alpha; }
+                double growth = 0;
+                const bool ok = stableRun(m, opt, steps, &growth);
+                runs.push_back({{"fraction", f}, {"stable", ok}, {"energy_growth", jsonNumber(growth)}});
+                if (ok && allBelow) largest = f;
+                if (!ok) allBelow = false;
+            }
+            const std::string scheme = !damped ? "plain" : sc.margin == 1.0 ? "alpha_e" : "alpha_e_0.95";
+            j["sweeps"].push_back({{"mesh", sm.name}, {"tets", m.elements()}, {"dt_exact", dtExact},
+                                   {"dt_r1r_min_over_exact", r1r.minCoeff() / dtExact},
+                                   {"dt_r1r_max_over_exact", r1r.maxCoeff() / dtExact},
+                                   {"integrator", integratorName(sc.integrator)}, {"scheme", scheme},
+                                   {"largest_stable_fraction", largest}, {"runs", runs}});
+            if (!a.json)
+                std::printf("%-26s %-22s %-9s %18.3f\n", sm.name.c_str(), integratorName(sc.integrator), scheme.c_str(), largest);
+        }
+    }
+    // Energy drift of a long undamped run at 0.9 of the limit (symplectic Euler): relative to the
+    // energy put in, largest deviation and final deviation.
+    {
+        const Model& m = models[0].model;
+        Model mm = m;
+        mm.gravity.setZero();
+        State s = makeState(mm);
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<double> u(-1, 1);
+        for (int i = 0; i < mm.nodes(); ++i)
+            if (mm.invMass(i) > 0) s.v.col(i) << 1e-3 * u(rng), 1e-3 * u(rng), 1e-3 * u(rng);
+        const double dt = 0.9 * exactCriticalDt(mm).dt;
+        const long n = a.tiny ? 2000 : 200000;
+        // Symplectic Euler conserves a shadow energy: the measured one oscillates (by O(omega dt),
+        // large near the limit) but must not drift. Drift: mean over the last tenth of the run
+        // minus mean over the first tenth, sampled every step.
+        Stepper st;
+        const double e0 = kineticEnergy(mm, s);
+        double maxDev = 0, first = 0, last = 0;
+        const long tenth = n / 10;
+        for (long k = 0; k < n; ++k) {
+            st.step(mm, s, StepOptions{Integrator::SymplecticEuler, dt});
+            if (k < tenth || k >= n - tenth) {
+                const double e = kineticEnergy(mm, s) + elasticEnergy(mm, s);
+                (k < tenth ? first : last) += e / tenth;
+                maxDev = std::max(maxDev, std::abs(e - e0) / e0);
+            }
+        }
+        const double drift = (last - first) / e0;
+        j["energy_drift"] = {{"mesh", models[0].name}, {"integrator", "symplectic_euler"}, {"fraction", 0.9}, {"steps", n},
+                             {"oscillation", maxDev}, {"drift", drift}};
+        if (!a.json)
+            std::printf("\nenergy, %s, symplectic Euler at 0.9, %ld steps: oscillation max |E-E0|/E0 = %.3e, "
+                        "drift (last tenth - first tenth)/E0 = %.3e\n",
+                        models[0].name.c_str(), n, maxDev, drift);
+    }
+    if (a.json) std::cout << j.dump(2) << "\n";
+    return 0;
+}
+
+// ---- bench step ----
+
+struct StepArgs {
+    bool json = false, tiny = false;
+    double seconds = 1.0;   // measuring time per configuration [s]
+};
+
+// The benchmark's box: n^3 cubes (6 n^3 tets), clamped at x = 0, rotated and bent start so the
+// polar decomposition does real work (as tests/bench/step_bench.cpp).
+Model stepModel(int n) {
+    Model m = buildModel(boxMesh(0.01 * n, 0.01 * n, 0.01 * n, n, n, n), Material{});
+    std::vector<int> fixedNodes;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
+    fixNodes(m, fixedNodes);
+    m.gravity << 0, 0, -9.81;
+    return m;
+}
+
+int runStep(const StepArgs& a) {
+    const std::vector<int> sizes = a.tiny ? std::vector<int>{3} : std::vector<int>{6, 12, 26, 55};
+    const std::vector<int> threadCounts = {1, 2};
+    json j;
+    j["runs"] = json::array();
+    if (!a.json)
+        std::printf("%9s %7s %8s %14s %12s %12s %12s\n", "tets", "threads", "steps", "tet-steps/s", "element %", "gather %", "integrate %");
+    for (int n : sizes) {
+        const Model m = stepModel(n);
+        for (int th : threadCounts) {
+            setThreads(th);
+            State s = makeState(m);
+            s.x = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix() * m.X;
+            Stepper st;
+            const StepOptions opt{Integrator::SymplecticEuler, 1e-6};
+            for (int k = 0; k < 3; ++k) st.step(m, s, opt);
+            // Whole steps for at least the measuring time (at least 3).
+            long steps = 0;
+            double forceSec = 0;
+            const auto t0 = Clock::now();
+            while (steps < 3 || since(t0) < a.seconds) {
+                st.step(m, s, opt);
+                forceSec += st.lastForceSeconds();
+                ++steps;
+            }
+            const double total = since(t0);
+            // The force stage split into its two parts, timed alone on the same threads.
+            double elemSec = 0, gatherSec = 0;
+            const int ne = m.elements(), nn = m.nodes();
+            const int reps = static_cast<int>(std::max<long>(1, steps / 4));
+            for (int r = 0; r < reps; ++r) {
+                auto t1 = Clock::now();
+                int inv = 0;
+#pragma omp parallel reduction(+ : inv) if (ne >= 8192)
+                {
+                    const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+                    elementForces(m, s, nullptr, static_cast<int>(static_cast<long>(ne) * t / nt),
+                                  static_cast<int>(static_cast<long>(ne) * (t + 1) / nt), &inv);
+                }
+                elemSec += since(t1);
+                t1 = Clock::now();
+#pragma omp parallel if (ne >= 8192)
+                {
+                    const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+                    gatherForces(m, s, static_cast<int>(static_cast<long>(nn) * t / nt),
+                                 static_cast<int>(static_cast<long>(nn) * (t + 1) / nt));
+                }
+                gatherSec += since(t1);
+            }
+            const double perStep = total / steps;
+            const double elemShare = elemSec / reps / perStep, gatherShare = gatherSec / reps / perStep;
+            const double integrateShare = std::max(0.0, 1.0 - forceSec / total);
+            const double rate = static_cast<double>(m.elements()) * steps / total;
+            j["runs"].push_back({{"tets", m.elements()}, {"nodes", m.nodes()}, {"threads", th}, {"steps", steps},
+                                 {"seconds", total}, {"tet_steps_per_second", rate},
+                                 {"stages", {{"forces", forceSec / total}, {"element", elemShare}, {"gather", gatherShare},
+                                             {"integrate", integrateShare}}}});
+            if (!a.json)
+                std::printf("%9d %7d %8ld %14.4g %12.1f %12.1f %12.1f\n", m.elements(), th, steps, rate, 100 * elemShare,
+                            100 * gatherShare, 100 * integrateShare);
+        }
+    }
+    setThreads(0);
+    if (a.json) std::cout << j.dump(2) << "\n";
+    return 0;
+}
+
+// ---- bench cost ----
+
+struct CostArgs {
+    std::string scene;
+    std::vector<std::string> sets;
+    bool json = false;
+    int threads = 0;
+};
+
+json runVariant(const std::string& scene, std::vector<std::string> sets, int threads) {
+    const fs::path dir = fs::temp_directory_path() / ("cutsim_cost_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    const SceneDef def = loadScene(scene, sets);
+    RunOptions ro;
+    ro.out = dir.string();
+    ro.render = false;
+    ro.quiet = true;
+    ro.threads = threads;
+    const int rc = runScene(def, ro);
+    std::ifstream in(dir / "report.json");
+    json r = json::parse(in);
+    fs::remove_all(dir);
+    r["exit_code"] = rc;
+    return r;
+}
+
+int runCost(const CostArgs& a) {
+    // The scene as given, then without each optional part it uses: the subsystems it leaves out
+    // must cost nothing, and each one it uses shows up as the difference.
+    struct Variant { std::string name; std::vector<std::string> sets; };
+    const SceneDef def = loadScene(a.scene, a.sets);
+    std::vector<Variant> variants = {{"as given", {}}};
+    if (!def.forces.empty()) variants.push_back({"without loads", {"loads.forces=[]"}});
+    if (def.damping != 0) variants.push_back({"without damping", {"material.damping=0"}});
+    if (def.writeVtu) variants.push_back({"without final.vtu", {"output.vtu=false"}});
+    json j;
+    j["scene"] = a.scene;
+    j["variants"] = json::array();
+    for (auto& v : variants) {
+        std::vector<std::string> sets = a.sets;
+        sets.insert(sets.end(), v.sets.begin(), v.sets.end());
+        json r;
+        try {
+            r = runVariant(a.scene, sets, a.threads);
+        } catch (const InputError& e) {
+            if (v.sets.empty()) throw;
+            continue;  // the scene format has no such switch for this scene: skip the variant
+        }
+        const double steps = std::max(1.0, r["steps"].get<double>());
+        json perStep = json::object();
+        for (auto& [k, val] : r["stages"].items()) perStep[k] = val.get<double>() / steps;
+        j["variants"].push_back({{"name", v.name}, {"status", r["status"]}, {"steps", r["steps"]}, {"wall_time", r["wall_time"]},
+                                 {"stages", r["stages"]}, {"stage_seconds_per_step", perStep}});
+    }
+    if (a.json) {
+        std::cout << j.dump(2) << "\n";
+        return 0;
+    }
+    std::printf("scene %s (no rendering)\n%-20s %8s %10s", a.scene.c_str(), "variant", "steps", "wall [s]");
+    const std::vector<std::string> stages = {"contact", "forces", "integrate", "cut", "timestep", "render", "encode"};
+    for (const auto& s : stages) std::printf(" %11s", s.c_str());
+    std::printf("\n");
+    for (const auto& v : j["variants"]) {
+        std::printf("%-20s %8ld %10.3f", v["name"].get<std::string>().c_str(), v["steps"].get<long>(), v["wall_time"].get<double>());
+        for (const auto& s : stages) std::printf(" %11.4g", v["stages"][s].get<double>());
+        std::printf("\n");
+    }
+    std::printf("(stage seconds over the run; a stage the scene does not use stays 0)\n");
+    return 0;
+}
+
+// Extensions of `bench`: one line per configuration or subcommand from elsewhere, e.g.
+//   addAccuracyConfig("mi-bar", miBarPoints);
+void registerBenchExtensions() {}
+
+template <class F>
+int guarded(F&& f) {
+    try {
+        return f();
+    } catch (const InputError& e) {
+        std::fprintf(stderr, "error: %s\n", e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "error: %s\n", e.what());
+        return 1;
+    }
+}
+
+} // namespace
+
+void addBenchCommand(CLI::App& app) {
+    registerBenchExtensions();
+    CLI::App* bench = app.add_subcommand("bench", "Benchmarks: accuracy against cost, stability, step throughput, scene cost");
+    bench->require_subcommand(1);
+
+    {
+        auto a = std::make_shared<AccuracyArgs>();
+        auto* c = bench->add_subcommand("accuracy", "Error against wall time per simulated second on the cantilever "
+                                                    "(static tip deflection, first bending frequency)");
+        c->add_flag("--json", a->json, "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
+                                       "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, ...}}, "
+                                       "references}; error is null for a run that diverged or gave no frequency, "
+                                       "a cost is null when no point reaches the error");
+        c->add_option("--csv", a->csv, "Write the points to this CSV file");
+        c->add_option("--plot", a->plot, "Draw error against cost with the Pareto front to this PNG (needs gnuplot)");
+        c->add_option("--from", a->from, "Take the points from a CSV (problem,config,error,wall_per_sim_second,dt[,implicit]) "
+                                         "instead of running");
+        c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")->check(CLI::Range(1, 8))->capture_default_str();
+        c->add_flag("--tiny", a->tiny, "Test size: coarse meshes, short runs");
+        c->callback([a] { setExitCode(guarded([&] { return runAccuracy(*a); })); });
+    }
+    {
+        auto a = std::make_shared<StabilityArgs>();
+        auto* c = bench->add_subcommand("stability", "dt sweeps from 0.5 to 1.2 of the exact limit: largest stable fraction per "
+                                                     "integrator and scheme; energy drift of a long run");
+        c->add_flag("--json", a->json, "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], energy_drift}");
+        c->add_option("--steps", a->steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
+        c->add_flag("--tiny", a->tiny, "Test size: a single tet, short runs");
+        c->callback([a] { setExitCode(guarded([&] { return runStability(*a); })); });
+    }
+    {
+        auto a = std::make_shared<StepArgs>();
+        auto* c = bench->add_subcommand("step", "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, and the "
+                                                "share of each stage");
+        c->add_flag("--json", a->json, "Print {runs: [{tets, threads, steps, tet_steps_per_second, stages}]}");
+        c->add_option("--seconds", a->seconds, "Measuring time per configuration [s]")->check(CLI::PositiveNumber)->capture_default_str();
+        c->add_flag("--tiny", a->tiny, "Test size: one small box");
+        c->callback([a] { setExitCode(guarded([&] { return runStep(*a); })); });
+    }
+    {
+        auto a = std::make_shared<CostArgs>();
+        auto* c = bench->add_subcommand("cost", "Per-stage cost of a scene (no rendering), as given and without each optional part");
+        c->add_option("SCENE", a->scene, "Scene file")->required();
+        c->add_option("--set", a->sets, "Override a scene value: key.path=value");
+        c->add_option("--threads", a->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
+        c->add_flag("--json", a->json, "Print {scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
+        c->callback([a] { setExitCode(guarded([&] { return runCost(*a); })); });
+    }
+    for (auto& setup : registry().subcommands) setup(*bench);
+}
+
+} // namespace cutsim::app

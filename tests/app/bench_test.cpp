@@ -1,0 +1,193 @@
+// `cutsim bench`: each subcommand at test size, its JSON contract and a value derivable by hand.
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <string>
+
+#include <unistd.h>
+
+namespace cutsim {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string workDir(const std::string& name) {
+    const fs::path dir = fs::temp_directory_path() / ("cutsim_bench_" + name + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir.string();
+}
+
+json runJson(const std::string& args) {
+    std::string out, err;
+    const int rc = test::runCutsim(args, &out, &err);
+    EXPECT_EQ(rc, 0) << err;
+    return json::parse(out);
+}
+
+// Hand-made points: per problem, a point is on the front when no other point is at most as
+// costly and at most as wrong, and better in one of the two.
+TEST(BenchAccuracy, ParetoFrontAndSummaryOfHandMadePoints) {
+    const std::string dir = workDir("pareto");
+    const std::string csv = test::writeText(dir + "/points.csv",
+                                            "problem,config,error,wall_per_sim_second,dt,scheme\n"
+                                            "p,a,0.1,1,1e-4,explicit\n"     // front: cheapest
+                                            "p,b,0.05,2,1e-4,explicit\n"    // front
+                                            "p,c,0.05,3,1e-4,explicit\n"    // beaten by b (same error, dearer)
+                                            "p,d,0.2,2,1e-4,explicit\n"     // beaten by a and b
+                                            "p,e,0.005,50,1e-2,implicit\n"  // front: most accurate
+                                            "p,f,0.009,8,1e-4,explicit\n"   // front
+                                            "q,g,0.5,100,1e-3,implicit\n");  // alone on its problem's front
+    const json j = runJson("bench accuracy --from " + csv + " --json --csv " + dir + "/out.csv");
+    ASSERT_EQ(j["points"].size(), 7u);
+    const std::string expected = "TTFFTTT";
+    for (size_t k = 0; k < 7; ++k) EXPECT_EQ(j["points"][k]["pareto"].get<bool>(), expected[k] == 'T') << "point " << k;
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["best_explicit_cost_at_1pct"].get<double>(), 8.0);
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["implicit_cost_at_1pct"].get<double>(), 50.0);
+    EXPECT_TRUE(j["summary"]["q"]["best_explicit_cost_at_1pct"].is_null());
+    EXPECT_TRUE(j["summary"]["q"]["implicit_cost_at_1pct"].is_null());
+    // finest error both reach on p: explicit 0.009, implicit 0.005 -> 0.009; costs 8 and none
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["common_error"].get<double>(), 0.009);
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["explicit_cost_at_common_error"].get<double>(), 8.0);
+    EXPECT_DOUBLE_EQ(j["summary"]["p"]["implicit_cost_at_common_error"].get<double>(), 50.0);
+    EXPECT_NE(test::readText(dir + "/out.csv").find("p,f,0.009,8,0.0001,explicit,1"), std::string::npos);
+}
+
+TEST(BenchAccuracy, BadCsvNamesFileAndLine) {
+    const std::string dir = workDir("badcsv");
+    const std::string csv = test::writeText(dir + "/bad.csv", "problem,config,error,wall_per_sim_second,dt\np,a,x,1,1\n");
+    std::string err;
+    EXPECT_EQ(test::runCutsim("bench accuracy --from " + csv, nullptr, &err), 2);
+    EXPECT_NE(err.find("bad.csv:2"), std::string::npos) << err;
+}
+
+// Without gnuplot, --plot fails up front with a message, not a crash or a half-written file.
+TEST(BenchAccuracy, PlotWithoutGnuplotFailsClearly) {
+    const std::string dir = workDir("nognuplot");
+    const std::string csv = test::writeText(dir + "/points.csv", "problem,config,error,wall_per_sim_second,dt\np,a,0.1,1,1\n");
+    const std::string path = std::getenv("PATH") ? std::getenv("PATH") : "";
+    ::setenv("PATH", dir.c_str(), 1);
+    std::string err;
+    const int rc = test::runCutsim("bench accuracy --from " + csv + " --plot " + dir + "/plot.png", nullptr, &err);
+    ::setenv("PATH", path.c_str(), 1);
+    EXPECT_EQ(rc, 2);
+    EXPECT_NE(err.find("gnuplot"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(dir + "/plot.png"));
+}
+
+// The tiny run: references, explicit and implicit points on both problems, Pareto marks
+// consistent with the points, and the beam-theory values of the bar by hand.
+TEST(BenchAccuracy, TinyRunContract) {
+    const std::string dir = workDir("tiny");
+    const json j = runJson("bench accuracy --tiny --json --csv " + dir + "/p.csv");
+    ASSERT_TRUE(j.contains("points") && j.contains("summary"));
+    int explicitPts = 0, implicitPts = 0;
+    for (const auto& p : j["points"]) {
+        for (const char* k : {"problem", "config", "error", "wall_per_sim_second", "dt", "pareto"}) ASSERT_TRUE(p.contains(k)) << k;
+        // a diverged run has no error (null); the plain explicit and implicit runs here are stable
+        const bool damped = p["config"].get<std::string>().find("alpha_e") != std::string::npos;
+        if (!damped) {
+            ASSERT_TRUE(p["error"].is_number()) << p.dump();
+        }
+        if (!p["error"].is_number()) continue;
+        EXPECT_GT(p["wall_per_sim_second"].get<double>(), 0);
+        EXPECT_GT(p["dt"].get<double>(), 0);
+        (p["scheme"] == "explicit" ? explicitPts : implicitPts)++;
+    }
+    EXPECT_GE(explicitPts, 2);
+    EXPECT_GE(implicitPts, 2);
+    for (const auto& p : j["points"]) {
+        if (!p["error"].is_number()) {
+            EXPECT_FALSE(p["pareto"].get<bool>());
+            continue;
+        }
+        bool beaten = false;
+        for (const auto& q : j["points"])
+            if (q["problem"] == p["problem"] && q["error"].is_number() && q["error"] <= p["error"] && q["wall_per_sim_second"] <= p["wall_per_sim_second"] &&
+                (q["error"] < p["error"] || q["wall_per_sim_second"] < p["wall_per_sim_second"]))
+                beaten = true;
+        EXPECT_EQ(p["pareto"].get<bool>(), !beaten) << p.dump();
+    }
+    for (const char* prob : {"cantilever_static", "cantilever_frequency"}) {
+        ASSERT_TRUE(j["summary"].contains(prob));
+        EXPECT_TRUE(j["summary"][prob].contains("best_explicit_cost_at_1pct"));
+        EXPECT_TRUE(j["summary"][prob].contains("implicit_cost_at_1pct"));
+    }
+    // q = rho g h^2, I = h^4 / 12, E = 1e8, G = E / 2.6, L = 1, h = 0.1
+    const double E = 1e8, h = 0.1, I = h * h * h * h / 12, q = 1000 * 9.81 * h * h;
+    const double tip = q / (8 * E * I) + q / (2 * (5.0 / 6.0) * (E / 2.6) * h * h);
+    EXPECT_NEAR(j["references"]["cantilever_static"]["beam_theory"].get<double>(), -tip, 1e-9);
+    const double f1 = 1.8751 * 1.8751 / (2 * M_PI) * std::sqrt(E * I / (1000 * h * h));
+    EXPECT_NEAR(j["references"]["cantilever_frequency"]["beam_theory"].get<double>(), f1, 1e-9);
+    // Coarse linear tets are stiff: deflection below and frequency above the 3D answer.
+    const auto& st = j["references"]["cantilever_static"]["values"];
+    EXPECT_LT(std::abs(st[0].get<double>()), std::abs(st[1].get<double>()));
+    const auto& fr = j["references"]["cantilever_frequency"]["values"];
+    EXPECT_GT(fr[0].get<double>(), fr[1].get<double>());
+    EXPECT_TRUE(fs::exists(dir + "/p.csv"));
+}
+
+// A single tet: plain explicit schemes are stable up to the exact limit and not past it
+// (the top mode grows as soon as omega dt > 2); per-element damping goes further.
+TEST(BenchStability, SingleTetLimitIsTheExactOne) {
+    const json j = runJson("bench stability --tiny --json");
+    ASSERT_EQ(j["sweeps"].size(), 5u);
+    for (const auto& s : j["sweeps"]) {
+        const double f = s["largest_stable_fraction"].get<double>();
+        if (s["scheme"] == "plain") {
+            EXPECT_GE(f, 0.99) << s["integrator"];
+            EXPECT_LE(f, 1.0) << s["integrator"];
+            for (const auto& r : s["runs"]) {
+                if (r["fraction"].get<double>() >= 1.005) {
+                    EXPECT_FALSE(r["stable"].get<bool>()) << r.dump();
+                }
+            }
+        } else if (s["scheme"] == "alpha_e_0.95") {
+            // one element: alpha = (0.95 dt_e / dt)^2 makes omega dt = 2 * 0.95 at any dt
+            EXPECT_GE(f, 3.0);
+        }
+    }
+    // symplectic: the energy oscillates but does not drift
+    EXPECT_LT(std::abs(j["energy_drift"]["drift"].get<double>()), 0.02);
+}
+
+TEST(BenchStep, TinyRunContract) {
+    const json j = runJson("bench step --tiny --json --seconds 0.02");
+    ASSERT_EQ(j["runs"].size(), 2u);
+    for (const auto& r : j["runs"]) {
+        EXPECT_EQ(r["tets"].get<int>(), 6 * 27);
+        EXPECT_GT(r["tet_steps_per_second"].get<double>(), 0);
+        EXPECT_NEAR(r["tet_steps_per_second"].get<double>(), 162.0 * r["steps"].get<double>() / r["seconds"].get<double>(), 1e-6 * r["tet_steps_per_second"].get<double>());
+        for (const char* k : {"element", "gather", "integrate"}) {
+            EXPECT_GE(r["stages"][k].get<double>(), 0);
+            EXPECT_LE(r["stages"][k].get<double>(), 1.5);
+        }
+    }
+    EXPECT_EQ(j["runs"][0]["threads"], 1);
+    EXPECT_EQ(j["runs"][1]["threads"], 2);
+}
+
+// What a scene does not use costs nothing: no tools, no cuts, no rendering -> those stages are 0.
+TEST(BenchCost, UnusedSubsystemsCostNothing) {
+    const json j = runJson("bench cost " + test::source("assets/scenes/bar_sag.json") +
+                           " --json --set duration=0.02 --set object.box.cells=[10,1,1]");
+    ASSERT_GE(j["variants"].size(), 2u);
+    EXPECT_EQ(j["variants"][0]["name"], "as given");
+    bool sawNoDamping = false;
+    for (const auto& v : j["variants"]) {
+        EXPECT_EQ(v["status"], "ok");
+        for (const char* k : {"contact", "cut", "render", "encode"}) EXPECT_EQ(v["stages"][k].get<double>(), 0.0) << k;
+        EXPECT_GT(v["stages"]["forces"].get<double>(), 0.0);
+        sawNoDamping |= v["name"] == "without damping";
+    }
+    EXPECT_TRUE(sawNoDamping);  // bar_sag is damped
+}
+
+} // namespace
+} // namespace cutsim
