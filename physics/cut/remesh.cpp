@@ -5,6 +5,8 @@
 #endif
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +15,9 @@
 #include <sstream>
 #include <utility>
 #include <vector>
+
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace cutsim {
 
@@ -109,7 +114,58 @@ Plc buildPlc(const TetMesh& piece, const Eigen::Matrix3Xi& F, double coplanarTol
         }
         plc.facets.push_back(std::move(polys));
     }
+
+    // A loop vertex on a straight edge between exactly two polygon facets (a cut point on a box
+    // edge, a grid node on a flat face's border) is dropped from both: TetGen places its own
+    // points there, and nearly collinear input vertices would make needle-thin input features.
+    const int np = static_cast<int>(plc.points.size());
+    std::vector<int> uses(static_cast<size_t>(np), 0);
+    std::vector<char> straight(static_cast<size_t>(np), 1);
+    for (const auto& polys : plc.facets) {
+        const bool isLoop = polys.size() == 1 && polys[0].size() > 3;
+        for (const auto& poly : polys) {
+            const size_t m = poly.size();
+            for (size_t k = 0; k < m; ++k) {
+                const int v = poly[k];
+                ++uses[v];
+                const Eigen::Vector3d a = plc.points[poly[(k + m - 1) % m]], b = plc.points[v], c = plc.points[(poly[(k + 1) % m])];
+                const bool line = (b - a).cross(c - b).norm() <= tol * (c - a).norm() && (b - a).dot(c - b) > 0;
+                straight[v] = straight[v] && isLoop && line;
+            }
+        }
+    }
+    for (auto& polys : plc.facets) {
+        if (polys.size() != 1) continue;
+        std::vector<int> kept;
+        for (const int v : polys[0])
+            if (!(straight[v] && uses[v] == 2)) kept.push_back(v);
+        if (kept.size() >= 3) polys[0] = std::move(kept);
+    }
+    // Only referenced points reach TetGen (it would insert every listed point).
+    std::vector<int> newIndex(static_cast<size_t>(np), -1);
+    std::vector<Eigen::Vector3d> used;
+    for (auto& polys : plc.facets)
+        for (auto& poly : polys)
+            for (int& v : poly) {
+                if (newIndex[v] < 0) {
+                    newIndex[v] = static_cast<int>(used.size());
+                    used.push_back(plc.points[v]);
+                }
+                v = newIndex[v];
+            }
+    plc.points = std::move(used);
     return plc;
+}
+
+bool writeAll(int fd, const void* data, size_t bytes) {
+    const char* p = static_cast<const char*>(data);
+    while (bytes > 0) {
+        const ssize_t n = ::write(fd, p, bytes);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0) return false;
+        p += n, bytes -= static_cast<size_t>(n);
+    }
+    return true;
 }
 
 std::string tetgenReason(int code) {
@@ -151,19 +207,71 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
     }
     std::vector<char> sw(switches.begin(), switches.end());
     sw.push_back('\0');
-    try {
-        tetrahedralize(sw.data(), &in, &out);
-    } catch (int code) {
-        throw RemeshError("TetGen rejected " + what + ": " + tetgenReason(code) + " (switches -" + switches + ")");
+    // TetGen 1.5 frees its mesh twice when it throws (terminatetetgen, then the destructor), so an
+    // error would crash this process: run it in a child and read the mesh back through a pipe.
+    int fd[2];
+    if (::pipe(fd) != 0) throw RemeshError("remesh: cannot create a pipe for TetGen");
+    std::fflush(nullptr);
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+        ::close(fd[0]), ::close(fd[1]);
+        throw RemeshError("remesh: cannot start TetGen (fork failed)");
     }
-    if (out.numberoftetrahedra <= 0 || out.numberofcorners != 4)
+    if (pid == 0) {
+        ::close(fd[0]);
+        int code = 0;
+        try {
+            tetrahedralize(sw.data(), &in, &out);
+        } catch (int c) {
+            code = c;
+        }
+        const int head[3] = {code, out.numberofpoints, code == 0 && out.numberofcorners == 4 ? out.numberoftetrahedra : 0};
+        bool ok = writeAll(fd[1], head, sizeof head);
+        if (code == 0) {
+            ok = ok && writeAll(fd[1], out.pointlist, sizeof(REAL) * 3 * static_cast<size_t>(head[1]));
+            for (int t = 0; t < head[2] && ok; ++t) {
+                int tt[4];
+                for (int k = 0; k < 4; ++k) tt[k] = out.tetrahedronlist[4 * t + k] - out.firstnumber;
+                ok = writeAll(fd[1], tt, sizeof tt);
+            }
+        }
+        ::_exit(ok ? 0 : 1);
+    }
+    ::close(fd[1]);
+    std::vector<char> buf;
+    char chunk[65536];
+    for (;;) {
+        const ssize_t n = ::read(fd[0], chunk, sizeof chunk);
+        if (n > 0) buf.insert(buf.end(), chunk, chunk + n);
+        else if (n == 0 || errno != EINTR) break;
+    }
+    ::close(fd[0]);
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {}
+    int head[3] = {0, 0, 0};
+    if (buf.size() < sizeof head) {
+        throw RemeshError("TetGen could not mesh " + what + ": it stopped on an error" +
+                          (WIFSIGNALED(status) ? " (signal " + std::to_string(WTERMSIG(status)) + ")" : std::string()) +
+                          "; TetGen 1.5 crashes while reporting bad input such as a self-intersecting surface"
+                          " (switches -" + switches + ")");
+    }
+    std::memcpy(head, buf.data(), sizeof head);
+    if (head[0] != 0)
+        throw RemeshError("TetGen rejected " + what + ": " + tetgenReason(head[0]) + " (switches -" + switches + ")");
+    if (head[2] <= 0 || buf.size() != sizeof head + sizeof(double) * 3 * static_cast<size_t>(head[1]) + sizeof(int) * 4 * static_cast<size_t>(head[2]))
         throw RemeshError("TetGen produced no tets for " + what + " (switches -" + switches + ")");
+    const char* pts = buf.data() + sizeof head;
+    const char* tts = pts + sizeof(double) * 3 * static_cast<size_t>(head[1]);
     const int base = static_cast<int>(X.size());
-    for (int i = 0; i < out.numberofpoints; ++i)
-        X.emplace_back(out.pointlist[3 * i], out.pointlist[3 * i + 1], out.pointlist[3 * i + 2]);
-    for (int t = 0; t < out.numberoftetrahedra; ++t) {
-        Eigen::Vector4i tt;
-        for (int k = 0; k < 4; ++k) tt[k] = base + out.tetrahedronlist[4 * t + k] - out.firstnumber;
+    for (int i = 0; i < head[1]; ++i) {
+        double p[3];
+        std::memcpy(p, pts + sizeof p * static_cast<size_t>(i), sizeof p);
+        X.emplace_back(p[0], p[1], p[2]);
+    }
+    for (int t = 0; t < head[2]; ++t) {
+        int q[4];
+        std::memcpy(q, tts + sizeof q * static_cast<size_t>(t), sizeof q);
+        Eigen::Vector4i tt(base + q[0], base + q[1], base + q[2], base + q[3]);
         if (tetSignedVolume(X[tt[0]], X[tt[1]], X[tt[2]], X[tt[3]]) < 0) std::swap(tt[2], tt[3]);
         T.push_back(tt);
     }
@@ -182,8 +290,10 @@ RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts) {
     if (mesh.elements() == 0) throw RemeshError("remesh: " + mesh.source + " has no tets");
     rep.volumeBefore = totalVolume(mesh);
     double maxVolume = opts.maxVolume > 0 ? opts.maxVolume : rep.volumeBefore / mesh.elements();
+    // TetGen reads the bound as plain digits: fixed notation with ~9 significant digits.
     std::ostringstream sw;
-    sw.precision(17);
+    sw.setf(std::ios::fixed);
+    sw.precision(std::clamp(9 - static_cast<int>(std::floor(std::log10(maxVolume))), 9, 40));
     sw << opts.switches << "zQa" << maxVolume;
     rep.switches = sw.str();
 
@@ -225,7 +335,7 @@ RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts) {
 
 RemeshResult remeshCut(const TetMesh& mesh, const CutPlane& plane, const RemeshOptions& opts) {
     ConformingOptions co;
-    co.snapFraction = 0;  // the surface only: slivers of the split do not reach the new mesh
+    co.snapFraction = 0;  // exact surface; the split's slivers never reach the new mesh
     co.keep = opts.keep;
     const ConformingResult cut = conformingCut(mesh, plane, co);
     RemeshOptions ro = opts;
