@@ -79,6 +79,35 @@ TEST(Baselines, LiverFourPlaneCuts) {
     EXPECT_NEAR(cut.report.volumeAfter, v0, 1e-9 * v0);
     EXPECT_GT(cut.report.minVolume, 0);
     EXPECT_GE(connectedPieces(cut.mesh), 5);
+    // Conformity: boundary faces off the planes are pieces of the liver's surface (same total
+    // area, so no hanging node left an inner face open), and on each plane both sides show the
+    // same cross-section area.
+    auto faceArea = [](const TetMesh& m, const Eigen::Matrix3Xi& F, Eigen::Index f, Eigen::Vector3d* normal) {
+        const Eigen::Vector3d c = (m.X.col(F(1, f)) - m.X.col(F(0, f))).cross(m.X.col(F(2, f)) - m.X.col(F(0, f)));
+        if (normal) *normal = c.normalized();
+        return 0.5 * c.norm();
+    };
+    const Eigen::Matrix3Xi F0 = boundaryFaces(liver), F1 = boundaryFaces(cut.mesh);
+    double a0 = 0, aOff = 0;
+    std::vector<double> up(planes.size(), 0), down(planes.size(), 0);
+    for (Eigen::Index f = 0; f < F0.cols(); ++f) a0 += faceArea(liver, F0, f, nullptr);
+    for (Eigen::Index f = 0; f < F1.cols(); ++f) {
+        Eigen::Vector3d nf;
+        const double a = faceArea(cut.mesh, F1, f, &nf);
+        int on = -1;
+        for (size_t k = 0; k < planes.size() && on < 0; ++k) {
+            bool all = true;
+            for (int j = 0; j < 3; ++j) all = all && std::abs(planes[k].normal.dot(cut.mesh.X.col(F1(j, f)) - planes[k].point)) < 1e-12;
+            if (all) on = static_cast<int>(k);
+        }
+        if (on < 0) aOff += a;
+        else (nf.dot(planes[on].normal) > 0 ? up : down)[on] += a;
+    }
+    EXPECT_NEAR(aOff, a0, 1e-9 * a0);
+    for (size_t k = 0; k < planes.size(); ++k) {
+        EXPECT_GT(up[k], 0);
+        EXPECT_NEAR(up[k], down[k], 1e-9 * a0) << "plane " << k;
+    }
 
     // With snapping (threshold 0.1): surface nodes move, the volume barely; nothing inverts.
     const ConformingResult snapped = conformingCuts(liver, planes);
