@@ -1,5 +1,6 @@
 #include "run.hpp"
 
+#include "cut/baselines.hpp"
 #include "cut/xfem.hpp"
 #include "contact/contact.hpp"
 #include "fem/forces.hpp"
@@ -139,6 +140,48 @@ struct ToolRun {
         }
     }
 };
+
+// cutting.compare: the scene's cut planes applied in order to the rest mesh with no fixed nodes
+// by XFEM and by each baseline, with the exact step after each cut (thesis sec. 5.2, Table 6.1).
+// The same setting for every method, so the ratios compare the methods and nothing else.
+json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
+    std::vector<CutPlane> planes;
+    for (const CutDef& cd : sc.cutting.cuts) planes.push_back({cd.point, cd.normal});
+    const double dt0 = exactDtOf(rest, sc.material);
+    json out = {{"setting", "rest shape, no fixed nodes, the cut planes in scene order"}, {"uncut_exact", dt0}};
+    auto add = [&](const std::string& name, const std::vector<double>& dts, double seconds) {
+        json ratios = json::array();
+        for (double d : dts) ratios.push_back(d / dt0);
+        out[name] = {{"dt_exact", dts}, {"dt_ratio", ratios}, {"seconds", seconds}};
+    };
+    {
+        const auto t0 = Clock::now();
+        Model m = buildModel(rest, sc.material);
+        updateMasses(m);
+        State s = makeState(m);
+        CutEngine eng(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
+        std::vector<double> dts;
+        for (const CutPlane& p : planes) {
+            CutSurface cs;
+            cs.point = p.point;
+            cs.normal = p.normal;
+            eng.cut(m, s, cs);
+            dts.push_back(TimestepAnalyzer(m).exact(m).dt);
+        }
+        add("xfem", dts, since(t0));
+    }
+    for (const std::string& name : sc.cutting.compare) {
+        const auto t0 = Clock::now();
+        try {
+            const auto dts = dtAfterPlaneCuts(rest, planes, name == "remesh" ? CutMethod::Remesh : CutMethod::Subdivision,
+                                              sc.material);
+            add(name, dts, since(t0));
+        } catch (const std::exception& e) {
+            out[name] = {{"error", e.what()}};
+        }
+    }
+    return out;
+}
 
 } // namespace
 
@@ -350,6 +393,11 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Progress progress(sc.duration, opt.quiet);
     const double mass0 = model.mass.sum();
     const int nodes0 = model.nodes(), elements0 = model.elements(), fixed0 = model.nodes() - model.freeDofs() / 3;
+    TetMesh rest;  // the uncut rest mesh, for cutting.compare
+    if (!sc.cutting.compare.empty()) {
+        rest.X = model.X;
+        rest.tets = model.tets;
+    }
     const auto loopStart = Clock::now();
 
     // Cutting: the engine's bookkeeping exists only in scenes that cut (DESIGN.md: pay for what you use).
@@ -535,6 +583,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     if (!sim.embedding.is_null()) report["embedding"] = sim.embedding;
     report["cuts"] = cutsJson;
     report["dt_final"] = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)}, {"certified", dtCertifiedNow}};
+    if (!sc.cutting.compare.empty() && exitCode == 0) report["compare"] = compareCutMethods(sc, rest);
     report["pieces"] = countPieces(model);
     report["mass"] = {{"initial", mass0}, {"final", model.mass.sum()}};
     report["energy"] = energy;

@@ -339,6 +339,9 @@ SceneDef parseScene(const json& j, const std::string& file) {
             if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time) k.fail("time", "cuts must be in time order");
             s.cutting.cuts.push_back(cd);
         }
+        for (const CutDef& cd : s.cutting.cuts)
+            if (!s.cutting.compare.empty() && !cd.polygon.empty())
+                c.fail("compare", "the baselines cut whole planes; " + cd.path + " is bounded by a polygon");
         c.finish();
     }
     {

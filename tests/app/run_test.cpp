@@ -336,6 +336,27 @@ TEST(Run, LiverCutsReportEachCut) {
     EXPECT_EQ(r["pieces"].get<int>(), cuts.back()["pieces"].get<int>());
     EXPECT_NEAR(r["mass"]["final"].get<double>(), r["mass"]["initial"].get<double>(),
                 1e-12 * r["mass"]["initial"].get<double>());
+
+    // The same planes by each method, in one setting (thesis sec. 5.2): XFEM keeps the step that
+    // conforming subdivision and remeshing lose.
+    const json& cmp = r["compare"];
+    for (const char* m : {"xfem", "subdivision", "remesh"}) {
+        ASSERT_TRUE(cmp.contains(m)) << m;
+        ASSERT_EQ(cmp[m]["dt_ratio"].size(), 4u) << m;
+        for (const auto& q : cmp[m]["dt_ratio"]) EXPECT_LE(q.get<double>(), 1.0 + 1e-9) << m;
+    }
+    EXPECT_NEAR(cmp["xfem"]["dt_ratio"][0].get<double>(), 1.0, 1e-6);  // cut 1 crosses no sliver in this mesh
+    EXPECT_GT(cmp["xfem"]["dt_ratio"][3].get<double>(), 2 * cmp["subdivision"]["dt_ratio"][3].get<double>());
+    EXPECT_GT(cmp["xfem"]["dt_ratio"][3].get<double>(), 2 * cmp["remesh"]["dt_ratio"][3].get<double>());
+}
+
+TEST(Run, RefusesCompareWithABoundedCut) {
+    std::ifstream in(test::source("assets/scenes/liver_cuts.json"));
+    json j = json::parse(in);
+    j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    j["cutting"]["cuts"][0]["polygon"] = json::parse("[[-0.085, 0, 0], [-0.085, 1, 0], [-0.235, 0, 1]]");
+    std::string err;
+    expectRefused(writeScene(workDir(), "bounded.json", j), "", "cutting.compare", &err);
 }
 
 TEST(Run, RefusesACutWithAZeroNormal) {
