@@ -300,6 +300,24 @@ TEST(Run, RefusesAnUnwritableOutputBeforeSimulating) {
     EXPECT_TRUE(fs::is_regular_file(file));
 }
 
+TEST(Run, DemoPressesAndCuts) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/demo.json") + " --out " + out + " --no-render --quiet",
+                              nullptr, &err),
+              0)
+        << err;
+    const json r = readReport(out);
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_GT(r["tool"]["max_force"].get<double>(), 0.1);   // the probe presses the sagging liver
+    EXPECT_GT(r["tool"]["contact_steps"].get<int>(), 100);
+    EXPECT_EQ(r["tool"]["final_force"][1].get<double>(), 0.0); // and leaves it
+    ASSERT_EQ(r["cuts"].size(), 2u);
+    EXPECT_GE(r["pieces"].get<int>(), 2);
+    EXPECT_GT(r["stages"]["contact"].get<double>(), 0.0);
+    EXPECT_GT(r["stages"]["cut"].get<double>(), 0.0);
+}
+
 TEST(Run, LiverCutsReportEachCut) {
     const std::string out = workDir() + "/out";
     std::string err;
