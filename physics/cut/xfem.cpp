@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstddef>
 #include <numeric>
 #include <tuple>
 
@@ -90,7 +91,10 @@ int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
 
 struct UnionFind {
     std::vector<int> p;
-    explicit UnionFind(size_t n) : p(n) { std::iota(p.begin(), p.end(), 0); }
+    void reset(size_t n) {
+        p.resize(n);
+        std::iota(p.begin(), p.end(), 0);
+    }
     int find(int i) {
         while (p[i] != i) i = p[i] = p[p[i]];
         return i;
@@ -401,8 +405,17 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     std::vector<Copy> copies;
     std::vector<std::pair<int, std::uint8_t>> fixedOf;  // node -> fixed, applied once the arrays have grown
     std::vector<int> changedNodes;
+    std::vector<int> repointed;  // elements given another node id
     std::vector<Slot> slots;
     std::vector<FaceSide> sides;
+    // Scratch reused across the nodes (this runs at every blade step).
+    UnionFind uf;
+    std::vector<std::vector<int>> comps;
+    std::vector<int> rootComp, used, ids;
+    // A face holds three nodes, so each pair of virtual elements across it is asked about up to
+    // three times: remember the answer (glued depends only on virt_, fixed during the relink).
+    std::unordered_map<std::uint64_t, bool>& gluedSeen = gluedSeen_;
+    gluedSeen.clear();
 
     // Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
     // across the face when their sides leave part of it to both (Molino et al. 2004).
@@ -423,6 +436,13 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             for (const Halfspace& h : ig->second.hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
         return faceAreaFraction(sides) > 1e-9;
     };
+    auto gluedOnce = [&](int e, int p, int k, int g, int q) {
+        const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(e)) << 32) |
+                                  static_cast<std::uint32_t>(g);
+        const auto [it, added] = gluedSeen.try_emplace(key, false);
+        if (added) it->second = glued(e, p, k, g, q);
+        return it->second;
+    };
 
     int nextNode = m.nodes();
     for (int N : nodes) {
@@ -432,7 +452,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             const int c = localIndex(tets0_, p, N);
             for (int e : virtualsOf(p)) slots.push_back({e, c, p});
         }
-        UnionFind uf(slots.size());
+        uf.reset(slots.size());
         for (size_t i = 0; i < slots.size(); ++i)
             for (size_t j = i + 1; j < slots.size(); ++j) {
                 const Slot &a = slots[i], &b = slots[j];
@@ -442,24 +462,28 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
                     if (adj_(c, a.parent) == b.parent) k = c;
                 if (k < 0 || k == a.corner) continue;  // not neighbours across a face holding N
                 if (uf.find(static_cast<int>(i)) == uf.find(static_cast<int>(j))) continue;
-                if (glued(a.elem, a.parent, k, b.elem, b.parent)) uf.join(static_cast<int>(i), static_cast<int>(j));
+                if (gluedOnce(a.elem, a.parent, k, b.elem, b.parent)) uf.join(static_cast<int>(i), static_cast<int>(j));
             }
 
         // Components; the largest keep existing node ids, the others get new copies of N.
-        std::vector<std::vector<int>> comps;
-        std::vector<int> compOf(slots.size(), -1), rootComp(slots.size(), -1);
+        // (comps keeps its inner vectors between nodes; only the first nComps are this node's.)
+        size_t nComps = 0;
+        rootComp.assign(slots.size(), -1);
         for (size_t i = 0; i < slots.size(); ++i) {
             const int root = uf.find(static_cast<int>(i));
             if (rootComp[root] < 0) {
-                rootComp[root] = static_cast<int>(comps.size());
-                comps.emplace_back();
+                rootComp[root] = static_cast<int>(nComps);
+                if (comps.size() <= nComps) comps.emplace_back();
+                comps[nComps++].clear();
             }
             comps[rootComp[root]].push_back(static_cast<int>(i));
         }
-        std::sort(comps.begin(), comps.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
-        std::vector<int> used;
-        for (const auto& comp : comps) {
-            std::vector<int> ids;
+        const auto compsEnd = comps.begin() + static_cast<std::ptrdiff_t>(nComps);
+        std::sort(comps.begin(), compsEnd, [](const auto& a, const auto& b) { return a.size() > b.size(); });
+        used.clear();
+        for (auto ci = comps.begin(); ci != compsEnd; ++ci) {
+            const std::vector<int>& comp = *ci;
+            ids.clear();
             for (int i : comp) ids.push_back(m.tets(slots[i].corner, slots[i].elem));
             std::sort(ids.begin(), ids.end());
             int best = -1, bestCount = 0, common = ids.front(), commonCount = 0;
@@ -497,7 +521,10 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             for (int i : comp) {
                 int& cur = m.tets(slots[i].corner, slots[i].elem);
                 if (cur != id) {
+                    // The element may belong to an uncut parent next to the cut: its nodes
+                    // changed, so it is a changed element too (stiffness rows of its other nodes).
                     changedNodes.push_back(cur);
+                    repointed.push_back(slots[i].elem);
                     cur = id;
                 }
             }
@@ -531,6 +558,12 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             r.changedElements.push_back(e);
             for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
         }
+    for (int e : repointed) {
+        r.changedElements.push_back(e);
+        for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
+    }
+    std::sort(r.changedElements.begin(), r.changedElements.end());
+    r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
     updateMasses(m);
     buildIncidence(m);
     std::sort(changedNodes.begin(), changedNodes.end());
