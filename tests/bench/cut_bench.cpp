@@ -8,7 +8,9 @@
 //   BM_CutExactDt/k       the exact dt (Lanczos) of the model after the 50-element step (k = 0)
 //                         or the plane cut (k = 1), for comparison with the local update.
 // Every iteration starts from an uncut copy (model, state, prepared engine, analyzer) made
-// outside the timed region; only the cut and the update are timed (manual time). Medians of 5.
+// outside the timed region; only the cut and the update are timed (manual wall time; the counter
+// thread_cpu_us is the same span in CPU time of the thread). Medians of 5. The analyzer's update
+// runs its loops in parallel above 256 items: OMP_NUM_THREADS=1 measures it serially.
 // Run: build/tests/cutsim_bench --benchmark_filter=Cut
 // No main here: cutsim_bench's main lives in another file of this folder.
 #include "cut/xfem.hpp"
@@ -20,6 +22,7 @@
 #include <benchmark/benchmark.h>
 
 #include <chrono>
+#include <ctime>
 #include <map>
 #include <memory>
 #include <stdexcept>
@@ -31,6 +34,12 @@ using namespace cutsim;
 using Clock = std::chrono::steady_clock;
 
 double secondsBetween(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
+// CPU time of this thread [s]: on a shared machine it shows the work apart from preemption.
+double threadSeconds() {
+    timespec t{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
 
 // Everything a cut starts from; copied before each iteration.
 struct Scene {
@@ -104,18 +113,20 @@ CutSurface centrePlane() {
 // Cut (a blade step or the plane) plus the analyzer's update, timed separately.
 template <class CutFn>
 void runCut(benchmark::State& st, CutFn cutFn) {
-    double sweepSum = 0, updateSum = 0;
+    double sweepSum = 0, updateSum = 0, cpuSum = 0;
     CutResult last;
     TimestepAnalyzer::UpdateStats lastStats;
     for (auto _ : st) {
         st.PauseTiming();
         Scene sc = uncut();
         st.ResumeTiming();
+        const double c0 = threadSeconds();
         const auto t0 = Clock::now();
         CutResult r = cutFn(sc);
         const auto t1 = Clock::now();
         sc.an.update(sc.m, r.changedElements, r.changedNodes);
         const auto t2 = Clock::now();
+        cpuSum += threadSeconds() - c0;
         benchmark::DoNotOptimize(sc.an.certifiedLambda());
         st.SetIterationTime(secondsBetween(t0, t2));
         sweepSum += secondsBetween(t0, t1);
@@ -126,6 +137,7 @@ void runCut(benchmark::State& st, CutFn cutFn) {
     const double n = static_cast<double>(st.iterations());
     st.counters["cut_us"] = 1e6 * sweepSum / n;
     st.counters["update_us"] = 1e6 * updateSum / n;
+    st.counters["thread_cpu_us"] = 1e6 * cpuSum / n;  // cut + update, CPU time of the thread
     st.counters["crossed"] = last.crossed;
     st.counters["new_elems"] = static_cast<double>(last.newElements.size());
     st.counters["new_nodes"] = static_cast<double>(last.newNodes.size());
