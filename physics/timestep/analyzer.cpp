@@ -10,6 +10,12 @@ namespace {
 double secondsSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
+// A local update is a latency path (cut plus update under 1 ms): a parallel region on a busy
+// machine can wait a whole scheduler slice for its other thread (measured on the liver at load
+// 6 on 2 cores: 264 re-estimated elements took 15-30 ms in two threads, 1.4 ms in one). Threads
+// only for milliseconds of work, ~1 us per element or row (as forces.cpp's kParallelElements).
+constexpr int kParallelUpdate = 2048;
+
 double minOf(const Eigen::VectorXd& v) {
     return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity();
 }
@@ -90,7 +96,7 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
     for (int i = oldNodes; i < m.nodes(); ++i) markNode(i);
     for (int e = oldElems; e < m.elements(); ++e) markGeom(e);
     const int nChanged = static_cast<int>(nodes.size());
-#pragma omp parallel for schedule(dynamic, 16) if (nChanged > 256)
+#pragma omp parallel for schedule(dynamic, 16) if (nChanged > kParallelUpdate)
     for (int k = 0; k < nChanged; ++k) {
         const int i = nodes[k];
         assembleStiffnessRow(m, i, rows_.nbr[i], rows_.block[i]);
@@ -112,7 +118,7 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
         }
     }
     const int nElems = static_cast<int>(elems.size()), nGeom = static_cast<int>(geom.size());
-#pragma omp parallel for schedule(static) if (nElems > 256)
+#pragma omp parallel for schedule(static) if (nElems > kParallelUpdate)
     for (int k = 0; k < nElems; ++k) {
         const int e = elems[k];
         est_.r1r(e) = dtFromLambda(r1rLambda(m, rows_, e));
@@ -122,7 +128,7 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
     // Le, the isolated element estimate and the shape measures see only the element itself (rest
     // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
     const double cp = m.material.pWaveSpeed();
-#pragma omp parallel for schedule(static) if (nGeom > 256)
+#pragma omp parallel for schedule(static) if (nGeom > kParallelUpdate)
     for (int k = 0; k < nGeom; ++k) {
         const int e = geom[k];
         est_.le(e) = characteristicLength(m, e) / cp;
@@ -133,7 +139,7 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
     for (int e : elems)
         for (int a = 0; a < 4; ++a) markNode(m.tets(a, e));
     const int nBounds = static_cast<int>(nodes.size());
-#pragma omp parallel for schedule(static) if (nBounds > 256)
+#pragma omp parallel for schedule(static) if (nBounds > kParallelUpdate)
     for (int k = 0; k < nBounds; ++k) nodeBound_(nodes[k]) = gershgorinNodeBound(m, rows_, nodes[k]);
     maxBound_ = nodeBound_.size() ? nodeBound_.maxCoeff() : 0.0;
     stats_ = {false, nChanged, nElems, nBounds, secondsSince(t0)};
