@@ -264,6 +264,38 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     const int E0 = m.elements();
     const double tol = 1e-9;
 
+    // A blade step's plane meets elements all across the body, but only those near the swept area
+    // can be covered. The cross-section's points are convex combinations of the element's nodes,
+    // so when all four nodes, projected, lie beyond one edge line of a region by more than twice
+    // insideConvex's tolerance, no point of the section is in that region: skip the two clips.
+    auto outsideRegions = [&](int e) {
+        Eigen::Vector2d q[4];
+        for (int a = 0; a < 4; ++a) {
+            const Eigen::Vector3d dx = s.x.col(m.tets(a, e)) - surface.point;
+            q[a] = Eigen::Vector2d(dx.dot(u), dx.dot(v));
+        }
+        for (const auto& poly : surface.regions) {
+            const size_t nv = poly.size();
+            if (nv < 3) continue;  // never inside
+            double area2 = 0;
+            for (size_t k = 0; k < nv; ++k)
+                area2 += poly[k][0] * poly[(k + 1) % nv][1] - poly[k][1] * poly[(k + 1) % nv][0];
+            const double sgn = area2 >= 0 ? 1.0 : -1.0;
+            bool separated = false;
+            for (size_t k = 0; k < nv && !separated; ++k) {
+                const Eigen::Vector2d ed = poly[(k + 1) % nv] - poly[k];
+                const double len = ed.norm();
+                if (len == 0) continue;
+                separated = true;
+                for (int a = 0; a < 4 && separated; ++a) {
+                    const Eigen::Vector2d dq = q[a] - poly[k];
+                    separated = sgn * (ed[0] * dq[1] - ed[1] * dq[0]) / len < -2 * tol;
+                }
+            }
+            if (!separated) return false;
+        }
+        return true;
+    };
     auto visit = [&](int e) {
         auto it = virt_.find(e);
         if (it != virt_.end())
@@ -277,6 +309,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
             (h.s[a] >= 0 ? anyPos : anyNeg) = true;  // ties go to the positive side
         }
         if (!(anyPos && anyNeg)) return;
+        if (!surface.regions.empty() && outsideRegions(e)) return;  // the coverage test below would find nothing
         const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
         Halfspace hn = h, hp = h;
         hn.positive = false;
