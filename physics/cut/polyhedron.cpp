@@ -154,20 +154,25 @@ void weightIntegrals(const ConvexPiece& piece, Eigen::Vector4d& first, Eigen::Ve
 
 double faceAreaFraction(const std::vector<FaceSide>& sides) {
     // Triangle in its own barycentric coordinates (m1, m2); corners keep their ids for exact ties.
-    std::vector<Eigen::Vector2d> p = {{0, 0}, {1, 0}, {0, 1}};
-    std::vector<int> corner = {0, 1, 2};
+    // Each side adds at most one vertex: size the buffers once (this runs for every glued face).
+    const size_t cap = 3 + sides.size();
+    std::vector<Eigen::Vector2d> p, q;
+    std::vector<int> corner, qc;
+    std::vector<double> s(cap);
+    std::vector<char> in(cap);
+    p.reserve(cap), q.reserve(cap), corner.reserve(cap), qc.reserve(cap);
+    p = {{0, 0}, {1, 0}, {0, 1}};
+    corner = {0, 1, 2};
     for (const FaceSide& side : sides) {
         const size_t m = p.size();
         if (m < 3) return 0;
-        std::vector<double> s(m);
-        std::vector<char> in(m);
         for (size_t i = 0; i < m; ++i) {
             s[i] = corner[i] >= 0 ? side.s[corner[i]]
                                   : side.s[0] + (side.s[1] - side.s[0]) * p[i][0] + (side.s[2] - side.s[0]) * p[i][1];
             in[i] = side.positive ? (s[i] >= 0) : (s[i] < 0);
         }
-        std::vector<Eigen::Vector2d> q;
-        std::vector<int> qc;
+        q.clear();
+        qc.clear();
         for (size_t k = 0; k < m; ++k) {
             const size_t a = k, b = (k + 1) % m;
             if (in[a]) {

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstddef>
 #include <numeric>
 #include <tuple>
 
@@ -90,7 +91,10 @@ int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
 
 struct UnionFind {
     std::vector<int> p;
-    explicit UnionFind(size_t n) : p(n) { std::iota(p.begin(), p.end(), 0); }
+    void reset(size_t n) {
+        p.resize(n);
+        std::iota(p.begin(), p.end(), 0);
+    }
     int find(int i) {
         while (p[i] != i) i = p[i] = p[p[i]];
         return i;
@@ -260,6 +264,38 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     const int E0 = m.elements();
     const double tol = 1e-9;
 
+    // A blade step's plane meets elements all across the body, but only those near the swept area
+    // can be covered. The cross-section's points are convex combinations of the element's nodes,
+    // so when all four nodes, projected, lie beyond one edge line of a region by more than twice
+    // insideConvex's tolerance, no point of the section is in that region: skip the two clips.
+    auto outsideRegions = [&](int e) {
+        Eigen::Vector2d q[4];
+        for (int a = 0; a < 4; ++a) {
+            const Eigen::Vector3d dx = s.x.col(m.tets(a, e)) - surface.point;
+            q[a] = Eigen::Vector2d(dx.dot(u), dx.dot(v));
+        }
+        for (const auto& poly : surface.regions) {
+            const size_t nv = poly.size();
+            if (nv < 3) continue;  // never inside
+            double area2 = 0;
+            for (size_t k = 0; k < nv; ++k)
+                area2 += poly[k][0] * poly[(k + 1) % nv][1] - poly[k][1] * poly[(k + 1) % nv][0];
+            const double sgn = area2 >= 0 ? 1.0 : -1.0;
+            bool separated = false;
+            for (size_t k = 0; k < nv && !separated; ++k) {
+                const Eigen::Vector2d ed = poly[(k + 1) % nv] - poly[k];
+                const double len = ed.norm();
+                if (len == 0) continue;
+                separated = true;
+                for (int a = 0; a < 4 && separated; ++a) {
+                    const Eigen::Vector2d dq = q[a] - poly[k];
+                    separated = sgn * (ed[0] * dq[1] - ed[1] * dq[0]) / len < -2 * tol;
+                }
+            }
+            if (!separated) return false;
+        }
+        return true;
+    };
     auto visit = [&](int e) {
         auto it = virt_.find(e);
         if (it != virt_.end())
@@ -273,6 +309,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
             (h.s[a] >= 0 ? anyPos : anyNeg) = true;  // ties go to the positive side
         }
         if (!(anyPos && anyNeg)) return;
+        if (!surface.regions.empty() && outsideRegions(e)) return;  // the coverage test below would find nothing
         const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
         Halfspace hn = h, hp = h;
         hn.positive = false;
@@ -401,8 +438,17 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     std::vector<Copy> copies;
     std::vector<std::pair<int, std::uint8_t>> fixedOf;  // node -> fixed, applied once the arrays have grown
     std::vector<int> changedNodes;
+    std::vector<int> repointed;  // elements given another node id
     std::vector<Slot> slots;
     std::vector<FaceSide> sides;
+    // Scratch reused across the nodes (this runs at every blade step).
+    UnionFind uf;
+    std::vector<std::vector<int>> comps;
+    std::vector<int> rootComp, used, ids;
+    // A face holds three nodes, so each pair of virtual elements across it is asked about up to
+    // three times: remember the answer (glued depends only on virt_, fixed during the relink).
+    std::unordered_map<std::uint64_t, bool>& gluedSeen = gluedSeen_;
+    gluedSeen.clear();
 
     // Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
     // across the face when their sides leave part of it to both (Molino et al. 2004).
@@ -423,6 +469,13 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             for (const Halfspace& h : ig->second.hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
         return faceAreaFraction(sides) > 1e-9;
     };
+    auto gluedOnce = [&](int e, int p, int k, int g, int q) {
+        const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(e)) << 32) |
+                                  static_cast<std::uint32_t>(g);
+        const auto [it, added] = gluedSeen.try_emplace(key, false);
+        if (added) it->second = glued(e, p, k, g, q);
+        return it->second;
+    };
 
     int nextNode = m.nodes();
     for (int N : nodes) {
@@ -432,7 +485,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             const int c = localIndex(tets0_, p, N);
             for (int e : virtualsOf(p)) slots.push_back({e, c, p});
         }
-        UnionFind uf(slots.size());
+        uf.reset(slots.size());
         for (size_t i = 0; i < slots.size(); ++i)
             for (size_t j = i + 1; j < slots.size(); ++j) {
                 const Slot &a = slots[i], &b = slots[j];
@@ -442,24 +495,28 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
                     if (adj_(c, a.parent) == b.parent) k = c;
                 if (k < 0 || k == a.corner) continue;  // not neighbours across a face holding N
                 if (uf.find(static_cast<int>(i)) == uf.find(static_cast<int>(j))) continue;
-                if (glued(a.elem, a.parent, k, b.elem, b.parent)) uf.join(static_cast<int>(i), static_cast<int>(j));
+                if (gluedOnce(a.elem, a.parent, k, b.elem, b.parent)) uf.join(static_cast<int>(i), static_cast<int>(j));
             }
 
         // Components; the largest keep existing node ids, the others get new copies of N.
-        std::vector<std::vector<int>> comps;
-        std::vector<int> compOf(slots.size(), -1), rootComp(slots.size(), -1);
+        // (comps keeps its inner vectors between nodes; only the first nComps are this node's.)
+        size_t nComps = 0;
+        rootComp.assign(slots.size(), -1);
         for (size_t i = 0; i < slots.size(); ++i) {
             const int root = uf.find(static_cast<int>(i));
             if (rootComp[root] < 0) {
-                rootComp[root] = static_cast<int>(comps.size());
-                comps.emplace_back();
+                rootComp[root] = static_cast<int>(nComps);
+                if (comps.size() <= nComps) comps.emplace_back();
+                comps[nComps++].clear();
             }
             comps[rootComp[root]].push_back(static_cast<int>(i));
         }
-        std::sort(comps.begin(), comps.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
-        std::vector<int> used;
-        for (const auto& comp : comps) {
-            std::vector<int> ids;
+        const auto compsEnd = comps.begin() + static_cast<std::ptrdiff_t>(nComps);
+        std::sort(comps.begin(), compsEnd, [](const auto& a, const auto& b) { return a.size() > b.size(); });
+        used.clear();
+        for (auto ci = comps.begin(); ci != compsEnd; ++ci) {
+            const std::vector<int>& comp = *ci;
+            ids.clear();
             for (int i : comp) ids.push_back(m.tets(slots[i].corner, slots[i].elem));
             std::sort(ids.begin(), ids.end());
             int best = -1, bestCount = 0, common = ids.front(), commonCount = 0;
@@ -497,7 +554,10 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             for (int i : comp) {
                 int& cur = m.tets(slots[i].corner, slots[i].elem);
                 if (cur != id) {
+                    // The element may belong to an uncut parent next to the cut: its nodes
+                    // changed, so it is a changed element too (stiffness rows of its other nodes).
                     changedNodes.push_back(cur);
+                    repointed.push_back(slots[i].elem);
                     cur = id;
                 }
             }
@@ -531,6 +591,12 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             r.changedElements.push_back(e);
             for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
         }
+    for (int e : repointed) {
+        r.changedElements.push_back(e);
+        for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
+    }
+    std::sort(r.changedElements.begin(), r.changedElements.end());
+    r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
     updateMasses(m);
     buildIncidence(m);
     std::sort(changedNodes.begin(), changedNodes.end());

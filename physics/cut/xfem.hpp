@@ -150,6 +150,7 @@ private:
     std::unordered_map<int, std::vector<int>> children_;   // parent -> its elements, for cut parents only
     Stroke stroke_;
     mutable std::vector<int> single_;      // scratch for virtualsOf on an uncut parent
+    std::unordered_map<std::uint64_t, bool> gluedSeen_;  // scratch of relink: (element, element) -> glued
 };
 
 } // namespace cutsim

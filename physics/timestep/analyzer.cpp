@@ -10,6 +10,12 @@ namespace {
 double secondsSince(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
+// A local update is a latency path (cut plus update under 1 ms): a parallel region on a busy
+// machine can wait a whole scheduler slice for its other thread (measured on the liver at load
+// 6 on 2 cores: 264 re-estimated elements took 15-30 ms in two threads, 1.4 ms in one). Threads
+// only for milliseconds of work, ~1 us per element or row (as forces.cpp's kParallelElements).
+constexpr int kParallelUpdate = 2048;
+
 double minOf(const Eigen::VectorXd& v) {
     return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity();
 }
@@ -32,7 +38,10 @@ void TimestepAnalyzer::compute(const Model& m) {
     maxBound_ = mx;
     nodeStamp_.assign(m.nodes(), 0);
     elemStamp_.assign(m.elements(), 0);
+    geomStamp_.assign(m.elements(), 0);
     stamp_ = 0;
+    free_.resize(m.nodes());
+    for (int i = 0; i < m.nodes(); ++i) free_[i] = m.invMass(i) > 0;
     stats_ = {true, m.nodes(), m.elements(), m.nodes(), secondsSince(t0)};
 }
 
@@ -45,57 +54,92 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
     }
     const auto t0 = std::chrono::steady_clock::now();
     // Appended nodes and elements.
-    rows_.nbr.resize(m.nodes());
-    rows_.block.resize(m.nodes());
-    diag_.conservativeResize(3, m.nodes());
-    nodeBound_.conservativeResize(m.nodes());
-    nodeStamp_.resize(m.nodes(), 0);
+    if (m.nodes() > oldNodes) {
+        rows_.nbr.resize(m.nodes());
+        rows_.block.resize(m.nodes());
+        diag_.conservativeResize(3, m.nodes());
+        nodeBound_.conservativeResize(m.nodes());
+        nodeStamp_.resize(m.nodes(), 0);
+        free_.resize(m.nodes(), 0);
+    }
     if (m.elements() > oldElems) {
         for (Eigen::VectorXd* v : {&est_.r1r, &est_.hs, &est_.hp, &est_.le, &est_.element, &shapes_.volumeLength,
                                    &shapes_.harmonicVolumeLength, &shapes_.minSineDihedral, &shapes_.radiusRatio,
                                    &shapes_.meanRatio, &shapes_.charLength})
             v->conservativeResize(m.elements());
         elemStamp_.resize(m.elements(), 0);
+        geomStamp_.resize(m.elements(), 0);
     }
     if (++stamp_ == 0) {  // wrapped: clear the stamps
         std::fill(nodeStamp_.begin(), nodeStamp_.end(), 0);
         std::fill(elemStamp_.begin(), elemStamp_.end(), 0);
+        std::fill(geomStamp_.begin(), geomStamp_.end(), 0);
         stamp_ = 1;
     }
     // N: nodes whose row of K, diagonal or mass changed.
-    std::vector<int> nodes;
+    std::vector<int>& nodes = nodes_;
+    nodes.clear();
     auto markNode = [&](int i) {
         if (nodeStamp_[i] != stamp_) nodeStamp_[i] = stamp_, nodes.push_back(i);
     };
-    for (int e : changedElements)
+    // G: elements whose own data changed (rest shape, nodes, or which of their nodes are free).
+    std::vector<int>& geom = geomElems_;
+    geom.clear();
+    auto markGeom = [&](int e) {
+        if (geomStamp_[e] != stamp_) geomStamp_[e] = stamp_, geom.push_back(e);
+    };
+    for (int e : changedElements) {
+        markGeom(e);
         for (int a = 0; a < 4; ++a) markNode(m.tets(a, e));
+    }
     for (int i : changedNodes) markNode(i);
     for (int i = oldNodes; i < m.nodes(); ++i) markNode(i);
+    for (int e = oldElems; e < m.elements(); ++e) markGeom(e);
     const int nChanged = static_cast<int>(nodes.size());
-#pragma omp parallel for schedule(dynamic, 16) if (nChanged > 256)
+#pragma omp parallel for schedule(dynamic, 16) if (nChanged > kParallelUpdate)
     for (int k = 0; k < nChanged; ++k) {
         const int i = nodes[k];
         assembleStiffnessRow(m, i, rows_.nbr[i], rows_.block[i]);
         diag_.col(i) = nodeStiffnessDiagonal(m, i);
     }
-    // Elements with a node in N: their K_r, M_r or D_r changed (R1R, Hs, Hp).
-    std::vector<int> elems;
+    // Elements with a node in N: their K_r, M_r or D_r changed (R1R, Hs, Hp). A node that became
+    // fixed or free also changes the isolated element estimate of its elements.
+    std::vector<int>& elems = elems_;
+    elems.clear();
     for (int k = 0; k < nChanged; ++k) {
         const int i = nodes[k];
+        const std::uint8_t isFree = m.invMass(i) > 0;
+        const bool flipped = free_[i] != isFree || i >= oldNodes;
+        free_[i] = isFree;
         for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
             const int e = m.nodeSlots[s] / 4;
             if (elemStamp_[e] != stamp_) elemStamp_[e] = stamp_, elems.push_back(e);
+            if (flipped) markGeom(e);
         }
     }
-    estimateElements(m, rows_, diag_, &elems, est_);
-    const int nElems = static_cast<int>(elems.size());
-#pragma omp parallel for schedule(static) if (nElems > 256)
-    for (int k = 0; k < nElems; ++k) shapes_.set(elems[k], elementShape(m, elems[k]));
+    const int nElems = static_cast<int>(elems.size()), nGeom = static_cast<int>(geom.size());
+#pragma omp parallel for schedule(static) if (nElems > kParallelUpdate)
+    for (int k = 0; k < nElems; ++k) {
+        const int e = elems[k];
+        est_.r1r(e) = dtFromLambda(r1rLambda(m, rows_, e));
+        est_.hs(e) = dtFromLambda(hsLambda(m, diag_, e));
+        est_.hp(e) = dtFromLambda(hpLambda(m, diag_, e));
+    }
+    // Le, the isolated element estimate and the shape measures see only the element itself (rest
+    // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
+    const double cp = m.material.pWaveSpeed();
+#pragma omp parallel for schedule(static) if (nGeom > kParallelUpdate)
+    for (int k = 0; k < nGeom; ++k) {
+        const int e = geom[k];
+        est_.le(e) = characteristicLength(m, e) / cp;
+        est_.element(e) = dtFromLambda(elementLambda(m, e));
+        shapes_.set(e, elementShape(m, e));
+    }
     // Gershgorin rows that see a changed block or mass: the nodes of those elements, plus N.
     for (int e : elems)
         for (int a = 0; a < 4; ++a) markNode(m.tets(a, e));
     const int nBounds = static_cast<int>(nodes.size());
-#pragma omp parallel for schedule(static) if (nBounds > 256)
+#pragma omp parallel for schedule(static) if (nBounds > kParallelUpdate)
     for (int k = 0; k < nBounds; ++k) nodeBound_(nodes[k]) = gershgorinNodeBound(m, rows_, nodes[k]);
     maxBound_ = nodeBound_.size() ? nodeBound_.maxCoeff() : 0.0;
     stats_ = {false, nChanged, nElems, nBounds, secondsSince(t0)};

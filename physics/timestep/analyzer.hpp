@@ -6,6 +6,7 @@
 #include "timestep/quality.hpp"
 #include "timestep/timestep.hpp"
 
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
@@ -73,8 +74,10 @@ private:
     ShapeMeasures shapes_;
     UpdateStats stats_;
     // Scratch for the local update: a node / element is marked when its stamp equals stamp_.
-    std::vector<unsigned> nodeStamp_, elemStamp_;
+    std::vector<unsigned> nodeStamp_, elemStamp_, geomStamp_;
     unsigned stamp_ = 0;
+    std::vector<std::uint8_t> free_;             // invMass > 0 when last analysed (nNodes)
+    std::vector<int> nodes_, elems_, geomElems_; // scratch lists, kept to avoid allocating per update
 };
 
 } // namespace cutsim

@@ -202,15 +202,17 @@ double r1rLambda(const Model& m, const StiffnessRows& rows, int e) {
     // R1R, Fierz et al. 2012: principal 12x12 submatrix of the assembled K and M at e's DOFs,
     // symmetric form M_r^-1/2 K_r M_r^-1/2; a fixed DOF's row and column are zero.
     Mat12 A;
+    double sq[4];  // M_r^-1/2 at the four nodes, once each (this runs for every element of a cut's one-ring)
+    for (int a = 0; a < 4; ++a) sq[a] = std::sqrt(m.invMass(m.tets(a, e)));
     for (int a = 0; a < 4; ++a) {
         const int i = m.tets(a, e);
-        const double si = std::sqrt(m.invMass(i));
+        const double si = sq[a];
         const std::vector<int>& nb = rows.nbr[i];
         for (int b = 0; b < 4; ++b) {
             const int j = m.tets(b, e);
             size_t k = 0;
             while (k < nb.size() && nb[k] != j) ++k;
-            A.block<3, 3>(3 * a, 3 * b) = k < nb.size() ? Eigen::Matrix3d(si * std::sqrt(m.invMass(j)) * rows.block[i][k])
+            A.block<3, 3>(3 * a, 3 * b) = k < nb.size() ? Eigen::Matrix3d(si * sq[b] * rows.block[i][k])
                                                          : Eigen::Matrix3d::Zero();
         }
     }
