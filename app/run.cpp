@@ -2,6 +2,7 @@
 
 #include "cut/baselines.hpp"
 #include "cut/xfem.hpp"
+#include "contact/broadphase.hpp"
 #include "contact/contact.hpp"
 #include "fem/forces.hpp"
 #include "embed/mi.hpp"
@@ -401,11 +402,25 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     const auto loopStart = Clock::now();
 
     // Cutting: the engine's bookkeeping exists only in scenes that cut (DESIGN.md: pay for what you use).
+    // Blade tools cut as well as touch (CutEngine::sweep); only they need the element broad phase.
+    std::vector<int> bladeTools;
+    double bladeMargin = 1e300;
+    for (size_t i = 0; i < sc.tools.size(); ++i)
+        if (sc.tools[i].kind == ToolDef::Kind::Blade) {
+            bladeTools.push_back(static_cast<int>(i));
+            bladeMargin = std::min(bladeMargin, sc.tools[i].size.z());
+        }
     std::unique_ptr<CutEngine> cutter;
-    if (!sc.cutting.cuts.empty()) {
+    std::unique_ptr<ElementBroadphase> broadphase;
+    std::vector<int> bladeCandidates;
+    int strokeTool = -1;      // blade whose stroke the engine holds, or -1
+    long bladeCutSteps = 0;   // steps in which a blade split elements
+    if (!sc.cutting.cuts.empty() || !bladeTools.empty()) {
         const auto tc = Clock::now();
         cutter = std::make_unique<CutEngine>(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
         cutter->prepare(model);
+        // boxes fattened by the blade thickness: a node moving less than that per step needs no tree update
+        if (!bladeTools.empty()) broadphase = std::make_unique<ElementBroadphase>(bladeMargin);
         stages.cut += since(tc);
     }
     size_t nextCut = 0;
@@ -426,7 +441,78 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         }
     };
 
-    // Applies the cuts due at the current time; false when the run must stop (step above the limit).
+    // After any topology change (a scripted cut or a blade sweep that split elements): local
+    // update of the estimators and the certified bound, the exact dt, the scene's on_limit policy,
+    // the contact and render surfaces, and a report entry under `key`. False when the run must stop.
+    auto afterCut = [&](const CutResult& r, const std::string& key) {
+        // Local update of the estimators and the certified bound around the cut; no global solve.
+        auto tc = Clock::now();
+        ta.update(model, r.changedElements, r.changedNodes);
+        const double updateSeconds = since(tc);
+        stages.timestep += updateSeconds;
+        dtCertifiedNow = ta.certifiedDt();
+        double exactSeconds = 0;
+        dtExactNow = std::numeric_limits<double>::quiet_NaN();
+        if (sc.cutting.exactAfterCut) {
+            tc = Clock::now();
+            dtExactNow = ta.exact(model).dt;
+            exactSeconds = since(tc);
+            stages.timestep += exactSeconds;
+        }
+        stepper.reset();
+        const double limitNow = std::isnan(dtExactNow) ? dtCertifiedNow : dtExactNow;
+        std::string action = "none";
+        if (explicitScheme && dt > limitNow) {
+            if (sc.dt.onLimit == "clamp") {
+                dt = 0.98 * limitNow;
+                action = "clamped";
+            } else if (sc.dt.onLimit == "damp") {
+                action = "damped";
+            } else {
+                action = "refused";
+            }
+        }
+        if (alphaElem.size() || action == "damped") {
+            alphaElem = elementAlpha(ta.estimates().r1r, dt);
+            so.alphaElem = &alphaElem;
+        }
+        so.dt = dt;
+        criticalElements = 0;
+        for (Eigen::Index e = 0; e < ta.estimates().r1r.size(); ++e)
+            criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
+        if (sink || tools.world) {
+            tc = Clock::now();
+            EmbeddedSurface cutSurface = cutter->surface(model);
+            // tools touch the new cut faces too
+            if (tools.world) tools.world->setSurface(contactPoints(cutSurface, model.tets, model.X, tools.spacing));
+            stages.contact += since(tc);
+            if (sink) sink->topologyChanged(model, std::move(cutSurface), ta.estimates().r1r, dt);
+        }
+        json dtAfter = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)},
+                        {"certified", dtCertifiedNow}, {"estimate", ta.minDt().r1r}};
+        cutsJson.push_back({{"time", state.time}, {"key", key}, {"cut_id", r.cut}, {"crossed", r.crossed}, {"split", r.split},
+                            {"pending", r.pending}, {"dropped", r.dropped}, {"new_nodes", r.newNodes.size()},
+                            {"new_elements", r.newElements.size()}, {"nodes", model.nodes()},
+                            {"elements", model.elements()},
+                            {"volume_change", r.volumeBefore > 0 ? (r.volumeAfter - r.volumeBefore) / r.volumeBefore : 0.0},
+                            {"mass_change", r.massBefore > 0 ? (r.massAfter - r.massBefore) / r.massBefore : 0.0},
+                            {"seconds", r.seconds}, {"update_seconds", updateSeconds},
+                            {"exact_seconds", exactSeconds}, {"dt_after", dtAfter},
+                            {"dt_ratio", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow / exact.dt)},
+                            {"dt_used", dt}, {"limit_action", action}, {"critical_elements", criticalElements},
+                            {"pieces", countPieces(model)}});
+        if (action == "refused") {
+            char msg[256];
+            std::snprintf(msg, sizeof msg, "stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
+                          " (integrator.dt.on_limit is \"refuse\")", dt, limitNow, state.time);
+            status = msg;
+            exitCode = 4;
+            return false;
+        }
+        return true;
+    };
+
+    // Applies the scripted cuts due at the current time; false when the run must stop.
     auto applyDueCuts = [&]() {
         while (nextCut < sc.cutting.cuts.size() && sc.cutting.cuts[nextCut].time <= state.time + 1e-12) {
             const CutDef& cd = sc.cutting.cuts[nextCut++];
@@ -440,77 +526,60 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                 for (const auto& p : cd.polygon) poly.emplace_back((p - cd.point).dot(u), (p - cd.point).dot(v));
                 surf.regions.push_back(std::move(poly));
             }
-            auto tc = Clock::now();
+            const auto tc = Clock::now();
             const CutResult r = cutter->cut(model, state, surf);
             stages.cut += since(tc);
-            // Local update of the estimators and the certified bound around the cut; no global solve.
-            tc = Clock::now();
-            ta.update(model, r.changedElements, r.changedNodes);
-            const double updateSeconds = since(tc);
-            stages.timestep += updateSeconds;
-            dtCertifiedNow = ta.certifiedDt();
-            double exactSeconds = 0;
-            dtExactNow = std::numeric_limits<double>::quiet_NaN();
-            if (sc.cutting.exactAfterCut) {
-                tc = Clock::now();
-                dtExactNow = ta.exact(model).dt;
-                exactSeconds = since(tc);
-                stages.timestep += exactSeconds;
-            }
-            stepper.reset();
-            const double limitNow = std::isnan(dtExactNow) ? dtCertifiedNow : dtExactNow;
-            std::string action = "none";
-            if (explicitScheme && dt > limitNow) {
-                if (sc.dt.onLimit == "clamp") {
-                    dt = 0.98 * limitNow;
-                    action = "clamped";
-                } else if (sc.dt.onLimit == "damp") {
-                    action = "damped";
-                } else {
-                    action = "refused";
-                }
-            }
-            if (alphaElem.size() || action == "damped") {
-                alphaElem = elementAlpha(ta.estimates().r1r, dt);
-                so.alphaElem = &alphaElem;
-            }
-            so.dt = dt;
-            criticalElements = 0;
-            for (Eigen::Index e = 0; e < ta.estimates().r1r.size(); ++e)
-                criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
-            if (sink || tools.world) {
-                EmbeddedSurface cutSurface = cutter->surface(model);
-                // tools touch the new cut faces too
-                if (tools.world) tools.world->setSurface(contactPoints(cutSurface, model.tets, model.X, tools.spacing));
-                if (sink) sink->topologyChanged(model, std::move(cutSurface), ta.estimates().r1r, dt);
-            }
-            json dtAfter = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)},
-                            {"certified", dtCertifiedNow}, {"estimate", ta.minDt().r1r}};
-            cutsJson.push_back({{"time", state.time}, {"key", cd.path}, {"crossed", r.crossed}, {"split", r.split},
-                                {"pending", r.pending}, {"dropped", r.dropped}, {"new_nodes", r.newNodes.size()},
-                                {"new_elements", r.newElements.size()}, {"nodes", model.nodes()},
-                                {"elements", model.elements()},
-                                {"volume_change", r.volumeBefore > 0 ? (r.volumeAfter - r.volumeBefore) / r.volumeBefore : 0.0},
-                                {"mass_change", r.massBefore > 0 ? (r.massAfter - r.massBefore) / r.massBefore : 0.0},
-                                {"seconds", r.seconds}, {"update_seconds", updateSeconds},
-                                {"exact_seconds", exactSeconds}, {"dt_after", dtAfter},
-                                {"dt_ratio", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow / exact.dt)},
-                                {"dt_used", dt}, {"limit_action", action}, {"critical_elements", criticalElements},
-                                {"pieces", countPieces(model)}});
-            if (action == "refused") {
-                char msg[256];
-                std::snprintf(msg, sizeof msg, "stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
-                              " (integrator.dt.on_limit is \"refuse\")", dt, limitNow, state.time);
-                status = msg;
-                exitCode = 4;
-                return false;
-            }
+            if (!afterCut(r, cd.path)) return false;
         }
+        return true;
+    };
+
+    // Blade sweeps of the step [t, t + dt]: the cutting edge moves from its pose at t to its pose at
+    // t + dt, and CutEngine::sweep splits the elements whose cross-section the swept area has
+    // covered. Both the edge (toolPose is in world space) and the coverage test (State::x) are in
+    // the current deformed configuration, so the broad phase is refitted on state.x, not model.X.
+    // The engine keeps one stroke at a time: a stroke ends when its blade leaves the tissue (no
+    // candidate element, nothing pending) or another blade starts cutting.
+    auto applyBlades = [&]() {
+        if (!broadphase) return true;
+        auto tc = Clock::now();
+        broadphase->refit(model.tets, state.x);
+        for (int i : bladeTools) {
+            const ToolDef& tool = sc.tools[static_cast<size_t>(i)];
+            const double t0 = state.time, t1 = state.time + dt;
+            Eigen::Vector3d lo, hi;
+            sweptAabb(tool, t0, t1, lo, hi);
+            broadphase->query(lo, hi, bladeCandidates);
+            if (bladeCandidates.empty()) {
+                if (strokeTool == i) {
+                    cutter->endStroke();
+                    strokeTool = -1;
+                }
+                continue;
+            }
+            if (strokeTool != i) {
+                if (strokeTool >= 0) cutter->endStroke();
+                strokeTool = i;
+            }
+            BladeEdge from, to;
+            bladeEdge(tool, t0, from.a, from.b);
+            bladeEdge(tool, t1, to.a, to.b);
+            const CutResult r = cutter->sweep(model, state, from, to, &bladeCandidates);
+            stages.cut += since(tc);
+            if (r.changed()) {
+                ++bladeCutSteps;
+                if (!afterCut(r, "tools[" + std::to_string(i) + "]")) return false;
+            }
+            tc = Clock::now();
+            if (r.changed()) broadphase->refit(model.tets, state.x);  // the new elements, for the next blade
+        }
+        stages.cut += since(tc);
         return true;
     };
 
     while (state.time < sc.duration - 1e-9 * dt) {
         if (cutter && !applyDueCuts()) break;
+        if (!applyBlades()) break;
         if (state.time >= nextFrame - 1e-12) {
             recordFrame();
             nextFrame += frameDt;
@@ -582,6 +651,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                       {"nodes_final", model.nodes()}, {"elements_final", model.elements()}};
     if (!sim.embedding.is_null()) report["embedding"] = sim.embedding;
     report["cuts"] = cutsJson;
+    if (broadphase)
+        report["blade"] = {{"tools", bladeTools}, {"cut_steps", bladeCutSteps}, {"pending", cutter->pendingElements()},
+                           {"cut_seconds_per_step", state.steps > 0 ? stages.cut / state.steps : 0.0}};
     report["dt_final"] = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)}, {"certified", dtCertifiedNow}};
     if (!sc.cutting.compare.empty() && exitCode == 0) report["compare"] = compareCutMethods(sc, rest);
     report["pieces"] = countPieces(model);

@@ -208,7 +208,25 @@ CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const Blad
     }
     q = convexHull(q);
     if (q.size() < 3) return {};
-    stroke_.surface.regions.push_back(std::move(q));
+    // A translation that continues the previous one (same edge, same direction, starting where
+    // it ended) extends the previous parallelogram: their union is the hull of both, exactly. One
+    // region per straight stretch keeps the coverage test from growing with the step count.
+    const double tol = 1e-9 * std::max({edge.norm(), motion.norm(), stroke_.lastMotion.norm()});
+    const bool translation = ((to.b - to.a) - edge).norm() <= tol;
+    const bool continues = translation && stroke_.lastTranslation && !stroke_.surface.regions.empty() &&
+                           (from.a - stroke_.last.a).norm() <= tol && (from.b - stroke_.last.b).norm() <= tol &&
+                           motion.dot(stroke_.lastMotion) > 0 &&
+                           motion.cross(stroke_.lastMotion).norm() <= 1e-9 * motion.norm() * stroke_.lastMotion.norm();
+    if (continues) {
+        auto& prev = stroke_.surface.regions.back();
+        prev.insert(prev.end(), q.begin(), q.end());
+        prev = convexHull(prev);
+    } else {
+        stroke_.surface.regions.push_back(std::move(q));
+    }
+    stroke_.last = to;
+    stroke_.lastMotion = motion;
+    stroke_.lastTranslation = translation;
 
     // Elements to test: the candidates and the elements still pending from earlier sweeps.
     std::vector<int> cand;

@@ -110,6 +110,8 @@ public:
 
     int cuts() const { return nextCut_; }
     int pendingElements() const { return static_cast<int>(stroke_.pending.size()); }
+    // Convex polygons of the open stroke's swept area (straight stretches are merged into one).
+    int strokeRegions() const { return static_cast<int>(stroke_.surface.regions.size()); }
     int parentOf(int e) const { return prepared_ ? parent_[static_cast<size_t>(e)] : e; }
     int originalNode(int n) const { return prepared_ ? origNode_[static_cast<size_t>(n)] : n; }
     const CutOptions& options() const { return opts_; }
@@ -127,6 +129,9 @@ private:
         CutSurface surface;
         std::vector<int> pending;    // elements entered, not yet crossed
         std::unordered_map<int, double> nodeS; // signed distance of each node met so far [m]
+        BladeEdge last;              // edge at the end of the previous sweep [m]
+        Eigen::Vector3d lastMotion = Eigen::Vector3d::Zero(); // midpoint motion of the previous sweep [m]
+        bool lastTranslation = false; // the previous sweep moved the edge without turning it
     };
 
     CutResult apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,

@@ -386,5 +386,61 @@ TEST(Run, RefusesACutWithAZeroNormal) {
     expectRefused(writeScene(workDir(), "zero.json", j), "", "cutting.cuts[1].normal", &err);
 }
 
+TEST(Run, BladeSeparatesTheLiverIntoTwoPieces) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    // the stroke is through the sagging liver by t = 0.37 s; the rest of the scene only lets the piece fall
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/blade.json") + " --out " + out +
+                                  " --no-render --quiet --set duration=0.4",
+                              nullptr, &err),
+              0)
+        << err;
+    const json r = readReport(out);
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_EQ(r["pieces"].get<int>(), 2);
+    const json& cuts = r["cuts"];
+    ASSERT_FALSE(cuts.empty());
+    const double exact0 = r["dt_initial"]["exact"].get<double>();
+    double prevTime = -1;
+    int prevNodes = r["mesh"]["nodes"].get<int>();
+    for (const json& c : cuts) {
+        EXPECT_EQ(c["key"].get<std::string>(), "tools[0]");
+        EXPECT_GT(c["time"].get<double>(), prevTime);  // one entry per step that split elements
+        prevTime = c["time"].get<double>();
+        EXPECT_GT(c["crossed"].get<int>(), 0);
+        EXPECT_EQ(c["nodes"].get<int>(), prevNodes + c["new_nodes"].get<int>());
+        prevNodes = c["nodes"].get<int>();
+        EXPECT_LT(std::abs(c["volume_change"].get<double>()), 1e-9);
+        EXPECT_LT(std::abs(c["mass_change"].get<double>()), 1e-9);
+        EXPECT_GT(c["dt_ratio"].get<double>(), 0.5);
+        EXPECT_NEAR(c["dt_ratio"].get<double>(), c["dt_after"]["exact"].get<double>() / exact0, 1e-12);
+        EXPECT_LT(c["dt_used"].get<double>(), c["dt_after"]["exact"].get<double>());
+    }
+    // the edge enters above the liver: the first steps cut one piece, the last one splits it
+    EXPECT_EQ(cuts.front()["pieces"].get<int>(), 1);
+    EXPECT_EQ(cuts.back()["pieces"].get<int>(), 2);
+    // all of one stroke: one cut id
+    for (const json& c : cuts) EXPECT_EQ(c["cut_id"].get<int>(), cuts.front()["cut_id"].get<int>());
+    EXPECT_EQ(r["blade"]["cut_steps"].get<size_t>(), cuts.size());
+    EXPECT_GT(r["stages"]["cut"].get<double>(), 0.0);
+    EXPECT_NEAR(r["mass"]["final"].get<double>(), r["mass"]["initial"].get<double>(),
+                1e-9 * r["mass"]["initial"].get<double>());
+}
+
+TEST(Run, ProbeToolBuildsNoCutter) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/probe.json") + " --out " + out +
+                                  " --no-render --quiet --set duration=0.02",
+                              nullptr, &err),
+              0)
+        << err;
+    const json r = readReport(out);
+    EXPECT_TRUE(r["cuts"].empty());
+    EXPECT_EQ(r["stages"]["cut"].get<double>(), 0.0);
+    EXPECT_FALSE(r.contains("blade"));
+    EXPECT_EQ(r["pieces"].get<int>(), 1);
+}
+
 } // namespace
 } // namespace cutsim

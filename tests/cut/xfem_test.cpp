@@ -207,6 +207,30 @@ TEST(Xfem, BladeSweepSeparatesOnlyWhenThrough) {
     EXPECT_NEAR(pieces[0], 0.43, 1e-12);
     EXPECT_EQ(eng.pendingElements(), 0);
     EXPECT_EQ(eng.cuts(), 1);  // one stroke, one cut id
+    EXPECT_EQ(eng.strokeRegions(), 1);  // a straight translation is one parallelogram
+}
+
+TEST(Xfem, BladeSweepMergesOnlyStraightStretches) {
+    // An edge along z in the plane x = 0.43: down along -y, then diagonally along (-y, +z), then
+    // back up the diagonal. The union of the first two is not convex, so each stretch is its own
+    // region however many steps it takes; a reversal and a turning edge are never merged.
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutEngine eng;
+    auto edgeAt = [](double y, double dz) { return BladeEdge{{0.43, y, -0.2 + dz}, {0.43, y, 1.2 + dz}}; };
+    const int n = 10;
+    for (int k = 0; k < n; ++k) eng.sweep(m, s, edgeAt(1.2 - 0.05 * k, 0), edgeAt(1.2 - 0.05 * (k + 1), 0));
+    EXPECT_EQ(eng.strokeRegions(), 1);
+    for (int k = 0; k < n; ++k)
+        eng.sweep(m, s, edgeAt(0.7 - 0.05 * k, 0.03 * k), edgeAt(0.7 - 0.05 * (k + 1), 0.03 * (k + 1)));
+    EXPECT_EQ(eng.strokeRegions(), 2);
+    for (int k = n; k > 0; --k)
+        eng.sweep(m, s, edgeAt(0.7 - 0.05 * k, 0.03 * k), edgeAt(0.7 - 0.05 * (k - 1), 0.03 * (k - 1)));
+    EXPECT_EQ(eng.strokeRegions(), 3);
+    const BladeEdge e = edgeAt(0.7, 0);
+    eng.sweep(m, s, e, BladeEdge{{0.43, 0.6, -0.2}, e.b});
+    EXPECT_EQ(eng.strokeRegions(), 4);
+    EXPECT_EQ(eng.cuts(), 1);
 }
 
 TEST(Xfem, EnrichmentLumpingKeepsTimeStepOnSlivers) {
