@@ -336,6 +336,8 @@ TEST(Run, LiverCutsReportEachCut) {
         const json& c = cuts[i];
         EXPECT_EQ(c["key"].get<std::string>(), "cutting.cuts[" + std::to_string(i) + "]");
         EXPECT_GT(c["crossed"].get<int>(), 0);
+        EXPECT_EQ(c["elements_cut"].get<int>(), c["split"].get<int>());
+        EXPECT_NEAR(c["latency"].get<double>(), c["seconds"].get<double>() + c["update_seconds"].get<double>(), 1e-12);
         EXPECT_GT(c["new_nodes"].get<int>(), 0);
         EXPECT_EQ(c["nodes"].get<int>(), prevNodes + c["new_nodes"].get<int>());
         prevNodes = c["nodes"].get<int>();
