@@ -70,6 +70,9 @@ void addAccuracyConfig(const std::string& name, AccuracyConfig fn);
 // Adds a subcommand under `cutsim bench`; setup receives the bench command and adds to it.
 void addBenchSubcommand(std::function<void(CLI::App& bench)> setup);
 
+// `bench mi-bar` (cmd_bench_mibar.cpp): Table 6.1, MI against subdivision and remeshing.
+void addMiBarBench();
+
 // Registers the `bench` command with its built-in and registered subcommands.
 void addBenchCommand(CLI::App& app);
 

@@ -826,7 +826,9 @@ int runCost(const CostArgs& a) {
 
 // Extensions of `bench`: one line per configuration or subcommand from elsewhere, e.g.
 //   addAccuracyConfig("mi-bar", miBarPoints);
-void registerBenchExtensions() {}
+void registerBenchExtensions() {
+    addMiBarBench();  // cmd_bench_mibar.cpp: Table 6.1
+}
 
 template <class F>
 int guarded(F&& f) {
