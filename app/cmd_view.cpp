@@ -95,6 +95,7 @@ int runView(const ViewArgs& a) {
     SceneDef sc = loadScene(a.scene, a.sets);
     setThreads(a.threads);
     Simulation sim = prepareScene(sc);
+    const double exact0 = sim.exact.dt;
     const int width = a.width > 0 ? a.width : sc.capture.width, height = a.height > 0 ? a.height : sc.capture.height;
     const bool headless = a.frames > 0;
     render::Window win("cutsim view: " + sc.name, width, height, !headless);
@@ -129,7 +130,49 @@ int runView(const ViewArgs& a) {
                                                  [&](const char* c) { return scene.colormap() == c; }) -
                                     std::begin(kColormaps));
 
+    // Scripted cuts (cutting.cuts): applied at their times, or the next one at once with x.
+    std::unique_ptr<CutEngine> cutter;
+    size_t nextCut = 0;
+    int cutsDone = 0;
+    auto makeCutter = [&] {
+        cutter.reset();
+        nextCut = 0;
+        cutsDone = 0;
+        if (sc.cutting.cuts.empty()) return;
+        cutter = std::make_unique<CutEngine>(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
+        cutter->prepare(sim.model);
+    };
+    makeCutter();
+    auto stepChanged = [&] {
+        so = StepOptions{sc.integrator, sim.dt};
+        so.alphaElem = sim.alphaElem.size() ? &sim.alphaElem : nullptr;
+        stepper.reset();
+    };
+    auto cutNext = [&] {
+        if (!cutter || nextCut >= sc.cutting.cuts.size()) return;
+        const CutDef& cd = sc.cutting.cuts[nextCut++];
+        try {
+            const CutResult r = cutScene(sc, sim, state, *cutter, cutSurfaceOf(cd));
+            char msg[160];
+            std::snprintf(msg, sizeof msg, "%s: %d elements split, dt exact %.3e s (%.3f of uncut)", cd.path.c_str(),
+                          r.split, sim.exact.dt, sim.exact.dt / exact0);
+            message = msg;
+        } catch (const InputError& e) {
+            message = e.what();
+            status = "stopped: the step is above the limit after the cut (r resets)";
+        }
+        ++cutsDone;
+        stepChanged();
+        scene.topologyChanged(sim.model, cutter->surface(sim.model), sim.ta.estimates().r1r, sim.dt);
+    };
     auto reset = [&] {
+        if (cutsDone > 0) {  // the cuts changed the model: build it again
+            sim = prepareScene(sc);
+            stepChanged();
+            scene.topologyChanged(sim.model, sim.surface ? *sim.surface : boundarySurface(sim.model.tets, sim.model.X),
+                                  sim.ta.estimates().r1r, sim.dt);
+            makeCutter();
+        }
         state = makeState(sim.model);
         stepper.reset();
         status = "running";
@@ -170,6 +213,7 @@ int runView(const ViewArgs& a) {
             case GLFW_KEY_C: renderer.options().xray = !renderer.options().xray; break;
             case GLFW_KEY_W: scene.setWireframe(!scene.wireframe()); break;
             case GLFW_KEY_P: shot = true; break;
+            case GLFW_KEY_X: cutNext(); break;
             case GLFW_KEY_Q:
             case GLFW_KEY_ESCAPE: win.close(); break;
             default: break;
@@ -191,6 +235,10 @@ int runView(const ViewArgs& a) {
         if (status == "running" && (!paused || stepOnce)) {
             const double target = stepOnce ? state.time : state.time + (headless ? frameDt : wallFrame);
             do {
+                if (cutter && nextCut < sc.cutting.cuts.size() && sc.cutting.cuts[nextCut].time <= state.time + 1e-12) {
+                    cutNext();
+                    if (status != "running") break;
+                }
                 stepScene(sc, sim, state, stepper, so);
                 ++steps;
                 if (state.flags.nonFinite > 0) {
@@ -229,6 +277,11 @@ int runView(const ViewArgs& a) {
         ImGui::Text("steps/s    %.0f", early ? rateSteps / rateWall : stepsPerSecond);
         ImGui::Text("real time  %.3f x", early ? rateSim / rateWall : realTime);
         ImGui::Text("critical   %d elements", sim.criticalElements);
+        if (!sc.cutting.cuts.empty()) {
+            ImGui::Text("cuts       %d of %d", cutsDone, static_cast<int>(sc.cutting.cuts.size()));
+            ImGui::SameLine();
+            if (ImGui::Button("cut next (x)")) cutNext();
+        }
         ImGui::Separator();
         const char* integNames[] = {integratorName(kIntegrators[0]), integratorName(kIntegrators[1]),
                                     integratorName(kIntegrators[2]), integratorName(kIntegrators[3])};
@@ -243,6 +296,7 @@ int runView(const ViewArgs& a) {
         if (ImGui::CollapsingHeader("keys and mouse")) {
             ImGui::TextUnformatted("space pause/resume   s single step   r reset\n"
                                    "c critical elements  w wireframe     p screenshot\n"
+                                   "x next scripted cut\n"
                                    "q, Esc quit\n"
                                    "drag rotate   scroll zoom   right-drag pan");
         }
@@ -256,6 +310,7 @@ int runView(const ViewArgs& a) {
         fi.dtCertified = sim.certified;
         fi.dtExact = sim.exact.dt;
         fi.criticalElements = sim.criticalElements;
+        fi.cuts = cutsDone;
         fi.wall = since(start);
         RenderSnapshot& snap = scene.update(sim.model, state, fi);
         snap.camera = orbit.camera();
@@ -283,7 +338,7 @@ void addViewCommand(CLI::App& app) {
     auto args = std::make_shared<ViewArgs>();
     CLI::App* cmd = app.add_subcommand(
         "view", "Run a scene live in a window: drag rotates, scroll zooms, right-drag pans; keys: space pause/resume, "
-                "s single step, r reset, c critical elements, w wireframe, p screenshot, q or Esc quit. "
+                "s single step, r reset, c critical elements, w wireframe, p screenshot, x next scripted cut, q or Esc quit. "
                 "Exit codes: 2 bad scene, 3 diverged (--frames), 4 no display");
     cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
     cmd->add_option("--set", args->sets, "Override a scene value: key.path=value (JSON value)");

@@ -186,6 +186,31 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
 
 } // namespace
 
+CutSurface cutSurfaceOf(const CutDef& cd) {
+    CutSurface surf;
+    surf.point = cd.point;
+    surf.normal = cd.normal;
+    if (!cd.polygon.empty()) {
+        Eigen::Vector3d u, v;
+        planeAxes(cd.normal, u, v);
+        std::vector<Eigen::Vector2d> poly;
+        for (const auto& p : cd.polygon) poly.emplace_back((p - cd.point).dot(u), (p - cd.point).dot(v));
+        surf.regions.push_back(std::move(poly));
+    }
+    return surf;
+}
+
+CutResult cutScene(const SceneDef& sc, Simulation& sim, State& state, CutEngine& eng, const CutSurface& surf) {
+    const CutResult r = eng.cut(sim.model, state, surf);
+    if (!r.changed()) return r;
+    sim.ta.update(sim.model, r.changedElements, r.changedNodes);
+    sim.certified = sim.ta.certifiedDt();
+    sim.estimate = sim.ta.minDt().r1r;
+    sim.exact = sim.ta.exact(sim.model);
+    chooseStep(sc, sim);
+    return r;
+}
+
 Simulation prepareScene(const SceneDef& sc) {
     // Object: read, place, build. Everything that can fail on bad input fails before any output.
     ReadOptions ro;
@@ -516,16 +541,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     auto applyDueCuts = [&]() {
         while (nextCut < sc.cutting.cuts.size() && sc.cutting.cuts[nextCut].time <= state.time + 1e-12) {
             const CutDef& cd = sc.cutting.cuts[nextCut++];
-            CutSurface surf;
-            surf.point = cd.point;
-            surf.normal = cd.normal;
-            if (!cd.polygon.empty()) {
-                Eigen::Vector3d u, v;
-                planeAxes(cd.normal, u, v);
-                std::vector<Eigen::Vector2d> poly;
-                for (const auto& p : cd.polygon) poly.emplace_back((p - cd.point).dot(u), (p - cd.point).dot(v));
-                surf.regions.push_back(std::move(poly));
-            }
+            const CutSurface surf = cutSurfaceOf(cd);
             const auto tc = Clock::now();
             const CutResult r = cutter->cut(model, state, surf);
             stages.cut += since(tc);

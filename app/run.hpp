@@ -2,6 +2,7 @@
 #pragma once
 
 #include "scene.hpp"
+#include "cut/xfem.hpp"
 #include "mesh/embedding.hpp"
 #include "timestep/analyzer.hpp"
 
@@ -49,6 +50,13 @@ void chooseStep(const SceneDef& sc, Simulation& sim);
 void applyLoads(const SceneDef& sc, const Simulation& sim, State& state);
 // One step: the scene's loads into state.fExt, then forces, integrate, checks (fem/integrate.hpp).
 void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper& stepper, const StepOptions& so);
+
+// The world-space surface of a scripted cut (cutting.cuts[i]).
+CutSurface cutSurfaceOf(const CutDef& cd);
+// A cut of sim.model by eng (XFEM, cut/xfem.hpp), then the limits updated locally plus the exact
+// one, and the step chosen again by the scene's policy (chooseStep: a fraction of the new limit).
+// Throws InputError when the policy refuses; sim's step is then unchanged and above the limit.
+CutResult cutScene(const SceneDef& sc, Simulation& sim, State& state, CutEngine& eng, const CutSurface& surf);
 
 // Runs a scene; returns the process exit code (0 ok, 3 numerical failure). Throws InputError for
 // bad input before anything is written.

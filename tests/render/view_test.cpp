@@ -54,6 +54,32 @@ TEST(View, HeadlessFramesWriteAScreenshotOfTheScene) {
     for (int c = 0; c < 3; ++c) EXPECT_LE(std::abs(int(corner[c]) - int(bg[c])), 45);
 }
 
+// Scripted cuts happen in the live view too: after the liver's four cuts (t = 0.2 to 0.8 s) the
+// cut faces show in their own colour (red; the time-step colour map has no red), before them none.
+TEST(View, ScriptedCutsShowTheirFaces) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    auto redPixels = [&](int frames) {
+        const std::string png = dir + "/cut_" + std::to_string(frames) + ".png";
+        std::string err;
+        const int code = shell("xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(CUTSIM_BINARY) + " view " +
+                                   test::source("assets/scenes/liver_cuts.json") + " --frames " + std::to_string(frames) +
+                                   " --width 960 --height 540 --screenshot " + png,
+                               dir, &err);
+        EXPECT_EQ(code, 0) << err;
+        const render::Image img = render::readPng(png);
+        int red = 0;
+        for (int y = 0; y < img.height; ++y)
+            for (int x = 0; x < img.width; ++x) {
+                const auto p = img.pixel(x, y);
+                red += p[0] > 80 && p[0] > 1.6 * p[1] && p[0] > 1.4 * p[2];
+            }
+        return red;
+    };
+    EXPECT_EQ(redPixels(3), 0);      // t = 0.1 s: no cut yet
+    EXPECT_GT(redPixels(26), 300);   // t = 0.87 s: four cuts made
+}
+
 TEST(View, WithoutADisplayExitsWithAClearMessage) {
     const std::string dir = test::tempDir();
     std::string err;
