@@ -456,7 +456,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     std::vector<Copy> copies;
     std::vector<std::pair<int, std::uint8_t>> fixedOf;  // node -> fixed, applied once the arrays have grown
     std::vector<int> changedNodes;
-    std::vector<int> repointed;  // elements given another node id
+    std::vector<int> repointed;  // elements with a corner moved to another node
     std::vector<Slot> slots;
     std::vector<FaceSide> sides;
     // Scratch reused across the nodes (this runs at every blade step).
@@ -575,6 +575,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
                     // The element may belong to an uncut parent next to the cut: its nodes
                     // changed, so it is a changed element too (stiffness rows of its other nodes).
                     changedNodes.push_back(cur);
+                    changedNodes.push_back(id);
                     repointed.push_back(slots[i].elem);
                     cur = id;
                 }
@@ -602,19 +603,19 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
 
     for (const auto& [id, fx] : fixedOf) m.fixed[static_cast<size_t>(id)] = fx;
 
-    // Masses and incidence of the changed elements.
+    // Masses and incidence of the changed elements. An element of an uncut parent can be re-pointed
+    // too (its corner's copies were regrouped): its stiffness now couples other nodes, so every row
+    // it touches is stale, not only the rows of the nodes it left and joined.
     for (int p : parents)
         for (int e : virtualsOf(p)) {
             setMassShare(m, e);
             r.changedElements.push_back(e);
-            for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
         }
-    for (int e : repointed) {
-        r.changedElements.push_back(e);
-        for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
-    }
+    r.changedElements.insert(r.changedElements.end(), repointed.begin(), repointed.end());
     std::sort(r.changedElements.begin(), r.changedElements.end());
     r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
+    for (int e : r.changedElements)
+        for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
     updateMasses(m);
     buildIncidence(m);
     std::sort(changedNodes.begin(), changedNodes.end());
