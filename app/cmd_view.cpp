@@ -23,6 +23,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cfloat>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -39,6 +40,7 @@ struct ViewArgs {
     int frames = 0;             // > 0: draw this many frames, save the screenshot, exit
     std::string screenshot;     // where p (and the end of --frames) writes
     int threads = 0;
+    std::vector<double> toolAt; // x y z: the first tool held there from the start, as a mouse drag leaves it [m]
 };
 
 #ifdef CUTSIM_HAVE_RENDER
@@ -71,6 +73,15 @@ struct Orbit {
         dir = d.normalized();
     }
     void zoom(double clicks) { distance *= std::pow(0.88, clicks); }
+    // p moved with the mouse by (dx, dy) pixels in the plane facing the camera at p's depth, so it
+    // stays under the cursor.
+    Eigen::Vector3d dragged(const Eigen::Vector3d& p, double dx, double dy, int heightPx) const {
+        const Eigen::Vector3d right = up.cross(dir).normalized(), screenUp = dir.cross(right);
+        const Eigen::Vector3d eye = target + distance * dir;
+        const double depth = std::max(1e-6, (eye - p).dot(dir));
+        const double perPx = 2 * depth * std::tan(0.5 * fovY * M_PI / 180.0) / std::max(1, heightPx);
+        return p + perPx * (dx * right - dy * screenUp);
+    }
     void pan(double dx, double dy, int heightPx) {
         const Eigen::Vector3d right = up.cross(dir).normalized(), screenUp = dir.cross(right);
         const double perPx = 2 * distance * std::tan(0.5 * fovY * M_PI / 180.0) / std::max(1, heightPx);
@@ -143,6 +154,25 @@ int runView(const ViewArgs& a) {
         cutter->prepare(sim.model);
     };
     makeCutter();
+    // Tools: Bullet contact as in `cutsim run`; shift-drag moves the first tool in the view plane,
+    // shift-scroll along the view direction. A dragged tool holds its pose (its keyframes are dropped).
+    ContactSetup contact = makeContact(sc, sim);
+    Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();
+    double maxToolForce = 0;
+    std::vector<float> forceHistory;
+    auto holdTool = [&](const Eigen::Vector3d& position) {
+        if (!contact.world || contact.world->tools().empty()) return;
+        ToolDef& t = contact.world->tools().front();
+        ToolKey k;
+        k.pose = toolPose(t, state.time);
+        k.opening = toolOpening(t, state.time);
+        k.pose.position = position;
+        t.keys.assign(1, k);
+    };
+    if (a.toolAt.size() == 3) {
+        if (!contact.world) throw InputError(sc.file + ": --tool-at: the scene has no tools");
+        holdTool(Eigen::Vector3d(a.toolAt[0], a.toolAt[1], a.toolAt[2]));
+    }
     auto stepChanged = [&] {
         so = StepOptions{sc.integrator, sim.dt};
         so.alphaElem = sim.alphaElem.size() ? &sim.alphaElem : nullptr;
@@ -163,7 +193,10 @@ int runView(const ViewArgs& a) {
         }
         ++cutsDone;
         stepChanged();
-        scene.topologyChanged(sim.model, cutter->surface(sim.model), sim.ta.estimates().r1r, sim.dt);
+        EmbeddedSurface cutSurface = cutter->surface(sim.model);
+        if (contact.world)
+            contact.world->setSurface(contactPoints(cutSurface, sim.model.tets, sim.model.X, contact.spacing));
+        scene.topologyChanged(sim.model, std::move(cutSurface), sim.ta.estimates().r1r, sim.dt);
     };
     auto reset = [&] {
         if (cutsDone > 0) {  // the cuts changed the model: build it again
@@ -173,6 +206,7 @@ int runView(const ViewArgs& a) {
                                   sim.ta.estimates().r1r, sim.dt);
             makeCutter();
         }
+        contact = makeContact(sc, sim);  // tools back on their keyframes
         state = makeState(sim.model);
         stepper.reset();
         status = "running";
@@ -219,7 +253,13 @@ int runView(const ViewArgs& a) {
             default: break;
             }
         }
-        if (!io.WantCaptureMouse) {
+        const bool toolDrag = io.KeyShift && contact.world && !contact.world->tools().empty();
+        if (!io.WantCaptureMouse && toolDrag) {
+            const Eigen::Vector3d p = toolPose(contact.world->tools().front(), state.time).position;
+            if (ImGui::IsMouseDown(ImGuiMouseButton_Left) && (io.MouseDelta.x != 0 || io.MouseDelta.y != 0))
+                holdTool(orbit.dragged(p, io.MouseDelta.x, io.MouseDelta.y, renderer.height()));
+            if (io.MouseWheel != 0) holdTool(p - 0.05 * orbit.distance * io.MouseWheel * orbit.dir);
+        } else if (!io.WantCaptureMouse) {
             if (ImGui::IsMouseDown(ImGuiMouseButton_Left)) orbit.rotate(io.MouseDelta.x, io.MouseDelta.y);
             if (ImGui::IsMouseDown(ImGuiMouseButton_Right)) orbit.pan(io.MouseDelta.x, io.MouseDelta.y, renderer.height());
             if (io.MouseWheel != 0) orbit.zoom(io.MouseWheel);
@@ -239,7 +279,14 @@ int runView(const ViewArgs& a) {
                     cutNext();
                     if (status != "running") break;
                 }
-                stepScene(sc, sim, state, stepper, so);
+                applyLoads(sc, sim, state);
+                if (contact.world) {
+                    contact.world->addForces(state.x, state.v, state.time, sim.dt, state.fExt);
+                    toolForce.setZero();
+                    for (const auto& f : contact.world->last().reaction) toolForce += f;
+                    maxToolForce = std::max(maxToolForce, toolForce.norm());
+                }
+                stepper.step(sim.model, state, so);
                 ++steps;
                 if (state.flags.nonFinite > 0) {
                     status = "diverged at t = " + std::to_string(state.time) + " s (r resets)";
@@ -277,6 +324,13 @@ int runView(const ViewArgs& a) {
         ImGui::Text("steps/s    %.0f", early ? rateSteps / rateWall : stepsPerSecond);
         ImGui::Text("real time  %.3f x", early ? rateSim / rateWall : realTime);
         ImGui::Text("critical   %d elements", sim.criticalElements);
+        if (contact.world) {
+            forceHistory.push_back(static_cast<float>(toolForce.norm()));
+            if (forceHistory.size() > 200) forceHistory.erase(forceHistory.begin());
+            ImGui::Text("tool F     %.3f N (max %.3f N)", toolForce.norm(), maxToolForce);
+            ImGui::PlotLines("##force", forceHistory.data(), static_cast<int>(forceHistory.size()), 0, nullptr, 0.0f,
+                             FLT_MAX, ImVec2(0, 40));
+        }
         if (!sc.cutting.cuts.empty()) {
             ImGui::Text("cuts       %d of %d", cutsDone, static_cast<int>(sc.cutting.cuts.size()));
             ImGui::SameLine();
@@ -298,7 +352,8 @@ int runView(const ViewArgs& a) {
                                    "c critical elements  w wireframe     p screenshot\n"
                                    "x next scripted cut\n"
                                    "q, Esc quit\n"
-                                   "drag rotate   scroll zoom   right-drag pan");
+                                   "drag rotate   scroll zoom   right-drag pan\n"
+                                   "shift-drag move tool   shift-scroll tool depth");
         }
         ImGui::End();
 
@@ -314,6 +369,9 @@ int runView(const ViewArgs& a) {
         fi.wall = since(start);
         RenderSnapshot& snap = scene.update(sim.model, state, fi);
         snap.camera = orbit.camera();
+        snap.tools.clear();
+        if (contact.world)
+            for (const auto& t : contact.world->tools()) appendToolShapes(t, state.time, snap.tools);
         renderer.draw(snap);
         renderer.present(0);
         win.endFrame();
@@ -327,6 +385,11 @@ int runView(const ViewArgs& a) {
         }
         win.swap();
         if (lastFrame) break;
+    }
+    if (headless) {
+        std::printf("view: t = %.4f s, %ld steps, %d cuts", state.time, state.steps, cutsDone);
+        if (contact.world) std::printf(", tool force %.4g N (max %.4g N)", toolForce.norm(), maxToolForce);
+        std::printf("\n");
     }
     return exitCode;
 }
@@ -351,6 +414,8 @@ void addViewCommand(CLI::App& app) {
         ->check(CLI::Range(1, 1000000));
     cmd->add_option("--screenshot", args->screenshot, "PNG that p (and the end of --frames) writes (default view_NNN.png)");
     cmd->add_option("--threads", args->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
+    cmd->add_option("--tool-at", args->toolAt, "x y z: hold the scene's first tool there from the start, as shift-drag leaves it [m]")
+        ->expected(3);
     cmd->callback([args] {
 #ifdef CUTSIM_HAVE_RENDER
         try {

@@ -332,6 +332,50 @@ void stepScene(const SceneDef& sc, const Simulation& sim, State& state, Stepper&
     stepper.step(sim.model, state, so);
 }
 
+ContactSetup makeContact(const SceneDef& sc, const Simulation& sim) {
+    ContactSetup c;
+    if (sc.tools.empty()) return c;
+    const Model& model = sim.model;
+    const double dt = sim.dt;
+    const bool explicitScheme = sc.integrator != Integrator::BackwardEuler;
+    c.world = std::make_unique<ContactWorld>(sc.tools);
+    double spacing = sc.contactSpacing;
+    if (spacing <= 0) {
+        // half the smallest tool feature, so a tool cannot slip between points
+        spacing = 1e300;
+        for (const auto& t : sc.tools)
+            for (const auto& p : toolParts(t, 0))
+                spacing = std::min(spacing, 0.5 * (p.hull || p.shape == ToolShape::Kind::Box
+                                                      ? std::max({p.size.x(), p.size.y(), p.size.z()}) : p.size.x()));
+    }
+    c.spacing = spacing;
+    // an embedded (MI) object is touched on its own fine surface, through the embedding weights
+    c.world->setSurface(contactPoints(sim.surface ? *sim.surface : boundarySurface(model.tets, model.X), model.tets,
+                                      model.X, spacing));
+    // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
+    c.stiffnessLimit = explicitScheme ? stableStiffness(c.world->points(), model.invMass, std::min(dt, 0.9 * sim.exact.dt), sim.exact.dt)
+                                      : std::numeric_limits<double>::infinity();
+    double mMin = 1e300;  // lightest free node under the surface points
+    const ContactPoints& P = c.world->points();
+    for (int p = 0; p < P.points(); ++p)
+        for (int i = 0; i < ContactPoints::kMaxNodes; ++i)
+            if (P.weights(i, p) > 0 && model.invMass(P.nodes(i, p)) > 0) mMin = std::min(mMin, model.mass(P.nodes(i, p)));
+    for (auto& t : c.world->tools()) {
+        if (t.stiffness <= 0) {
+            if (!std::isfinite(c.stiffnessLimit)) throw InputError(sc.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
+            t.stiffness = 0.8 * c.stiffnessLimit;
+        } else if (t.stiffness > c.stiffnessLimit) {
+            std::fprintf(stderr, "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; using the limit\n",
+                         t.name.c_str(), t.stiffness, c.stiffnessLimit, dt);
+            t.stiffness = c.stiffnessLimit;
+            c.clamped.push_back(t.name);
+        }
+        // damping ratio 0.3 on the lightest node: c dt / m stays well below the explicit limit 2
+        if (t.damping < 0) t.damping = mMin < 1e300 ? 0.6 * std::sqrt(t.stiffness * mMin) : 0.0;
+    }
+    return c;
+}
+
 int runScene(const SceneDef& sc, const RunOptions& opt) {
     const auto wallStart = Clock::now();
     Stages stages;
@@ -352,39 +396,11 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // limit that keeps this step stable (contact/contact.hpp stableStiffness).
     ToolRun tools;
     if (!sc.tools.empty()) {
-        tools.world = std::make_unique<ContactWorld>(sc.tools);
-        double spacing = sc.contactSpacing;
-        if (spacing <= 0) {
-            // half the smallest tool feature, so a tool cannot slip between points
-            spacing = 1e300;
-            for (const auto& t : sc.tools)
-                for (const auto& p : toolParts(t, 0))
-                    spacing = std::min(spacing, 0.5 * (p.hull || p.shape == ToolShape::Kind::Box
-                                                          ? std::max({p.size.x(), p.size.y(), p.size.z()}) : p.size.x()));
-        }
-        tools.spacing = spacing;
-        tools.world->setSurface(contactPoints(boundarySurface(model.tets, model.X), model.tets, model.X, spacing));
-        // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
-        tools.stiffnessLimit = explicitScheme ? stableStiffness(tools.world->points(), model.invMass, std::min(dt, 0.9 * exact.dt), exact.dt)
-                                              : std::numeric_limits<double>::infinity();
-        double mMin = 1e300;  // lightest free node under the surface points
-        const ContactPoints& P = tools.world->points();
-        for (int p = 0; p < P.points(); ++p)
-            for (int i = 0; i < ContactPoints::kMaxNodes; ++i)
-                if (P.weights(i, p) > 0 && model.invMass(P.nodes(i, p)) > 0) mMin = std::min(mMin, model.mass(P.nodes(i, p)));
-        for (auto& t : tools.world->tools()) {
-            if (t.stiffness <= 0) {
-                if (!std::isfinite(tools.stiffnessLimit)) throw InputError(sc.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
-                t.stiffness = 0.8 * tools.stiffnessLimit;
-            } else if (t.stiffness > tools.stiffnessLimit) {
-                std::fprintf(stderr, "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; using the limit\n",
-                             t.name.c_str(), t.stiffness, tools.stiffnessLimit, dt);
-                t.stiffness = tools.stiffnessLimit;
-                tools.clamped.push_back(t.name);
-            }
-            // damping ratio 0.3 on the lightest node: c dt / m stays well below the explicit limit 2
-            if (t.damping < 0) t.damping = mMin < 1e300 ? 0.6 * std::sqrt(t.stiffness * mMin) : 0.0;
-        }
+        ContactSetup cs = makeContact(sc, sim);
+        tools.world = std::move(cs.world);
+        tools.spacing = cs.spacing;
+        tools.stiffnessLimit = cs.stiffnessLimit;
+        tools.clamped = std::move(cs.clamped);
         tools.sampleDt = 1.0 / sc.forceRate;
     }
 

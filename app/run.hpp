@@ -2,6 +2,7 @@
 #pragma once
 
 #include "scene.hpp"
+#include "contact/contact.hpp"
 #include "cut/xfem.hpp"
 #include "mesh/embedding.hpp"
 #include "timestep/analyzer.hpp"
@@ -57,6 +58,16 @@ CutSurface cutSurfaceOf(const CutDef& cd);
 // one, and the step chosen again by the scene's policy (chooseStep: a fraction of the new limit).
 // Throws InputError when the policy refuses; sim's step is then unchanged and above the limit.
 CutResult cutScene(const SceneDef& sc, Simulation& sim, State& state, CutEngine& eng, const CutSurface& surf);
+
+// Tool contact of a scene: a Bullet world on sim's surface (the embedded one for MI objects), with
+// each tool's penalty stiffness below the limit that keeps sim.dt stable (contact/contact.hpp).
+struct ContactSetup {
+    std::unique_ptr<ContactWorld> world; // null when the scene has no tools
+    double spacing = 0;                  // largest gap between contact points [m]
+    double stiffnessLimit = 0;           // stable penalty stiffness per point [N/m]
+    std::vector<std::string> clamped;    // tools whose stiffness was lowered to the limit
+};
+ContactSetup makeContact(const SceneDef& sc, const Simulation& sim);
 
 // Runs a scene; returns the process exit code (0 ok, 3 numerical failure). Throws InputError for
 // bad input before anything is written.

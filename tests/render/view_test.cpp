@@ -80,6 +80,30 @@ TEST(View, ScriptedCutsShowTheirFaces) {
     EXPECT_GT(redPixels(26), 300);   // t = 0.87 s: four cuts made
 }
 
+// Tools act in the live view through Bullet as in `cutsim run`. A tool the mouse has moved holds
+// its pose (--tool-at places it as a drag would): held far above, the probe scene's probe never
+// touches; held 4 mm into the liver's top, it pushes within 0.1 s, when the keyframed probe has not
+// reached the surface yet.
+TEST(View, ToolPressesAndHoldsWhereTheMouseLeavesIt) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    auto maxForce = [&](int frames, const std::string& extra) {
+        std::string err;
+        const int code = shell("xvfb-run -a -s '-screen 0 1280x1024x24' " + std::string(CUTSIM_BINARY) + " view " +
+                                   test::source("assets/scenes/probe.json") + " --frames " + std::to_string(frames) +
+                                   " --width 320 --height 180 --screenshot " + dir + "/t.png " + extra,
+                               dir, &err);
+        EXPECT_EQ(code, 0) << err;
+        const std::string out = test::readText(dir + "/stdout.txt");
+        const auto at = out.find("(max ");
+        EXPECT_NE(at, std::string::npos) << out;
+        return at == std::string::npos ? -1.0 : std::strtod(out.c_str() + at + 5, nullptr);
+    };
+    EXPECT_EQ(maxForce(20, "--tool-at 0 0.5 0"), 0.0);   // held above: no contact at all
+    EXPECT_EQ(maxForce(3, ""), 0.0);                     // t = 0.1 s: keyframed probe still above
+    EXPECT_GT(maxForce(3, "--tool-at 0 0.125 0.008"), 0.1);
+}
+
 TEST(View, WithoutADisplayExitsWithAClearMessage) {
     const std::string dir = test::tempDir();
     std::string err;
