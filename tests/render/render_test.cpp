@@ -4,11 +4,16 @@
 #include "golden.hpp"
 #include "renderer.hpp"
 #include "snapshot/snapshot.hpp"
+#include "fem/integrate.hpp"
+#include "mesh/io.hpp"
 #include "test_support.hpp"
+#include "timestep/analyzer.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numeric>
+#include <algorithm>
 
 namespace cutsim {
 namespace {
@@ -225,6 +230,82 @@ TEST(RenderGolden, HudFrame) {
     Renderer r(o);
     // The first frame already shows the HUD: the renderer runs ImGui's hidden first frame itself.
     test::expectGolden("hud", r.render(ms.snap), {8, 0.02});
+}
+
+// The SOFA liver as the demo scene has it: scale 0.0254, fixed at its back, gravity along -y.
+Model goldenLiver() {
+    ReadOptions ro;
+    ro.scale = 0.0254;
+    Model m = buildModel(readTetMesh(test::data("tet/sofa_liver.msh"), ro), Material{});
+    m.gravity = Eigen::Vector3d(0, -9.81, 0);
+    m.massDamping = 5;
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[i] = m.X(2, i) < -0.028;
+    updateMasses(m);
+    return m;
+}
+
+// Coloured by each element's R1R step over dt = 0.9 of the exact limit; the five most critical
+// elements (the smallest estimates) drawn through the surface.
+MeshSnapshot liverTimestepSnapshot(const Model& m, const Eigen::Matrix3Xd& x) {
+    TimestepAnalyzer ta(m);
+    const double dt = 0.9 * ta.exact(m).dt;
+    static Eigen::VectorXd ratio;
+    ratio = ta.estimates().r1r / dt;
+    std::vector<int> order(static_cast<size_t>(m.elements()));
+    std::iota(order.begin(), order.end(), 0);
+    std::partial_sort(order.begin(), order.begin() + 5, order.end(), [&](int a, int b) { return ratio[a] < ratio[b]; });
+    MeshSnapshotOptions so;
+    so.elementValues = &ratio;
+    so.name = "element dt / dt";
+    so.critical.assign(order.begin(), order.begin() + 5);
+    TetMesh mesh;
+    mesh.X = m.X;
+    mesh.tets = m.tets;
+    MeshSnapshot ms = snapshotFromTetMesh(mesh, x, so);
+    ms.snap.scalarMin = 1;
+    ms.snap.scalarMax = 2.5;
+    return ms;
+}
+
+TEST(RenderGolden, LiverTimestepWithCriticalElements) {
+    const Model m = goldenLiver();
+    MeshSnapshot ms = liverTimestepSnapshot(m, m.X);
+    ASSERT_GT(ms.snap.criticalTets.cols(), 0);
+    Renderer r(goldenOptions());
+    test::expectGolden("liver_timestep", r.render(ms.snap), {8, 0.01});
+}
+
+// The same liver after 0.2 s under gravity (symplectic Euler at 0.9 of the exact limit), with the HUD.
+TEST(RenderGolden, LiverSaggingWithHud) {
+    Model m = goldenLiver();
+    State s = makeState(m);
+    StepOptions opt;
+    opt.dt = 0.9 * TimestepAnalyzer(m).exact(m).dt;
+    Stepper stepper;
+    while (s.time < 0.2) stepper.step(m, s, opt);
+    ASSERT_TRUE(s.flags.ok());
+    const double sag = (s.x - m.X).colwise().norm().maxCoeff();
+    EXPECT_GT(sag, 0.005);  // visibly deformed: more than 5 mm at the free lobe
+    MeshSnapshot ms = liverTimestepSnapshot(m, s.x);
+    HudValues& h = ms.snap.hud;
+    h.simTime = s.time;
+    h.dtUsed = opt.dt;
+    h.dtExact = opt.dt / 0.9;
+    h.dtCertified = 0.349e-3;
+    h.criticalElements = 5;
+    h.lines = {"liver: 596 tets, 181 nodes"};
+    // the object right of the HUD panel: camera moved left along the screen's horizontal
+    Camera& c = ms.snap.camera;
+    const Eigen::Vector3d right = (c.target - c.eye).cross(c.up).normalized();
+    const Eigen::Vector3d shift = -0.12 * (c.target - c.eye).norm() * right;
+    c.eye += shift;
+    c.target += shift;
+    RenderOptions o = goldenOptions();
+    o.width = 480;
+    o.height = 270;
+    o.hud = true;
+    Renderer r(o);
+    test::expectGolden("liver_sag", r.render(ms.snap), {8, 0.02});
 }
 
 } // namespace
