@@ -95,122 +95,106 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d&
 namespace {
 
 // Elements per block of the force kernel: one AVX-512 register of doubles. Each quantity of a
-// block is held as [component][lane] so the per-element arithmetic runs across lanes; Eigen's
-// fixed 3x3 products vectorise only within one element.
+// block is a vector of 8 lanes, one element per lane, so the per-element arithmetic runs across
+// lanes (Eigen's fixed 3x3 products vectorise only within one element, and GCC does not reliably
+// vectorise the masked Newton loop from plain loops). GCC/Clang vector extensions; without
+// AVX-512 they are split into narrower registers.
 constexpr int kLanes = 8;
+typedef double Lane __attribute__((vector_size(8 * kLanes)));
+typedef long LaneMask __attribute__((vector_size(8 * kLanes)));  // comparison result: -1 true, 0 false
 
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes); lanes past count are padded
-// with an undeformed unit element and not written back.
+// with an undeformed unit element and not written back. Matrices are column-major, (r, c) at 3c + r.
 inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
                         bool corot) {
-    alignas(64) double F[9][kLanes], X[9][kLanes], Dm[9][kLanes], scale[kLanes];
-    alignas(64) int active[kLanes];
+    Lane Ds[9], Dm[9], scale;
     const double* xs = s.x.data();
     for (int l = 0; l < kLanes; ++l) {
         if (l < count) {
             const int e = e0 + l;
             const int* n = m.tets.col(e).data();
             const double* p0 = xs + 3 * n[0];
-            const double* dm = m.DmInv.col(e).data();
-            double ds[9];  // Ds column-major: columns x_a - x_0, a = 1..3
             for (int a = 0; a < 3; ++a) {
                 const double* pa = xs + 3 * n[a + 1];
-                for (int r = 0; r < 3; ++r) ds[3 * a + r] = pa[r] - p0[r];
+                for (int r = 0; r < 3; ++r) Ds[3 * a + r][l] = pa[r] - p0[r];
             }
+            const double* dm = m.DmInv.col(e).data();
             for (int k = 0; k < 9; ++k) Dm[k][l] = dm[k];
-            // F = Ds DmInv, column-major F(r, c) at 3c + r
-            for (int c = 0; c < 3; ++c)
-                for (int r = 0; r < 3; ++r)
-                    F[3 * c + r][l] = ds[r] * dm[3 * c] + ds[3 + r] * dm[3 * c + 1] + ds[6 + r] * dm[3 * c + 2];
             scale[l] = -m.volume(e) * m.fraction(e) * (alpha ? alpha[e] : 1.0);
         } else {
-            for (int k = 0; k < 9; ++k) Dm[k][l] = F[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+            for (int k = 0; k < 9; ++k) Dm[k][l] = Ds[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
             scale[l] = 0;
         }
     }
-    int inv = 0, anyActive = 0;
-#pragma omp simd reduction(+ : inv) reduction(| : anyActive)
-    for (int l = 0; l < kLanes; ++l) {
-        const double d = F[0][l] * (F[4][l] * F[8][l] - F[7][l] * F[5][l]) -
-                         F[3][l] * (F[1][l] * F[8][l] - F[7][l] * F[2][l]) +
-                         F[6][l] * (F[1][l] * F[5][l] - F[4][l] * F[2][l]);
-        inv += (l < count && d <= 0) ? 1 : 0;
-        double sq = 0;
-        for (int k = 0; k < 9; ++k) sq += F[k][l] * F[k][l];
-        const double sc = sq / 3.0;
-        // Newton needs det F well away from 0: its first step divides by it.
-        const int newton = corot && d > 1e-6 * sc * std::sqrt(sc);
-        active[l] = newton;
-        anyActive |= newton;
-        for (int k = 0; k < 9; ++k) X[k][l] = F[k][l];
-    }
+    Lane F[9];  // F = Ds DmInv
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
+    const Lane det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) +
+                     F[6] * (F[1] * F[5] - F[4] * F[2]);
+    int inv = 0;
+    for (int l = 0; l < count; ++l) inv += det[l] <= 0;
+    Lane X[9];
     if (corot) {
+        for (int k = 0; k < 9; ++k) X[k] = F[k];
+        Lane sc = F[0] * F[0];
+        for (int k = 1; k < 9; ++k) sc += F[k] * F[k];
+        sc /= 3.0;
+        // Newton needs det F well away from 0 (its first step divides by it): det > 1e-6 sc^1.5
+        LaneMask active = (det > 0) & (det * det > 1e-12 * sc * sc * sc);
         for (int l = 0; l < count; ++l) {
             if (active[l]) continue;
             // degenerate or inverted: Mueller's iteration warm-started from the last rotation
-            Eigen::Matrix3d Fl, R;
+            Eigen::Matrix3d Fl;
             for (int k = 0; k < 9; ++k) Fl(k % 3, k / 3) = F[k][l];
-            R = muellerRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
+            const Eigen::Matrix3d R = muellerRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
             for (int k = 0; k < 9; ++k) X[k][l] = R(k % 3, k / 3);
         }
-        for (int l = count; l < kLanes; ++l) active[l] = 0;  // padding is already the identity
+        for (int l = count; l < kLanes; ++l) active[l] = 0;  // padding: F = I is its own rotation
         // Polar rotation by Newton's iteration X <- (X + X^-T) / 2 (Higham 1986), per lane until
-        // that lane's update is below 1e-6 (its error is then ~1e-12); converged lanes are frozen.
-        for (int it = 0; it < 30 && anyActive; ++it) {
-            anyActive = 0;
-#pragma omp simd reduction(| : anyActive)
-            for (int l = 0; l < kLanes; ++l) {
-                // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
-                const double x0 = X[0][l], x1 = X[1][l], x2 = X[2][l], x3 = X[3][l], x4 = X[4][l], x5 = X[5][l],
-                             x6 = X[6][l], x7 = X[7][l], x8 = X[8][l];
-                const double c0 = x4 * x8 - x5 * x7, c1 = x5 * x6 - x3 * x8, c2 = x3 * x7 - x4 * x6;
-                const double c3 = x7 * x2 - x8 * x1, c4 = x8 * x0 - x6 * x2, c5 = x6 * x1 - x7 * x0;
-                const double c6 = x1 * x5 - x2 * x4, c7 = x2 * x3 - x0 * x5, c8 = x0 * x4 - x1 * x3;
-                const double h = 0.5 / (x0 * c0 + x1 * c1 + x2 * c2);
-                const double n0 = 0.5 * x0 + h * c0, n1 = 0.5 * x1 + h * c1, n2 = 0.5 * x2 + h * c2;
-                const double n3 = 0.5 * x3 + h * c3, n4 = 0.5 * x4 + h * c4, n5 = 0.5 * x5 + h * c5;
-                const double n6 = 0.5 * x6 + h * c6, n7 = 0.5 * x7 + h * c7, n8 = 0.5 * x8 + h * c8;
-                const double d = (n0 - x0) * (n0 - x0) + (n1 - x1) * (n1 - x1) + (n2 - x2) * (n2 - x2) +
-                                 (n3 - x3) * (n3 - x3) + (n4 - x4) * (n4 - x4) + (n5 - x5) * (n5 - x5) +
-                                 (n6 - x6) * (n6 - x6) + (n7 - x7) * (n7 - x7) + (n8 - x8) * (n8 - x8);
-                const int a = active[l];
-                X[0][l] = a ? n0 : x0; X[1][l] = a ? n1 : x1; X[2][l] = a ? n2 : x2;
-                X[3][l] = a ? n3 : x3; X[4][l] = a ? n4 : x4; X[5][l] = a ? n5 : x5;
-                X[6][l] = a ? n6 : x6; X[7][l] = a ? n7 : x7; X[8][l] = a ? n8 : x8;
-                const int still = a && !(d < 1e-12);
-                active[l] = still;
-                anyActive |= still;
+        // that lane's update is below 1e-6 (quadratic convergence: its error is then ~1e-12);
+        // converged lanes are frozen, so each lane gets exactly the iterations it would alone.
+        for (int it = 0; it < 30; ++it) {
+            bool any = false;
+            for (int l = 0; l < kLanes; ++l) any = any || active[l];
+            if (!any) break;
+            // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
+            const Lane c0 = X[4] * X[8] - X[5] * X[7], c1 = X[5] * X[6] - X[3] * X[8], c2 = X[3] * X[7] - X[4] * X[6];
+            const Lane c3 = X[7] * X[2] - X[8] * X[1], c4 = X[8] * X[0] - X[6] * X[2], c5 = X[6] * X[1] - X[7] * X[0];
+            const Lane c6 = X[1] * X[5] - X[2] * X[4], c7 = X[2] * X[3] - X[0] * X[5], c8 = X[0] * X[4] - X[1] * X[3];
+            const Lane h = 0.5 / (X[0] * c0 + X[1] * c1 + X[2] * c2);
+            const Lane C[9] = {c0, c1, c2, c3, c4, c5, c6, c7, c8};
+            Lane d = Lane{};
+            for (int k = 0; k < 9; ++k) {
+                const Lane xn = 0.5 * X[k] + h * C[k];
+                d += (xn - X[k]) * (xn - X[k]);
+                X[k] = active ? xn : X[k];
             }
+            active = active & ~(d < 1e-12);
         }
     } else {
-        for (int l = 0; l < kLanes; ++l)
-            for (int k = 0; k < 9; ++k) X[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+        for (int k = 0; k < 9; ++k) X[k] = Lane{} + ((k % 4 == 0) ? 1.0 : 0.0);
     }
-    alignas(64) double P[9][kLanes];
-#pragma omp simd
-    for (int l = 0; l < kLanes; ++l) {
-        // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
-        // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
-        double H[9], sig[9], RS[9];
-        for (int c = 0; c < 3; ++c)
-            for (int r = 0; r < 3; ++r)
-                H[3 * c + r] = X[3 * r][l] * F[3 * c][l] + X[3 * r + 1][l] * F[3 * c + 1][l] +
-                               X[3 * r + 2][l] * F[3 * c + 2][l] - (r == c ? 1.0 : 0.0);
-        const double tr = lam * (H[0] + H[4] + H[8]);
-        for (int c = 0; c < 3; ++c)
-            for (int r = 0; r < 3; ++r) sig[3 * c + r] = mu * (H[3 * c + r] + H[3 * r + c]) + (r == c ? tr : 0.0);
-        for (int c = 0; c < 3; ++c)
-            for (int r = 0; r < 3; ++r)
-                RS[3 * c + r] = X[r][l] * sig[3 * c] + X[3 + r][l] * sig[3 * c + 1] + X[6 + r][l] * sig[3 * c + 2];
-        // P = scale (R sigma) DmInv^T: columns are the forces on nodes 1..3
-        for (int c = 0; c < 3; ++c)
-            for (int r = 0; r < 3; ++r)
-                P[3 * c + r][l] = scale[l] * (RS[r] * Dm[c][l] + RS[3 + r] * Dm[3 + c][l] + RS[6 + r] * Dm[6 + c][l]);
-    }
+    // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
+    // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
+    Lane H[9], sig[9], RS[9];
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            H[3 * c + r] = X[3 * r] * F[3 * c] + X[3 * r + 1] * F[3 * c + 1] + X[3 * r + 2] * F[3 * c + 2] -
+                           (r == c ? 1.0 : 0.0);
+    const Lane tr = lam * (H[0] + H[4] + H[8]);
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) sig[3 * c + r] = mu * (H[3 * c + r] + H[3 * r + c]) + (r == c ? tr : Lane{});
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) RS[3 * c + r] = X[r] * sig[3 * c] + X[3 + r] * sig[3 * c + 1] + X[6 + r] * sig[3 * c + 2];
+    // P = scale (R sigma) DmInv^T: columns are the forces on nodes 1..3; node 0 takes minus their sum
+    Lane P[12];
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            P[3 + 3 * c + r] = scale * (RS[r] * Dm[c] + RS[3 + r] * Dm[3 + c] + RS[6 + r] * Dm[6 + c]);
+    for (int r = 0; r < 3; ++r) P[r] = -(P[3 + r] + P[6 + r] + P[9 + r]);
     for (int l = 0; l < count; ++l) {
         double* fe = s.fe.col(e0 + l).data();
-        for (int k = 0; k < 9; ++k) fe[3 + k] = P[k][l];
-        for (int r = 0; r < 3; ++r) fe[r] = -(P[r][l] + P[3 + r][l] + P[6 + r][l]);
+        for (int k = 0; k < 12; ++k) fe[k] = P[k][l];
         if (corot) {
             double* rot = s.rot.col(e0 + l).data();
             for (int k = 0; k < 9; ++k) rot[k] = X[k][l];
