@@ -174,6 +174,15 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
         }
         EXPECT_GE(inverted, 1);
         EXPECT_EQ(s.flags.inverted, inverted);
+        // ranges that split blocks (as thread ranges may) give the same forces
+        const Eigen::Matrix<double, 12, Eigen::Dynamic> fe = s.fe;
+        s.fe.setZero();
+        s.rot = rot0;
+        int inv2 = 0;
+        const int cuts[] = {0, 13, 21, 37, m.elements()};
+        for (int k = 0; k < 4; ++k) elementForces(m, s, alpha.data(), cuts[k], cuts[k + 1], &inv2);
+        EXPECT_EQ(inv2, inverted);
+        EXPECT_LT((s.fe - fe).cwiseAbs().maxCoeff(), 1e-14 * fmax);
     }
 }
 
