@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace cutsim {
@@ -91,39 +92,125 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d&
     return polarRotation(F, F.determinant(), Rprev);
 }
 
+namespace {
+
+// Elements per block of the force kernel: one AVX-512 register of doubles. Each quantity of a
+// block is a vector of 8 lanes, one element per lane, so the per-element arithmetic runs across
+// lanes (Eigen's fixed 3x3 products vectorise only within one element, and GCC does not reliably
+// vectorise the masked Newton loop from plain loops). GCC/Clang vector extensions; without
+// AVX-512 they are split into narrower registers.
+constexpr int kLanes = 8;
+typedef double Lane __attribute__((vector_size(8 * kLanes)));
+typedef long LaneMask __attribute__((vector_size(8 * kLanes)));  // comparison result: -1 true, 0 false
+
+// Forces of the elements e0 .. e0 + count - 1 (count <= kLanes); lanes past count are padded
+// with an undeformed unit element and not written back. Matrices are column-major, (r, c) at 3c + r.
+inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
+                        bool corot) {
+    Lane Ds[9], Dm[9], scale;
+    const double* xs = s.x.data();
+    for (int l = 0; l < kLanes; ++l) {
+        if (l < count) {
+            const int e = e0 + l;
+            const int* n = m.tets.col(e).data();
+            const double* p0 = xs + 3 * n[0];
+            for (int a = 0; a < 3; ++a) {
+                const double* pa = xs + 3 * n[a + 1];
+                for (int r = 0; r < 3; ++r) Ds[3 * a + r][l] = pa[r] - p0[r];
+            }
+            const double* dm = m.DmInv.col(e).data();
+            for (int k = 0; k < 9; ++k) Dm[k][l] = dm[k];
+            scale[l] = -m.volume(e) * m.fraction(e) * (alpha ? alpha[e] : 1.0);
+        } else {
+            for (int k = 0; k < 9; ++k) Dm[k][l] = Ds[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+            scale[l] = 0;
+        }
+    }
+    Lane F[9];  // F = Ds DmInv
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
+    const Lane det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) +
+                     F[6] * (F[1] * F[5] - F[4] * F[2]);
+    int inv = 0;
+    for (int l = 0; l < count; ++l) inv += det[l] <= 0;
+    Lane X[9];
+    if (corot) {
+        for (int k = 0; k < 9; ++k) X[k] = F[k];
+        Lane sc = F[0] * F[0];
+        for (int k = 1; k < 9; ++k) sc += F[k] * F[k];
+        sc /= 3.0;
+        // Newton needs det F well away from 0 (its first step divides by it): det > 1e-6 sc^1.5
+        LaneMask active = (det > 0) & (det * det > 1e-12 * sc * sc * sc);
+        for (int l = 0; l < count; ++l) {
+            if (active[l]) continue;
+            // degenerate or inverted: Mueller's iteration warm-started from the last rotation
+            Eigen::Matrix3d Fl;
+            for (int k = 0; k < 9; ++k) Fl(k % 3, k / 3) = F[k][l];
+            const Eigen::Matrix3d R = muellerRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
+            for (int k = 0; k < 9; ++k) X[k][l] = R(k % 3, k / 3);
+        }
+        for (int l = count; l < kLanes; ++l) active[l] = 0;  // padding: F = I is its own rotation
+        // Polar rotation by Newton's iteration X <- (X + X^-T) / 2 (Higham 1986), per lane until
+        // that lane's update is below 1e-6 (quadratic convergence: its error is then ~1e-12);
+        // converged lanes are frozen, so each lane gets exactly the iterations it would alone.
+        for (int it = 0; it < 30; ++it) {
+            bool any = false;
+            for (int l = 0; l < kLanes; ++l) any = any || active[l];
+            if (!any) break;
+            // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
+            const Lane c0 = X[4] * X[8] - X[5] * X[7], c1 = X[5] * X[6] - X[3] * X[8], c2 = X[3] * X[7] - X[4] * X[6];
+            const Lane c3 = X[7] * X[2] - X[8] * X[1], c4 = X[8] * X[0] - X[6] * X[2], c5 = X[6] * X[1] - X[7] * X[0];
+            const Lane c6 = X[1] * X[5] - X[2] * X[4], c7 = X[2] * X[3] - X[0] * X[5], c8 = X[0] * X[4] - X[1] * X[3];
+            const Lane h = 0.5 / (X[0] * c0 + X[1] * c1 + X[2] * c2);
+            const Lane C[9] = {c0, c1, c2, c3, c4, c5, c6, c7, c8};
+            Lane d = Lane{};
+            for (int k = 0; k < 9; ++k) {
+                const Lane xn = 0.5 * X[k] + h * C[k];
+                d += (xn - X[k]) * (xn - X[k]);
+                X[k] = active ? xn : X[k];
+            }
+            active = active & ~(d < 1e-12);
+        }
+    } else {
+        for (int k = 0; k < 9; ++k) X[k] = Lane{} + ((k % 4 == 0) ? 1.0 : 0.0);
+    }
+    // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
+    // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
+    Lane H[9], sig[9], RS[9];
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            H[3 * c + r] = X[3 * r] * F[3 * c] + X[3 * r + 1] * F[3 * c + 1] + X[3 * r + 2] * F[3 * c + 2] -
+                           (r == c ? 1.0 : 0.0);
+    const Lane tr = lam * (H[0] + H[4] + H[8]);
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) sig[3 * c + r] = mu * (H[3 * c + r] + H[3 * r + c]) + (r == c ? tr : Lane{});
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) RS[3 * c + r] = X[r] * sig[3 * c] + X[3 + r] * sig[3 * c + 1] + X[6 + r] * sig[3 * c + 2];
+    // P = scale (R sigma) DmInv^T: columns are the forces on nodes 1..3; node 0 takes minus their sum
+    Lane P[12];
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            P[3 + 3 * c + r] = scale * (RS[r] * Dm[c] + RS[3 + r] * Dm[3 + c] + RS[6 + r] * Dm[6 + c]);
+    for (int r = 0; r < 3; ++r) P[r] = -(P[3 + r] + P[6 + r] + P[9 + r]);
+    for (int l = 0; l < count; ++l) {
+        double* fe = s.fe.col(e0 + l).data();
+        for (int k = 0; k < 12; ++k) fe[k] = P[k][l];
+        if (corot) {
+            double* rot = s.rot.col(e0 + l).data();
+            for (int k = 0; k < 9; ++k) rot[k] = X[k][l];
+        }
+    }
+    return inv;
+}
+
+} // namespace
+
 void elementForces(const Model& m, State& s, const double* alpha, int begin, int end, int* inverted) {
     const double lam = m.material.lambda(), mu = m.material.mu();
     const bool corot = m.elementModel == ElementModel::Corotational;
     int inv = 0;
-    for (int e = begin; e < end; ++e) {
-        const int* n = m.tets.col(e).data();
-        const Eigen::Vector3d x0 = s.x.col(n[0]);
-        Eigen::Matrix3d Ds;
-        Ds << s.x.col(n[1]) - x0, s.x.col(n[2]) - x0, s.x.col(n[3]) - x0;
-        const Eigen::Map<const Eigen::Matrix3d> DmInv(m.DmInv.col(e).data());
-        const Eigen::Matrix3d F = Ds * DmInv;
-        const double detF = F.determinant();
-        if (detF <= 0) ++inv;
-        Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-        if (corot) {
-            Eigen::Map<Eigen::Matrix3d> Rs(s.rot.col(e).data());
-            R = polarRotation(F, detF, Rs);
-            Rs = R;
-        }
-        // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
-        // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
-        const Eigen::Matrix3d H = R.transpose() * F - Eigen::Matrix3d::Identity();
-        Eigen::Matrix3d sigma = mu * (H + H.transpose());
-        sigma.diagonal().array() += lam * H.trace();
-        double scale = -m.volume(e) * m.fraction(e);
-        if (alpha) scale *= alpha[e];
-        const Eigen::Matrix3d P = scale * (R * sigma) * DmInv.transpose(); // columns: forces on nodes 1..3
-        double* fe = s.fe.col(e).data();
-        Eigen::Map<Eigen::Matrix3d> f123(fe + 3);
-        Eigen::Map<Eigen::Vector3d> f0(fe);
-        f123 = P;
-        f0 = -P.rowwise().sum();
-    }
+    for (int e = begin; e < end; e += kLanes)
+        inv += elementBlock(m, s, alpha, e, std::min(kLanes, end - e), lam, mu, corot);
     if (inverted) *inverted += inv;
 }
 
