@@ -1,5 +1,7 @@
 #include "timestep/timestep.hpp"
 
+#include <Eigen/Eigenvalues>
+
 
 #include <algorithm>
 #include <cmath>
@@ -255,14 +257,28 @@ double hpLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e) {
 
 double elementLambda(const Model& m, int e) {
     // Element eigenvalue with own lumped masses rho V / 4: K_e and M_e scale alike with fraction.
-    const double V = m.volume(e);
-    Mat12 A = elementStiffness(shapeGradients(m.dmInv(e)), V, m.material) * (4.0 / (m.material.rho * V));
-    for (int a = 0; a < 4; ++a)
-        if (!(m.invMass(m.tets(a, e)) > 0)) {
-            A.middleRows<3>(3 * a).setZero();
-            A.middleCols<3>(3 * a).setZero();
-        }
-    return largestEigenvalue(A);
+    // K_e = V B^T D B (B: 6x12 strain-displacement, D: isotropic elasticity, engineering shear),
+    // restricted to free DOFs by P: the nonzero eigenvalues of (4/rho) P B^T D B P are those of the
+    // 6x6 (4/rho) S B P B^T S with S = D^1/2 (X^T X and X X^T share them, X = S B P), a sixth of
+    // the 12x12 work. D^1/2: normal block a I + b 1 1^T with a^2 = 2 mu, (a + 3b)^2 = 3 lambda + 2 mu;
+    // shear block sqrt(mu) I.
+    const Mat34 g = shapeGradients(m.dmInv(e));
+    Eigen::Matrix<double, 6, 6> G = Eigen::Matrix<double, 6, 6>::Zero();
+    for (int a = 0; a < 4; ++a) {
+        if (!(m.invMass(m.tets(a, e)) > 0)) continue;
+        const double x = g(0, a), y = g(1, a), z = g(2, a);
+        Eigen::Matrix<double, 6, 3> Ba;
+        Ba << x, 0, 0,  0, y, 0,  0, 0, z,  y, x, 0,  0, z, y,  z, 0, x;
+        G.noalias() += Ba * Ba.transpose();
+    }
+    const double lam = m.material.lambda(), mu = m.material.mu();
+    const double sa = std::sqrt(2 * mu), sb = (std::sqrt(3 * lam + 2 * mu) - sa) / 3, ss = std::sqrt(mu);
+    Eigen::Matrix<double, 6, 6> S = Eigen::Matrix<double, 6, 6>::Zero();
+    S.topLeftCorner<3, 3>().setConstant(sb);
+    S.topLeftCorner<3, 3>().diagonal().array() += sa;
+    S.bottomRightCorner<3, 3>().diagonal().setConstant(ss);
+    const Eigen::Matrix<double, 6, 6> A = (4.0 / m.material.rho) * (S * G * S);
+    return Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(A, Eigen::EigenvaluesOnly).eigenvalues()(5);
 }
 
 double characteristicLength(const Model& m, int e) {

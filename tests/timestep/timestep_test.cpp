@@ -3,12 +3,14 @@
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
 #include "fem/model.hpp"
+#include "fem/tet.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
 #include "timestep/quality.hpp"
 #include "timestep/timestep.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -267,6 +269,36 @@ TEST(Shape, PearsonCorrelation) {
     b << 1, -1, 0, 1, -1;
     b(4) = std::numeric_limits<double>::infinity();  // skipped
     EXPECT_TRUE(std::isfinite(pearson(a, b)));
+}
+
+// The element eigenvalue through the 6x6 strain-space problem equals the 12x12 one of K_e / M_e
+// with fixed DOFs removed, on distorted tets with 0 to 3 fixed nodes.
+TEST(ElementLambda, SixBySixMatchesTheTwelveByTwelveProblem) {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-0.3, 0.3);
+    int checked = 0;
+    for (int t = 0; t < 40; ++t) {
+        TetMesh mesh = regularTet(0.01);
+        for (int i = 0; i < 4; ++i)
+            for (int k = 0; k < 3; ++k) mesh.X(k, i) += 0.01 * u(rng);
+        const Eigen::Matrix3d E = (Eigen::Matrix3d() << mesh.X.col(1) - mesh.X.col(0), mesh.X.col(2) - mesh.X.col(0),
+                                   mesh.X.col(3) - mesh.X.col(0)).finished();
+        if (!(E.determinant() > 1e-3 * 1e-6)) continue;  // keep distorted, not inverted
+        Model m = buildModel(mesh, Material{});
+        for (int i = 0; i < t % 4; ++i) m.fixed[static_cast<size_t>(i)] = 1;
+        updateMasses(m);
+        const double V = m.volume(0);
+        Mat12 A = elementStiffness(shapeGradients(m.dmInv(0)), V, m.material) * (4.0 / (m.material.rho * V));
+        for (int a = 0; a < 4; ++a)
+            if (m.fixed[static_cast<size_t>(a)]) {
+                A.middleRows<3>(3 * a).setZero();
+                A.middleCols<3>(3 * a).setZero();
+            }
+        const double ref = Eigen::SelfAdjointEigenSolver<Mat12>(A).eigenvalues().maxCoeff();
+        EXPECT_NEAR(elementLambda(m, 0), ref, 1e-10 * ref) << "tet " << t;
+        ++checked;
+    }
+    EXPECT_GE(checked, 30);
 }
 
 } // namespace
