@@ -25,6 +25,7 @@ std::vector<BaselineRow> barCutBaselines(const BarOptions& opts) {
     for (const double kept : opts.kept) {
         if (!(kept > 0 && kept <= 1)) throw InputError("bar baselines: kept share " + std::to_string(kept) + " not in (0, 1]");
         for (const CutMethod method : {CutMethod::Subdivision, CutMethod::Remesh}) {
+            if (method == CutMethod::Remesh && !opts.remesh) continue;
             TetMesh m;
             if (kept >= 1) {
                 m = bar;

@@ -33,6 +33,7 @@ struct BarOptions {
     std::vector<double> kept{1.0, 0.75, 0.5, 0.25};  // kept shares of the length, 1 = uncut
     Material material;                         // thesis sec. 6.2: E 30 kPa, nu 0.3, rho 1000
     ConformingOptions subdivision;             // snapping 0.1 as in the thesis; keep is forced to Positive
+    bool remesh = true;                        // also the TetGen rows (the slow ones)
 };
 
 // For each kept share and each method (subdivision, then remesh): cut the bar by the plane
