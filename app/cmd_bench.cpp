@@ -367,10 +367,12 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
     const fs::path dir = fs::temp_directory_path() / ("cutsim_plot_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     std::ostringstream g;
-    g << "set terminal pngcairo size " << 700 * std::max<size_t>(1, problems.size()) << ",560 noenhanced\n";
+    // up to three panels a row
+    const size_t cols = std::clamp<size_t>(problems.size(), 1, 3), rows = std::max<size_t>(1, (problems.size() + 2) / 3);
+    g << "set terminal pngcairo size " << 700 * cols << "," << 560 * rows << " noenhanced\n";
     g << "set output '" << out << ".tmp.png'\n";
-    g << "set multiplot layout 1," << std::max<size_t>(1, problems.size()) << "\n";
-    g << "set logscale xy\nset grid\nset key bottom left\n";
+    g << "set multiplot layout " << rows << "," << cols << "\n";
+    g << "set logscale xy\nset grid\nset key bottom left\nset yrange [0.005:*]\n";
     g << "set xlabel 'wall time per simulated second [s/s]'\nset ylabel 'relative error'\n";
     for (size_t k = 0; k < problems.size(); ++k) {
         const std::string base = (dir / ("p" + std::to_string(k))).string();
@@ -556,7 +558,7 @@ int runAccuracy(const AccuracyArgs& a) {
 struct StabilityArgs {
     bool json = false, tiny = false;
     int steps = 2000;
-    int cutRuns = 40;       // random cut sequences per object
+    int cutRuns = 150;      // random cut sequences per object
     int cutSteps = 300;     // steps between two cuts of a sequence
 };
 
