@@ -8,6 +8,8 @@
 #include "fem/model.hpp"
 #include "fem/state.hpp"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <functional>
 #include <string>
 #include <vector>
@@ -52,14 +54,38 @@ struct AccuracyContext {
     double tipReference = 0;        // converged static tip deflection (negative, along -z) [m]
     double frequencyReference = 0;  // converged first bending frequency (z) [Hz]
     bool tiny = false;              // test size: small meshes, short runs
+    int maxRes = 4;                 // finest explicit cantilever: 10N x N x N cubes
+    bool quiet = false;             // no progress lines on stderr
+    nlohmann::json* references = nullptr; // configurations add their problems' references here
+};
+
+// A problem's measured quantity and converged reference. Default: the cantilever's (tipDeflection,
+// ctx.tipReference or ctx.frequencyReference, problems cantilever_static / cantilever_frequency).
+using TipFn = std::function<double(const Model&, const Eigen::Matrix3Xd&)>;
+struct TipProbe {
+    std::string problem;    // problem name; empty: the cantilever's
+    double reference = 0;   // converged tip deflection [m] or frequency [Hz]
+    TipFn tip;              // tip deflection of positions x [m]; null: tipDeflection
 };
 
 // Runs model from rest under gravity for bar.staticTime with the model's damping and returns the
 // point (error of the final tip deflection against the reference).
-BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config);
+BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config,
+                          const TipProbe& probe = {});
 // Runs model from rest under gravity without damping for bar.frequencyTime and returns the point
 // (error of the tip's oscillation frequency, from its zero crossings, against the reference).
-BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config);
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config,
+                             const TipProbe& probe = {});
+// Linear static tip deflection, K u = M g over the free DOFs (small-displacement limit of the
+// corotational model) [m]; tip: as TipProbe (null: tipDeflection).
+double linearStaticTip(const Model& m, const TipFn& tip = {});
+// First bending frequency in z with the lumped mass (the low mode whose tip face moves most along
+// z, shift-invert Lanczos) [Hz].
+double firstBendingFrequency(const Model& m);
+// Lowest frequency of a model with fixed nodes [Hz] (shift-invert Lanczos).
+double lowestFrequency(const Model& m);
+// Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
+double richardson(double coarse, double fine);
 // Frequency [Hz] of a sampled signal from its upward crossings of its mean (linear
 // interpolation between samples); 0 with fewer than two crossings.
 double crossingFrequency(const std::vector<double>& t, const std::vector<double>& y);
@@ -69,6 +95,21 @@ using AccuracyConfig = std::function<std::vector<BenchPoint>(const AccuracyConte
 void addAccuracyConfig(const std::string& name, AccuracyConfig fn);
 // Adds a subcommand under `cutsim bench`; setup receives the bench command and adds to it.
 void addBenchSubcommand(std::function<void(CLI::App& bench)> setup);
+
+// Models after XFEM cuts for the stability sweep: the notched cantilever 20x2x2 and the liver
+// after the thesis's four planes (sec. 5.2), one per lumping option (cmd_bench_cuts.cpp).
+struct AfterCutModel {
+    std::string mesh;        // e.g. "cantilever 20x2x2, notch"
+    std::string lumping;     // row_sum | weighted_diagonal | enrichment
+    Model model;             // after the cuts
+    double dtUncut = 0;      // exact step before the cuts [s]
+    int crossed = 0;         // elements the cuts went through
+};
+std::vector<AfterCutModel> afterCutModels(bool tiny);
+
+// Accuracy configurations of cmd_bench_cuts.cpp: MI background meshes, the notched cantilever
+// (XFEM with each lumping option against the same geometry meshed conformingly), the liver sag.
+void addCutAccuracyConfigs();
 
 // `bench mi-bar` (cmd_bench_mibar.cpp): Table 6.1, MI against subdivision and remeshing.
 void addMiBarBench();

@@ -6,6 +6,7 @@
 #include "run.hpp"
 #include "scene.hpp"
 
+#include "cut/random_cuts.hpp"
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
@@ -73,6 +74,10 @@ bool haveGnuplot() {
         if (!dir.empty() && ::access((fs::path(dir) / "gnuplot").c_str(), X_OK) == 0) return true;
     return false;
 }
+
+// A run has diverged once a node moves faster than anything a bending bar or a sagging organ
+// reaches (tip speeds here are below 1 m/s): stop it instead of stepping overflowing values.
+bool runaway(const State& s) { return !(s.v.cwiseAbs().maxCoeff() < 1e3); }
 
 json jsonNumber(double v) { return std::isfinite(v) && v >= 0 ? json(v) : json(nullptr); }
 
@@ -148,27 +153,34 @@ double crossingFrequency(const std::vector<double>& t, const std::vector<double>
     return static_cast<double>(up.size() - 1) / (up.back() - up.front());
 }
 
-BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config) {
+BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
+                          const TipProbe& probe) {
     Model m = m0;
     m.massDamping = ctx.bar.damping;
     State s = makeState(m);
     Stepper st;
     const long n = static_cast<long>(std::ceil(ctx.bar.staticTime / opt.dt - 1e-9));
     const auto t0 = Clock::now();
-    for (long k = 0; k < n && s.flags.nonFinite == 0; ++k) st.step(m, s, opt);
+    bool diverged = false;
+    for (long k = 0; k < n && !diverged; ++k) {
+        st.step(m, s, opt);
+        diverged = s.flags.nonFinite != 0 || ((k & 63) == 63 && runaway(s));
+    }
     const double wall = since(t0);
     BenchPoint p;
-    p.problem = "cantilever_static";
+    p.problem = probe.problem.empty() ? "cantilever_static" : probe.problem + "_static";
     p.config = config;
     p.dt = opt.dt;
     p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
     p.wallPerSimSecond = wall / s.time;
-    const double tip = tipDeflection(m, s.x);
-    p.error = s.flags.nonFinite ? INFINITY : std::abs(tip - ctx.tipReference) / std::abs(ctx.tipReference);
+    const double ref = probe.problem.empty() ? ctx.tipReference : probe.reference;
+    const double tip = probe.tip ? probe.tip(m, s.x) : tipDeflection(m, s.x);
+    p.error = diverged ? INFINITY : std::abs(tip - ref) / std::abs(ref);
     return p;
 }
 
-BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config) {
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
+                             const TipProbe& probe) {
     Model m = m0;
     m.massDamping = 0;
     State s = makeState(m);
@@ -178,21 +190,25 @@ BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const 
     t.reserve(n + 1);
     y.reserve(n + 1);
     double wall = 0;
-    for (long k = 0; k < n && s.flags.nonFinite == 0; ++k) {
+    bool diverged = false;
+    for (long k = 0; k < n && !diverged; ++k) {
         const auto t0 = Clock::now();
         st.step(m, s, opt);
         wall += since(t0);
+        diverged = s.flags.nonFinite != 0 || ((k & 63) == 63 && runaway(s));
         t.push_back(s.time);
-        y.push_back(tipDeflection(m, s.x));  // outside the timed part: a measurement, not the method
+        // outside the timed part: a measurement, not the method
+        y.push_back(probe.tip ? probe.tip(m, s.x) : tipDeflection(m, s.x));
     }
     BenchPoint p;
-    p.problem = "cantilever_frequency";
+    p.problem = probe.problem.empty() ? "cantilever_frequency" : probe.problem + "_frequency";
     p.config = config;
     p.dt = opt.dt;
     p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
     p.wallPerSimSecond = wall / s.time;
+    const double ref = probe.problem.empty() ? ctx.frequencyReference : probe.reference;
     const double f = crossingFrequency(t, y);
-    p.error = s.flags.nonFinite || f <= 0 ? INFINITY : std::abs(f - ctx.frequencyReference) / ctx.frequencyReference;
+    p.error = diverged || f <= 0 ? INFINITY : std::abs(f - ref) / ref;
     return p;
 }
 
@@ -222,8 +238,10 @@ Eigen::SparseMatrix<double> freeStiffness(const Model& m, const std::vector<int>
     return Kf;
 }
 
+} // namespace
+
 // Linear static tip deflection K u = M g (small-displacement limit of the corotational model).
-double staticTip(const Model& m) {
+double linearStaticTip(const Model& m, const TipFn& tip) {
     int nf = 0;
     const auto map = freeDofMap(m, &nf);
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(freeStiffness(m, map, nf, nullptr));
@@ -236,12 +254,12 @@ double staticTip(const Model& m) {
     for (int i = 0; i < m.nodes(); ++i)
         for (int k = 0; k < 3; ++k)
             if (map[3 * i + k] >= 0) x(k, i) += u(map[3 * i + k]);
-    return tipDeflection(m, x);
+    return tip ? tip(m, x) : tipDeflection(m, x);
 }
 
 // First bending frequency in z with the lumped mass: the lowest eigenpairs of M^-1/2 K M^-1/2
 // (shift-invert Lanczos about 0); of those, the mode whose tip moves most along z.
-double bendingFrequency(const Model& m) {
+double firstBendingFrequency(const Model& m) {
     int nf = 0;
     const auto map = freeDofMap(m, &nf);
     Eigen::VectorXd s(nf);
@@ -272,8 +290,26 @@ double bendingFrequency(const Model& m) {
     return std::sqrt(lambda) / (2 * M_PI);
 }
 
+double lowestFrequency(const Model& m) {
+    int nf = 0;
+    const auto map = freeDofMap(m, &nf);
+    Eigen::VectorXd s(nf);
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (map[3 * i + k] >= 0) s(map[3 * i + k]) = 1.0 / std::sqrt(m.mass(i));
+    const Eigen::SparseMatrix<double> A = freeStiffness(m, map, nf, &s);
+    Spectra::SparseSymShiftSolve<double> op(A);
+    Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, 1, std::min(nf, 12), 0.0);
+    eigs.init();
+    eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10);
+    if (eigs.info() != Spectra::CompInfo::Successful) throw EigenSolveError("lowest frequency: Lanczos did not converge");
+    return std::sqrt(eigs.eigenvalues()(0)) / (2 * M_PI);
+}
+
 // Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
 double richardson(double coarse, double fine) { return fine + (fine - coarse) / 3.0; }
+
+namespace {
 
 // ---- bench accuracy ----
 
@@ -331,10 +367,12 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
     const fs::path dir = fs::temp_directory_path() / ("cutsim_plot_" + std::to_string(::getpid()));
     fs::create_directories(dir);
     std::ostringstream g;
-    g << "set terminal pngcairo size " << 700 * std::max<size_t>(1, problems.size()) << ",560 noenhanced\n";
+    // up to three panels a row
+    const size_t cols = std::clamp<size_t>(problems.size(), 1, 3), rows = std::max<size_t>(1, (problems.size() + 2) / 3);
+    g << "set terminal pngcairo size " << 700 * cols << "," << 560 * rows << " noenhanced\n";
     g << "set output '" << out << ".tmp.png'\n";
-    g << "set multiplot layout 1," << std::max<size_t>(1, problems.size()) << "\n";
-    g << "set logscale xy\nset grid\nset key bottom left\n";
+    g << "set multiplot layout " << rows << "," << cols << "\n";
+    g << "set logscale xy\nset grid\nset key bottom left\nset yrange [0.005:*]\n";
     g << "set xlabel 'wall time per simulated second [s/s]'\nset ylabel 'relative error'\n";
     for (size_t k = 0; k < problems.size(); ++k) {
         const std::string base = (dir / ("p" + std::to_string(k))).string();
@@ -434,6 +472,9 @@ int runAccuracy(const AccuracyArgs& a) {
     } else {
         AccuracyContext ctx;
         ctx.tiny = a.tiny;
+        ctx.maxRes = a.tiny ? 1 : a.maxRes;
+        ctx.quiet = a.json;
+        ctx.references = &refs;
         if (a.tiny) { ctx.bar.staticTime = 0.2; ctx.bar.frequencyTime = 0.5; }
         // Converged references: Richardson extrapolation of the two finest reference meshes
         // (linear tets converge as h^2); the coarser pair shows how well converged they are.
@@ -441,8 +482,8 @@ int runAccuracy(const AccuracyArgs& a) {
         std::vector<double> tips, freqs;
         for (int r : levels) {
             const Model m = cantileverModel(ctx.bar, r);
-            tips.push_back(staticTip(m));
-            freqs.push_back(bendingFrequency(m));
+            tips.push_back(linearStaticTip(m));
+            freqs.push_back(firstBendingFrequency(m));
         }
         const size_t k = levels.size() - 1;
         ctx.tipReference = richardson(tips[k - 1], tips[k]);
@@ -517,6 +558,8 @@ int runAccuracy(const AccuracyArgs& a) {
 struct StabilityArgs {
     bool json = false, tiny = false;
     int steps = 2000;
+    int cutRuns = 150;      // random cut sequences per object
+    int cutSteps = 300;     // steps between two cuts of a sequence
 };
 
 // The sweep's meshes: the clamped cantilever 20x2x2 and, when present, the liver mesh.
@@ -625,6 +668,56 @@ int runStability(const StabilityArgs& a) {
                                    {"largest_stable_fraction", largest}, {"runs", runs}});
             if (!a.json)
                 std::printf("%-26s %-22s %-9s %18.3f\n", sm.name.c_str(), integratorName(sc.integrator), scheme.c_str(), largest);
+        }
+    }
+    // After XFEM cuts: the same sweep (plain symplectic Euler) relative to the exact limit of the
+    // cut model, one model per lumping option.
+    j["after_cuts"] = json::array();
+    if (!a.json) std::printf("\nafter cuts (symplectic Euler, plain; fractions of the cut model's exact limit)\n%-26s %-18s %8s %14s %18s\n",
+                             "mesh", "lumping", "crossed", "dt cut/uncut", "largest stable f");
+    for (const AfterCutModel& ac : afterCutModels(a.tiny)) {
+        const double dtExact = exactCriticalDt(ac.model).dt;
+        json runs = json::array();
+        double largest = 0;
+        bool allBelow = true;
+        for (double f : fractionGrid(1.2)) {
+            double growth = 0;
+            const bool ok = stableRun(ac.model, StepOptions{Integrator::SymplecticEuler, f * dtExact}, steps, &growth);
+            runs.push_back({{"fraction", f}, {"stable", ok}, {"energy_growth", jsonNumber(growth)}});
+            if (ok && allBelow) largest = f;
+            if (!ok) allBelow = false;
+        }
+        j["after_cuts"].push_back({{"mesh", ac.mesh}, {"lumping", ac.lumping}, {"crossed", ac.crossed},
+                                   {"tets", ac.model.elements()}, {"dt_uncut", ac.dtUncut}, {"dt_exact", dtExact},
+                                   {"dt_ratio", dtExact / ac.dtUncut}, {"integrator", "symplectic_euler"},
+                                   {"largest_stable_fraction", largest}, {"runs", runs}});
+        if (!a.json)
+            std::printf("%-26s %-18s %8d %14.4f %18.3f\n", ac.mesh.c_str(), ac.lumping.c_str(), ac.crossed, dtExact / ac.dtUncut, largest);
+    }
+    // Random cut sequences (the stress test of cutting, short): 1-4 random planes per run, steps at
+    // 0.9 of the current exact limit between cuts; a failure is a non-finite value or a node faster
+    // than kBlowUpSpeed.
+    j["random_cuts"] = json::array();
+    if (a.cutRuns > 0) {
+        if (!a.json)
+            std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping)\n%-10s %6s %6s %9s %9s %14s %12s\n",
+                        a.cutSteps, "object", "runs", "cuts", "steps", "failures", "inverted runs", "min dt ratio");
+        std::vector<std::pair<std::string, Model>> objects;
+        objects.emplace_back("bar", randomCutBarModel());
+        const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
+        if (fs::exists(liver)) objects.emplace_back("liver", randomCutLiverModel(readTetMesh(liver, ReadOptions{})));
+        unsigned seed = 21;
+        for (const auto& [name, model] : objects) {
+            const auto t0 = Clock::now();
+            const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed++);
+            j["random_cuts"].push_back({{"object", name}, {"runs", st.runs}, {"cuts", st.cuts}, {"steps", st.steps},
+                                        {"failures", st.failures}, {"inverted_runs", st.invertedRuns},
+                                        {"max_speed", st.maxSpeed}, {"min_dt_ratio", st.minDtRatio},
+                                        {"max_volume_error", st.maxVolumeError}, {"max_mass_error", st.maxMassError},
+                                        {"first_failure", st.firstFailure}, {"seconds", since(t0)}});
+            if (!a.json)
+                std::printf("%-10s %6d %6d %9ld %9d %14d %12.4f%s%s\n", name.c_str(), st.runs, st.cuts, st.steps, st.failures,
+                            st.invertedRuns, st.minDtRatio, st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
         }
     }
     // Energy drift of a long undamped run at 0.9 of the limit (symplectic Euler): relative to the
@@ -827,7 +920,8 @@ int runCost(const CostArgs& a) {
 // Extensions of `bench`: one line per configuration or subcommand from elsewhere, e.g.
 //   addAccuracyConfig("mi-bar", miBarPoints);
 void registerBenchExtensions() {
-    addMiBarBench();  // cmd_bench_mibar.cpp: Table 6.1
+    addMiBarBench();           // cmd_bench_mibar.cpp: Table 6.1
+    addCutAccuracyConfigs();   // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 
 template <class F>
@@ -852,8 +946,9 @@ void addBenchCommand(CLI::App& app) {
 
     {
         auto a = std::make_shared<AccuracyArgs>();
-        auto* c = bench->add_subcommand("accuracy", "Error against wall time per simulated second on the cantilever "
-                                                    "(static tip deflection, first bending frequency)");
+        auto* c = bench->add_subcommand("accuracy", "Error against wall time per simulated second: the cantilever (static tip "
+                                                    "deflection, first bending frequency) on conforming and MI meshes, the notched "
+                                                    "cantilever per XFEM lumping option, the liver sagging under gravity");
         c->add_flag("--json", a->json, "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
                                        "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, ...}}, "
                                        "references}; error is null for a run that diverged or gave no frequency, "
@@ -869,10 +964,17 @@ void addBenchCommand(CLI::App& app) {
     {
         auto a = std::make_shared<StabilityArgs>();
         auto* c = bench->add_subcommand("stability", "dt sweeps from 0.5 to 1.2 of the exact limit: largest stable fraction per "
-                                                     "integrator and scheme; energy drift of a long run");
-        c->add_flag("--json", a->json, "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], energy_drift}");
+                                                     "integrator and scheme, also after XFEM cuts per lumping option; random cut sequences; "
+                                                     "energy drift of a long run");
+        c->add_flag("--json", a->json, "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
+                                       "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
+                                       "random_cuts: [{object, runs, cuts, steps, failures, inverted_runs, min_dt_ratio}], energy_drift}");
         c->add_option("--steps", a->steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
-        c->add_flag("--tiny", a->tiny, "Test size: a single tet, short runs");
+        c->add_option("--cut-runs", a->cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
+            ->check(CLI::Range(0, 100000))->capture_default_str();
+        c->add_option("--cut-steps", a->cutSteps, "Steps between two cuts of a random sequence")
+            ->check(CLI::Range(1, 1000000))->capture_default_str();
+        c->add_flag("--tiny", a->tiny, "Test size: a single tet and the notched 20x2x2 cantilever, short runs");
         c->callback([a] { setExitCode(guarded([&] { return runStability(*a); })); });
     }
     {

@@ -1,5 +1,8 @@
 #include "mesh/generate.hpp"
 
+#include <algorithm>
+#include <unordered_map>
+#include <vector>
 #include <utility>
 
 namespace cutsim {
@@ -32,6 +35,36 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
                 }
     m.source = "box";
     return m;
+}
+
+TetMesh refineTets(const TetMesh& mesh) {
+    TetMesh out;
+    const int n0 = mesh.nodes(), ne = mesh.elements();
+    std::unordered_map<long, int> mid;  // edge (lo * n0 + hi) -> midpoint node
+    std::vector<Eigen::Vector3d> extra;
+    auto midpoint = [&](int a, int b) {
+        const long key = static_cast<long>(std::min(a, b)) * n0 + std::max(a, b);
+        auto [it, added] = mid.try_emplace(key, n0 + static_cast<int>(extra.size()));
+        if (added) extra.push_back(0.5 * (mesh.X.col(a) + mesh.X.col(b)));
+        return it->second;
+    };
+    out.tets.resize(4, 8 * static_cast<Eigen::Index>(ne));
+    for (int e = 0; e < ne; ++e) {
+        const int x0 = mesh.tets(0, e), x1 = mesh.tets(1, e), x2 = mesh.tets(2, e), x3 = mesh.tets(3, e);
+        const int x01 = midpoint(x0, x1), x02 = midpoint(x0, x2), x03 = midpoint(x0, x3);
+        const int x12 = midpoint(x1, x2), x13 = midpoint(x1, x3), x23 = midpoint(x2, x3);
+        const int kids[8][4] = {{x0, x01, x02, x03}, {x01, x1, x12, x13}, {x02, x12, x2, x23}, {x03, x13, x23, x3},
+                                {x01, x02, x03, x13}, {x01, x02, x12, x13}, {x02, x03, x13, x23}, {x02, x12, x13, x23}};
+        for (int k = 0; k < 8; ++k)
+            out.tets.col(8 * e + k) << kids[k][0], kids[k][1], kids[k][2], kids[k][3];
+    }
+    out.X.resize(3, n0 + static_cast<Eigen::Index>(extra.size()));
+    out.X.leftCols(n0) = mesh.X;
+    for (size_t k = 0; k < extra.size(); ++k) out.X.col(n0 + static_cast<Eigen::Index>(k)) = extra[k];
+    for (int t = 0; t < out.elements(); ++t)
+        if (tetSignedVolume(out, t) < 0) std::swap(out.tets(2, t), out.tets(3, t));
+    out.source = mesh.source + " (refined)";
+    return out;
 }
 
 } // namespace cutsim

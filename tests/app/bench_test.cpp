@@ -81,6 +81,84 @@ TEST(BenchAccuracy, PlotWithoutGnuplotFailsClearly) {
     EXPECT_FALSE(fs::exists(dir + "/plot.png"));
 }
 
+const json* findPoint(const json& j, const std::string& problem, const std::string& config) {
+    for (const auto& p : j["points"])
+        if (p["problem"] == problem && p["config"] == config) return &p;
+    return nullptr;
+}
+
+// The configurations beyond the conforming cantilever, at test size: MI lattices, the notched
+// cantilever per lumping option, the liver sag (checked on TinyRunContract's run: one run of the
+// command serves both).
+void checkMiLumpingAndLiver(const json& j) {
+    // An MI lattice aligned with the bar is the conforming 10x1x1 mesh: same step, same answer.
+    const json* conf = findPoint(j, "cantilever_static", "explicit 10x1x1 f=0.9");
+    const json* aligned = findPoint(j, "cantilever_static", "mi aligned h=L/10 f=0.9");
+    const json* shifted = findPoint(j, "cantilever_static", "mi shifted 0.3 h=L/10 f=0.9");
+    ASSERT_TRUE(conf && aligned && shifted);
+    EXPECT_NEAR((*aligned)["dt"].get<double>(), (*conf)["dt"].get<double>(), 1e-12 * (*conf)["dt"].get<double>());
+    EXPECT_NEAR((*aligned)["error"].get<double>(), (*conf)["error"].get<double>(), 1e-6);
+    const auto& lat = j["references"]["mi_lattices"];
+    ASSERT_EQ(lat.size(), 2u);
+    EXPECT_EQ(lat[0]["interface_tets"].get<int>(), 0);
+    EXPECT_EQ(lat[0]["tets"].get<int>(), 60);
+    // shifted by 0.3 cells: 2 x 2 cells across, 10 along; every Kuhn tet holds its cube's lowest
+    // corner and its highest, and in each cube one of the two is outside the bar: no tet is inside
+    EXPECT_GT(lat[1]["tets"].get<int>(), 60);
+    EXPECT_LE(lat[1]["tets"].get<int>(), 6 * 10 * 2 * 2);
+    EXPECT_EQ(lat[1]["interface_tets"].get<int>(), lat[1]["tets"].get<int>());
+    EXPECT_TRUE(std::isfinite((*shifted)["error"].get<double>()));
+
+    // The notch (half the depth, at x = 0.3125 m) makes the bar softer: more sag, lower frequency.
+    const auto& ns = j["references"]["cantilever_notch_static"];
+    const auto& nf = j["references"]["cantilever_notch_frequency"];
+    EXPECT_GT(std::abs(ns["reference"].get<double>()), std::abs(ns["uncut_reference"].get<double>()));
+    EXPECT_LT(nf["reference"].get<double>(), nf["uncut_reference"].get<double>());
+    // XFEM cuts the same 12 tets whatever the lumping (on 20x2x2 the plane crosses one column of
+    // cubes; the notch takes its upper layer: 2 cubes of 6 tets) and every lumping gives a finite
+    // error. K does not depend on the lumping, so the linear static tips differ only by how the
+    // weight of the cut tets is spread over their corners.
+    ASSERT_EQ(ns["xfem"].size(), 3u);
+    for (const auto& x : ns["xfem"]) {
+        EXPECT_EQ(x["crossed"].get<int>(), 12) << x.dump();
+        EXPECT_NEAR(x["linear_static_tip"].get<double>(), ns["xfem"][2]["linear_static_tip"].get<double>(), 1e-3 * 0.01);
+    }
+    for (const char* l : {"row_sum", "weighted_diagonal", "enrichment"}) {
+        for (const char* prob : {"cantilever_notch_static", "cantilever_notch_frequency"}) {
+            const json* p = findPoint(j, prob, std::string("xfem ") + l + " 20x2x2 f=0.9");
+            ASSERT_TRUE(p) << prob << " " << l;
+            ASSERT_TRUE((*p)["error"].is_number()) << p->dump();
+            EXPECT_LT((*p)["error"].get<double>(), 1.0) << p->dump();
+        }
+    }
+    // Enrichment lumping keeps the uncut step (isolated virtual elements keep their parent's
+    // eigenvalues); row sum gives far corners of small pieces small masses and a shorter step.
+    const double dtEnr = findPoint(j, "cantilever_notch_static", "xfem enrichment 20x2x2 f=0.9")->at("dt").get<double>();
+    const double dtRow = findPoint(j, "cantilever_notch_static", "xfem row_sum 20x2x2 f=0.9")->at("dt").get<double>();
+    EXPECT_LT(dtRow, dtEnr);
+
+    // The liver: the refined meshes keep the coarse nodes, the reference sags by centimetres, and
+    // the coarse liver (linear tets) is stiffer than the refined one.
+    const auto& lv = j["references"]["liver_sag"];
+    ASSERT_EQ(lv["levels"].size(), 2u);
+    EXPECT_EQ(lv["levels"][0]["tets"].get<int>(), 596);
+    EXPECT_EQ(lv["levels"][1]["tets"].get<int>(), 8 * 596);
+    EXPECT_GT(lv["max_sag_m"].get<double>(), 0.005);
+    EXPECT_LT(lv["max_sag_m"].get<double>(), 0.2);
+    const double eqErr = lv["levels"][0]["equilibrium_error"].get<double>();
+    EXPECT_GT(eqErr, 0.0);
+    EXPECT_LT(eqErr, 1.0);
+    int liverPts = 0;
+    for (const auto& p : j["points"])
+        if (p["problem"] == "liver_sag") {
+            ++liverPts;
+            ASSERT_TRUE(p["error"].is_number()) << p.dump();
+        }
+    EXPECT_EQ(liverPts, 2);
+    for (const char* prob : {"cantilever_notch_static", "cantilever_notch_frequency", "liver_sag"})
+        EXPECT_TRUE(j["summary"].contains(prob)) << prob;
+}
+
 // The tiny run: references, explicit and implicit points on both problems, Pareto marks
 // consistent with the points, and the beam-theory values of the bar by hand.
 TEST(BenchAccuracy, TinyRunContract) {
@@ -131,6 +209,7 @@ TEST(BenchAccuracy, TinyRunContract) {
     const auto& fr = j["references"]["cantilever_frequency"]["values"];
     EXPECT_GT(fr[0].get<double>(), fr[1].get<double>());
     EXPECT_TRUE(fs::exists(dir + "/p.csv"));
+    checkMiLumpingAndLiver(j);
 }
 
 // A single tet: plain explicit schemes are stable up to the exact limit and not past it
@@ -155,6 +234,40 @@ TEST(BenchStability, SingleTetLimitIsTheExactOne) {
     }
     // symplectic: the energy oscillates but does not drift
     EXPECT_LT(std::abs(j["energy_drift"]["drift"].get<double>()), 0.02);
+}
+
+// After the notch cut: every lumping option is stable to just below the cut model's exact limit
+// and not past it; enrichment keeps the uncut step, row sum and weighted diagonal lose some.
+// Random cut sequences: each run of c cuts takes (c + 1) x cut-steps steps.
+TEST(BenchStability, AfterCutsAndRandomCuts) {
+    const json j = runJson("bench stability --tiny --json --cut-runs 2 --cut-steps 40");
+    ASSERT_EQ(j["after_cuts"].size(), 3u);
+    for (const auto& s : j["after_cuts"]) {
+        const double f = s["largest_stable_fraction"].get<double>();
+        EXPECT_GE(f, 0.99) << s["lumping"];
+        EXPECT_LE(f, 1.0) << s["lumping"];
+        for (const auto& r : s["runs"])
+            if (r["fraction"].get<double>() >= 1.02) {
+                EXPECT_FALSE(r["stable"].get<bool>()) << s["lumping"] << r.dump();
+            }
+        EXPECT_GT(s["crossed"].get<int>(), 0);
+        if (s["lumping"] == "enrichment") {
+            EXPECT_NEAR(s["dt_ratio"].get<double>(), 1.0, 1e-6);
+        } else {
+            EXPECT_LT(s["dt_ratio"].get<double>(), 1.0);
+        }
+    }
+    ASSERT_GE(j["random_cuts"].size(), 1u);
+    for (const auto& r : j["random_cuts"]) {
+        EXPECT_EQ(r["runs"].get<int>(), 2);
+        EXPECT_EQ(r["failures"].get<int>(), 0) << r.dump();
+        EXPECT_GE(r["cuts"].get<int>(), 2);
+        EXPECT_LE(r["cuts"].get<int>(), 8);
+        EXPECT_EQ(r["steps"].get<long>(), 40L * (r["cuts"].get<long>() + r["runs"].get<long>()));
+        EXPECT_LT(r["max_volume_error"].get<double>(), 1e-9);
+        EXPECT_LE(r["min_dt_ratio"].get<double>(), 1.0);
+        EXPECT_GT(r["min_dt_ratio"].get<double>(), 0.0);
+    }
 }
 
 TEST(BenchStep, TinyRunContract) {

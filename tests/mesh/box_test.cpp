@@ -1,3 +1,4 @@
+#include "mesh/generate.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -16,4 +17,25 @@ TEST(BoxMesh, VolumeAndBoundary) {
     EXPECT_EQ(F.cols(), 2 * 2 * (6 + 12 + 8));
     SurfaceMesh s{m.X, F, "box"};
     EXPECT_NEAR(enclosedVolume(s), 6.0, 1e-12);
+}
+
+// Red refinement: 8 positive children per tet, same volume, coarse nodes kept with their indices,
+// one new node per edge; refining the box of 1 cube twice gives the box of 4 x 4 x 4 sub-cube size.
+TEST(BoxMesh, RefineTetsIntoEight) {
+    const TetMesh m = test::boxMesh(1.0, 2.0, 3.0, 2, 1, 1);
+    const TetMesh r = refineTets(m);
+    ASSERT_EQ(r.elements(), 8 * m.elements());
+    for (int e = 0; e < r.elements(); ++e) EXPECT_GT(tetSignedVolume(r, e), 0);
+    EXPECT_NEAR(totalVolume(r), 6.0, 1e-12);
+    EXPECT_TRUE(r.X.leftCols(m.nodes()).isApprox(m.X));
+    // edges of 2 Kuhn-split cubes: 12 per cube less 4 shared, 3 face diagonals each less 1 shared, 1 body diagonal each
+    const int edges = (12 + 12 - 4) + (6 + 6 - 1) + 2;
+    EXPECT_EQ(r.nodes(), m.nodes() + edges);
+    const Eigen::Matrix3Xi F = boundaryFaces(r);
+    EXPECT_EQ(F.cols(), 4 * boundaryFaces(m).cols());  // conforming: every boundary face into 4
+    SurfaceMesh s{r.X, F, "refined"};
+    EXPECT_NEAR(enclosedVolume(s), 6.0, 1e-12);
+    // all children of the same size class: volumes V/8 each
+    for (int e = 0; e < m.elements(); ++e)
+        for (int k = 0; k < 8; ++k) EXPECT_NEAR(tetSignedVolume(r, 8 * e + k), tetSignedVolume(m, e) / 8, 1e-12);
 }
