@@ -317,7 +317,12 @@ struct AccuracyArgs {
     bool json = false, tiny = false;
     std::string csv, plot, from;
     int maxRes = 4;
+    std::vector<std::string> only;  // configuration groups to run (empty: all)
 };
+
+bool selected(const AccuracyArgs& a, const std::string& group) {
+    return a.only.empty() || std::find(a.only.begin(), a.only.end(), group) != a.only.end();
+}
 
 std::vector<BenchPoint> readPointsCsv(const std::string& path) {
     std::ifstream in(path);
@@ -501,8 +506,9 @@ int runAccuracy(const AccuracyArgs& a) {
         if (!a.json)
             std::fprintf(stderr, "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
                          ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
-        pts = builtinAccuracyPoints(ctx, a.tiny ? 1 : a.maxRes, a.json);
+        if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.tiny ? 1 : a.maxRes, a.json);
         for (auto& [name, fn] : registry().configs) {
+            if (!selected(a, name)) continue;
             auto more = fn(ctx);
             pts.insert(pts.end(), more.begin(), more.end());
         }
@@ -959,6 +965,9 @@ void addBenchCommand(CLI::App& app) {
                                          "instead of running");
         c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")->check(CLI::Range(1, 8))->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: coarse meshes, short runs");
+        c->add_option("--only", a->only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
+            ->delimiter(',')
+            ->check(CLI::IsMember({"cantilever", "mi", "notch-lumping", "liver"}));
         c->callback([a] { setExitCode(guarded([&] { return runAccuracy(*a); })); });
     }
     {

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -286,16 +287,37 @@ Eigen::Matrix3Xd liverEquilibrium(const Model& m0, int* steps) {
     return s.x;
 }
 
-// Relative L2 error of the displacements of the coarse free nodes 0 .. n0-1.
-double displacementError(const Model& m, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& uRef, int n0) {
+// Relative L2 error of displacements u (3 x n0) at the coarse nodes not fixed in the coarse model.
+double displacementError(const std::vector<std::uint8_t>& coarseFixed, const Eigen::Matrix3Xd& u, const Eigen::Matrix3Xd& uRef) {
     double num = 0, den = 0;
-    for (int i = 0; i < n0; ++i) {
-        if (m.fixed[i]) continue;
-        const Eigen::Vector3d u = x.col(i) - m.X.col(i);
-        num += (u - uRef.col(i)).squaredNorm();
+    for (int i = 0; i < static_cast<int>(coarseFixed.size()); ++i) {
+        if (coarseFixed[static_cast<size_t>(i)]) continue;
+        num += (u.col(i) - uRef.col(i)).squaredNorm();
         den += uRef.col(i).squaredNorm();
     }
     return std::sqrt(num / den);
+}
+
+// The liver given only by its surface (data/surface/sofa_liver.obj: the same vertex list as the
+// tet mesh's nodes, so vertex i is coarse node i), embedded by MI in a lattice of `cells` across,
+// set up like liverModel: lattice nodes behind z = -0.028 m fixed, whatever side of the surface.
+struct MiLiver {
+    Model model;
+    EmbeddedSurface surface;  // vertex i rides the element holding coarse node i
+};
+MiLiver miLiverModel(const SurfaceMesh& inches, int cells, double damping) {
+    SurfaceMesh s = inches;
+    s.V *= 0.0254;
+    MiOptions o;
+    o.cells = cells;
+    MiResult r = buildMi(s, Material{}, o);
+    MiLiver out{std::move(r.model), std::move(r.surface)};
+    Model& m = out.model;
+    m.gravity = Eigen::Vector3d(0, -9.81, 0);
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(2, i) < -0.028;
+    m.massDamping = damping;
+    updateMasses(m);
+    return out;
 }
 
 std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
@@ -326,17 +348,25 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
     const Eigen::Matrix3Xd& uRef = uEq.back();
     double maxSag = 0;
     for (int i = 0; i < n0; ++i) maxSag = std::max(maxSag, uRef.col(i).norm());
-    for (int l = 0; l < refLevel; ++l) {
-        const Model m = liverModel(inches, l, c);
-        Eigen::Matrix3Xd x = m.X + uEq[static_cast<size_t>(l)];
-        levelInfo[static_cast<size_t>(l)]["equilibrium_error"] = displacementError(m, x, uRef, n0);
-    }
+    const std::vector<std::uint8_t> coarseFixed = liverModel(inches, 0, c).fixed;
+    for (int l = 0; l < refLevel; ++l)
+        levelInfo[static_cast<size_t>(l)]["equilibrium_error"] =
+            displacementError(coarseFixed, uEq[static_cast<size_t>(l)].leftCols(n0), uRef);
     if (ctx.references)
         (*ctx.references)["liver_sag"] = {{"reference", "backward Euler equilibrium, liver refined " + std::to_string(refLevel) + "x"},
                                           {"levels", levelInfo}, {"max_sag_m", maxSag}, {"omega1", omega1},
                                           {"damping", c}, {"sim_time", T}, {"coarse_nodes", n0}};
 
-    auto run = [&](const Model& m0, const StepOptions& opt, const std::string& config) {
+    // Displacements at the coarse nodes: the first n0 nodes of a refined mesh, or the embedded
+    // vertices of an MI model.
+    auto coarseDisplacement = [&](const Model& m, const Eigen::Matrix3Xd& x, const EmbeddedSurface* emb) {
+        if (!emb) return Eigen::Matrix3Xd(x.leftCols(n0) - m.X.leftCols(n0));
+        Eigen::Matrix3Xd now, rest;
+        embeddedPositions(*emb, m.tets, x, now);
+        embeddedPositions(*emb, m.tets, m.X, rest);
+        return Eigen::Matrix3Xd(now - rest);
+    };
+    auto run = [&](const Model& m0, const StepOptions& opt, const std::string& config, const EmbeddedSurface* emb = nullptr) {
         Model m = m0;
         State s = makeState(m);
         Stepper st;
@@ -350,7 +380,7 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
         p.dt = opt.dt;
         p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
         p.wallPerSimSecond = wall / s.time;
-        p.error = s.flags.nonFinite ? INFINITY : displacementError(m, s.x, uRef, n0);
+        p.error = s.flags.nonFinite ? INFINITY : displacementError(coarseFixed, coarseDisplacement(m, s.x, emb), uRef);
         pts.push_back(p);
         logPoint(ctx, p);
     };
@@ -365,6 +395,24 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
             std::snprintf(name, sizeof name, "backward_euler liver refined %dx (%d tets) dt=%g", l, m.elements(), dt);
             run(m, StepOptions{Integrator::BackwardEuler, dt}, name);
         }
+    }
+    // MI (thesis ch. 6): the same liver from its surface alone, at several lattice resolutions;
+    // its static equilibrium error is reported with the references.
+    const std::string surfPath = std::string(CUTSIM_DATA_DIR) + "/surface/sofa_liver.obj";
+    if (std::filesystem::exists(surfPath)) {
+        const SurfaceMesh surf = readSurfaceMesh(surfPath);
+        json miInfo = json::array();
+        for (int cells : ctx.tiny ? std::vector<int>{6} : std::vector<int>{8, 12, 16, 24}) {
+            const MiLiver mi = miLiverModel(surf, cells, c);
+            int steps = 0;
+            const Eigen::Matrix3Xd x = liverEquilibrium(mi.model, &steps);
+            const double dtExact = exactCriticalDt(mi.model).dt;
+            miInfo.push_back({{"cells", cells}, {"tets", mi.model.elements()}, {"nodes", mi.model.nodes()}, {"dt_exact", dtExact},
+                              {"equilibrium_error", displacementError(coarseFixed, coarseDisplacement(mi.model, x, &mi.surface), uRef)}});
+            std::snprintf(name, sizeof name, "explicit MI liver %d cells (%d tets) f=0.9", cells, mi.model.elements());
+            run(mi.model, StepOptions{Integrator::SymplecticEuler, 0.9 * dtExact}, name, &mi.surface);
+        }
+        if (ctx.references) (*ctx.references)["liver_sag"]["mi"] = miInfo;
     }
     return pts;
 }

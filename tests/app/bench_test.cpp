@@ -154,7 +154,13 @@ void checkMiLumpingAndLiver(const json& j) {
             ++liverPts;
             ASSERT_TRUE(p["error"].is_number()) << p.dump();
         }
-    EXPECT_EQ(liverPts, 2);
+    EXPECT_EQ(liverPts, 3);  // explicit and backward Euler on the coarse liver, explicit on the MI liver
+    // The MI liver (6 cells across): its lattice step is several times the conforming liver's
+    // (0.45 ms, Table 4.3), and its sag is the same physics: within the coarse mesh's own error
+    // scale of the reference, not off by the whole sag.
+    ASSERT_EQ(lv["mi"].size(), 1u);
+    EXPECT_GT(lv["mi"][0]["dt_exact"].get<double>(), 2 * 0.451e-3);
+    EXPECT_LT(lv["mi"][0]["equilibrium_error"].get<double>(), 1.0);
     for (const char* prob : {"cantilever_notch_static", "cantilever_notch_frequency", "liver_sag"})
         EXPECT_TRUE(j["summary"].contains(prob)) << prob;
 }
