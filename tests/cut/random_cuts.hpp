@@ -24,6 +24,7 @@ struct RandomCutStats {
     int runs = 0, cuts = 0;
     int failures = 0;       // runs that blew up: a non-finite value or a speed above kBlowUpSpeed
     int invertedRuns = 0;   // runs in which some element had det F <= 0, even for a step
+    int invertedAtEnd = 0;  // of those, runs with an element still inverted at their last step
     double maxSpeed = 0;    // [m/s]
     long steps = 0;
     double minDtRatio = 1;   // smallest exact dt after a cut over the uncut one
@@ -59,6 +60,7 @@ struct RandomCutRun {
     long steps = 0;
     bool failed = false;     // a non-finite value or a speed above kBlowUpSpeed
     bool inverted = false;   // some element had det F <= 0
+    bool invertedAtEnd = false; // an element still had det F <= 0 at the last step
     double maxSpeed = 0;     // [m/s]
     double minDtRatio = 1;   // smallest exact dt after a cut over the uncut one
     std::string failure;     // where it blew up
@@ -129,6 +131,7 @@ inline RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned
                 for (int a = 0; a < 4; ++a) out.invFixedCorners += m.fixed[static_cast<size_t>(m.tets(a, out.invElem))];
                 pieceOf(m, out.invElem, out);
             }
+            out.invertedAtEnd = s.flags.inverted > 0;
             if (s.flags.nonFinite > 0 || !(vmax < kBlowUpSpeed)) {
                 out.failed = true;
                 out.failure = "cut " + std::to_string(c) + ", step " + std::to_string(k) + " after it: " +
@@ -158,9 +161,10 @@ inline RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned
 inline std::string describeRun(int run, const RandomCutRun& r) {
     char buf[400];
     std::snprintf(buf, sizeof buf,
-                  "run %d: %d cuts%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
+                  "run %d: %d cuts%s%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
                   "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes",
-                  run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "", r.invCut, r.invStep,
+                  run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "",
+                  r.invertedAtEnd ? ", still inverted at the end" : ", recovered", r.invCut, r.invStep,
                   r.invElem, r.invFraction, r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed);
     return buf;
 }
@@ -180,6 +184,7 @@ inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsi
         st.minDtRatio = std::min(st.minDtRatio, r.minDtRatio);
         st.failures += r.failed;
         st.invertedRuns += r.inverted;
+        st.invertedAtEnd += r.invertedAtEnd;
         if (r.failed && st.firstFailure.empty()) st.firstFailure = "run " + std::to_string(run) + " " + r.failure;
         if (verbose && (r.failed || r.inverted)) std::printf("%s\n", describeRun(run, r).c_str());
         ++st.runs;
@@ -188,9 +193,9 @@ inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsi
 }
 
 inline void printRandomCuts(const char* name, const RandomCutStats& st) {
-    std::printf("%s: %d runs, %d cuts, %ld steps, %d blew up, %d with an inverted element, max speed %.3g m/s, "
-                "min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns, st.maxSpeed,
-                st.minDtRatio);
+    std::printf("%s: %d runs, %d cuts, %ld steps, %d blew up, %d with an inverted element (%d still at the end), "
+                "max speed %.3g m/s, min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps, st.failures,
+                st.invertedRuns, st.invertedAtEnd, st.maxSpeed, st.minDtRatio);
 }
 
 } // namespace cutsim::test
