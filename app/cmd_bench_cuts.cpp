@@ -264,7 +264,7 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
 Model liverModel(const TetMesh& inches, int levels, double damping) {
     TetMesh t = inches;
     for (int l = 0; l < levels; ++l) t = refineTets(t);
-    Model m = randomCutLiverModel(t);
+    Model m = randomCutLiverModel(t, -0.028);
     m.massDamping = damping;
     return m;
 }
@@ -437,7 +437,7 @@ std::vector<AfterCutModel> afterCutModels(bool tiny) {
     const std::string path = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
     if (tiny || !std::filesystem::exists(path)) return out;
     // The liver fixed at its back, cut by the four planes of thesis sec. 5.2 (liver_cuts.json).
-    const Model liver = randomCutLiverModel(readTetMesh(path, ReadOptions{}));
+    const Model liver = randomCutLiverModel(readTetMesh(path, ReadOptions{}), -0.028);
     const double dt0 = exactCriticalDt(liver).dt;
     const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> planes = {
         {{-0.085, 0.06, 0.0}, {1, 0, 0.15}}, {{-0.045, 0.06, 0.0}, {1, 0.1, 0}},

@@ -84,7 +84,7 @@ struct CutDef {
 // How the object is cut (physics/cut/xfem.hpp).
 struct Cutting {
     std::string lumping = "enrichment";     // row_sum | weighted_diagonal | enrichment
-    double minFraction = 1e-2;              // sides below this share of their element merge into the other [-]
+    double minFraction = 5e-2;              // sides below this share of their element merge into the other [-]
     bool exactAfterCut = true;              // exact dt (global eigen-solve) after every cut, for the report
     std::vector<std::string> compare;       // baselines run on the rest mesh with the same planes:
                                             // subdivision | remesh

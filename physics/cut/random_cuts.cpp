@@ -6,16 +6,19 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace cutsim {
 
-Model randomCutLiverModel(const TetMesh& liverInches) {
+Model randomCutLiverModel(const TetMesh& liverInches, double clampZ) {
     TetMesh mesh = liverInches;
     mesh.X *= 0.0254;
     Model m = buildModel(mesh, Material{});
     m.gravity = Eigen::Vector3d(0, -9.81, 0);
-    for (int i = 0; i < m.nodes(); ++i) m.fixed[i] = m.X(2, i) < -0.028;
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[i] = m.X(2, i) < clampZ;
     m.massDamping = 5;
     updateMasses(m);
     return m;
@@ -30,61 +33,120 @@ Model randomCutBarModel() {
     return m;
 }
 
-RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsigned seed, MassLumping lumping,
-                             double dtFactor) {
-    RandomCutStats st;
-    std::mt19937 rng(seed);
+namespace {
+
+// Elements, volume share and prescribed nodes of the piece (nodes joined by elements) holding e.
+void pieceOf(const Model& m, int e, RandomCutRun& r) {
+    std::vector<int> p(static_cast<size_t>(m.nodes()));
+    for (int i = 0; i < m.nodes(); ++i) p[static_cast<size_t>(i)] = i;
+    auto find = [&](int i) {
+        while (p[static_cast<size_t>(i)] != i) i = p[static_cast<size_t>(i)] = p[static_cast<size_t>(p[static_cast<size_t>(i)])];
+        return i;
+    };
+    for (int k = 0; k < m.elements(); ++k)
+        for (int a = 1; a < 4; ++a) p[static_cast<size_t>(find(m.tets(a, k)))] = find(m.tets(0, k));
+    const int root = find(m.tets(0, e));
+    double vol = 0;
+    r.pieceElems = 0;
+    for (int k = 0; k < m.elements(); ++k)
+        if (find(m.tets(0, k)) == root) {
+            ++r.pieceElems;
+            vol += m.volume(k) * m.fraction(k);
+        }
+    r.pieceVolume = vol / m.volume.dot(m.fraction);
+    r.pieceFixed = 0;
+    for (int i = 0; i < m.nodes(); ++i) r.pieceFixed += m.fixed[static_cast<size_t>(i)] && find(i) == root;
+}
+
+} // namespace
+
+RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, int run, int stepsBetween,
+                                  MassLumping lumping, double dtFactor) {
+    std::seed_seq seq{seed, static_cast<unsigned>(run)};
+    std::mt19937 rng(seq);
     std::uniform_real_distribution<double> uni(0, 1);
     const Eigen::Vector3d lo = base.X.rowwise().minCoeff(), hi = base.X.rowwise().maxCoeff();
+    RandomCutRun out;
+    Model m = base;
+    State s = makeState(m);
+    TimestepAnalyzer ta(m);
+    CutOptions co;
+    co.lumping = lumping;
+    CutEngine eng(co);
+    Stepper stepper;
+    StepOptions opt;
+    opt.dt = 0.9 * dt0;
+    const int nCuts = 1 + static_cast<int>(uni(rng) * 4);
+    for (int c = 0; c <= nCuts; ++c) {
+        for (int k = 0; k < stepsBetween; ++k) {
+            stepper.step(m, s, opt);
+            ++out.steps;
+            // Blow-up: a non-finite value, or a speed no fall or elastic recoil of these objects
+            // reaches (free fall over the object's size gives ~1.5 m/s).
+            const double vmax = s.v.colwise().norm().maxCoeff();
+            out.maxSpeed = std::max(out.maxSpeed, vmax);
+            if (s.flags.inverted > 0 && !out.inverted) {
+                out.inverted = true;
+                out.invCut = c;
+                out.invStep = k;
+                out.invElem = s.flags.firstInverted;
+                out.invFraction = m.fraction(out.invElem);
+                for (int a = 0; a < 4; ++a) out.invFixedCorners += m.fixed[static_cast<size_t>(m.tets(a, out.invElem))];
+                pieceOf(m, out.invElem, out);
+            }
+            out.invertedAtEnd = s.flags.inverted > 0;
+            if (s.flags.nonFinite > 0 || !(vmax < kBlowUpSpeed)) {
+                out.failed = true;
+                out.failure = "cut " + std::to_string(c) + ", step " + std::to_string(k) + " after it: " +
+                              std::to_string(s.flags.nonFinite) + " non-finite nodes, max speed " + std::to_string(vmax) + " m/s";
+                return out;
+            }
+        }
+        if (c == nCuts) break;
+        CutSurface cs;
+        for (int k = 0; k < 3; ++k) cs.point[k] = lo[k] + (0.15 + 0.7 * uni(rng)) * (hi[k] - lo[k]);
+        cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
+        const CutResult r = eng.cut(m, s, cs);
+        ++out.cuts;
+        out.maxVolumeError = std::max(out.maxVolumeError, std::abs(r.volumeAfter - r.volumeBefore) / r.volumeBefore);
+        out.maxMassError = std::max(out.maxMassError, std::abs(r.massAfter - r.massBefore) / r.massBefore);
+        ta.update(m, r.changedElements, r.changedNodes);
+        const double dt = ta.exact(m).dt;
+        out.minDtRatio = std::min(out.minDtRatio, dt / dt0);
+        opt.dt = dtFactor * dt;
+        stepper.reset();
+    }
+    return out;
+}
+
+std::string describeRun(int run, const RandomCutRun& r) {
+    char buf[400];
+    std::snprintf(buf, sizeof buf,
+                  "run %d: %d cuts%s%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
+                  "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes",
+                  run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "",
+                  r.invertedAtEnd ? ", still inverted at the end" : ", recovered", r.invCut, r.invStep, r.invElem,
+                  r.invFraction, r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed);
+    return buf;
+}
+
+RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsigned seed, MassLumping lumping,
+                             double dtFactor, std::vector<std::string>* log) {
+    RandomCutStats st;
     const double dt0 = TimestepAnalyzer(base).exact(base).dt;
     for (int run = 0; run < runs; ++run) {
-        Model m = base;
-        State s = makeState(m);
-        TimestepAnalyzer ta(m);
-        CutOptions co;
-        co.lumping = lumping;
-        CutEngine eng(co);
-        Stepper stepper;
-        StepOptions opt;
-        opt.dt = 0.9 * dt0;
-        const int nCuts = 1 + static_cast<int>(uni(rng) * 4);
-        bool failed = false, inverted = false;
-        for (int c = 0; c <= nCuts && !failed; ++c) {
-            for (int k = 0; k < stepsBetween; ++k) {
-                stepper.step(m, s, opt);
-                ++st.steps;
-                // Blow-up: a non-finite value, or a speed no fall or elastic recoil of these
-                // objects reaches (free fall over the object's size gives ~1.5 m/s).
-                const double vmax = s.v.colwise().norm().maxCoeff();
-                st.maxSpeed = std::max(st.maxSpeed, vmax);
-                if (s.flags.inverted > 0 && !inverted) {
-                    inverted = true;
-                    ++st.invertedRuns;
-                }
-                if (s.flags.nonFinite > 0 || !(vmax < kBlowUpSpeed)) {
-                    failed = true;
-                    if (st.firstFailure.empty())
-                        st.firstFailure = "run " + std::to_string(run) + " cut " + std::to_string(c) + ", step " +
-                                          std::to_string(k) + " after it: " + std::to_string(s.flags.nonFinite) +
-                                          " non-finite nodes, max speed " + std::to_string(vmax) + " m/s";
-                    break;
-                }
-            }
-            if (c == nCuts || failed) break;
-            CutSurface cs;
-            for (int k = 0; k < 3; ++k) cs.point[k] = lo[k] + (0.15 + 0.7 * uni(rng)) * (hi[k] - lo[k]);
-            cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
-            const CutResult r = eng.cut(m, s, cs);
-            ++st.cuts;
-            st.maxVolumeError = std::max(st.maxVolumeError, std::abs(r.volumeAfter - r.volumeBefore) / r.volumeBefore);
-            st.maxMassError = std::max(st.maxMassError, std::abs(r.massAfter - r.massBefore) / r.massBefore);
-            ta.update(m, r.changedElements, r.changedNodes);
-            const double dt = ta.exact(m).dt;
-            st.minDtRatio = std::min(st.minDtRatio, dt / dt0);
-            opt.dt = dtFactor * dt;
-            stepper.reset();
-        }
-        st.failures += failed;
+        const RandomCutRun r = runRandomCutSequence(base, dt0, seed, run, stepsBetween, lumping, dtFactor);
+        st.cuts += r.cuts;
+        st.steps += r.steps;
+        st.maxSpeed = std::max(st.maxSpeed, r.maxSpeed);
+        st.minDtRatio = std::min(st.minDtRatio, r.minDtRatio);
+        st.maxVolumeError = std::max(st.maxVolumeError, r.maxVolumeError);
+        st.maxMassError = std::max(st.maxMassError, r.maxMassError);
+        st.failures += r.failed;
+        st.invertedRuns += r.inverted;
+        st.invertedAtEnd += r.invertedAtEnd;
+        if (r.failed && st.firstFailure.empty()) st.firstFailure = "run " + std::to_string(run) + " " + r.failure;
+        if (log && (r.failed || r.inverted)) log->push_back(describeRun(run, r));
         ++st.runs;
     }
     return st;

@@ -46,8 +46,10 @@ struct CutOptions {
     // the other side (mass and volume are kept exactly), while the cut still separates the nodes.
     // Slivers of XFEM keep dt with enrichment lumping, but a virtual element hanging on a few
     // virtual nodes of tiny mass oscillates violently under the stress it inherits (random-cut
-    // stress test); merging them costs at most this share of geometric accuracy per element.
-    double minFraction = 1e-2;   // [-]
+    // stress test: at 1% the bar blew up in 3 of 250 sequences and inverted an element in 13,
+    // nearly all of share 1-3%; at 5%, none blew up and 5 inverted). Merging costs at most this
+    // share of one element's volume moving across the cut; the drawn cut surface stays exact.
+    double minFraction = 5e-2;   // [-]
 };
 
 // A cutting surface in world space: the plane through `point` with unit `normal`, restricted to

@@ -1,6 +1,7 @@
 #include "fem/forces.hpp"
 
 #include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <omp.h>
 
 #include <algorithm>
@@ -43,20 +44,26 @@ void resizeState(const Model& m, State& s) {
 
 namespace {
 
-// Mueller, Bender, Chentanez, Macklin 2016, "A robust method to extract the rotational part of
-// deformations": rotate q about omega until R's columns align with A's. Slow (linear) but proper
-// for any A, including inverted ones.
-Eigen::Matrix3d muellerRotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d& Rprev) {
-    Eigen::Quaterniond q(Rprev);
-    Eigen::Matrix3d R = q.toRotationMatrix();
-    for (int it = 0; it < 50; ++it) {
-        const Eigen::Vector3d num = R.col(0).cross(A.col(0)) + R.col(1).cross(A.col(1)) + R.col(2).cross(A.col(2));
-        const double den = std::abs(R.col(0).dot(A.col(0)) + R.col(1).dot(A.col(1)) + R.col(2).dot(A.col(2))) + 1e-12;
-        const Eigen::Vector3d w = num / den;
-        const double ang = w.norm();
-        if (ang < 1e-12) break;
-        q = (Eigen::Quaterniond(Eigen::AngleAxisd(ang, w / ang)) * q).normalized();
-        R = q.toRotationMatrix();
+// Rotation of an inverted or degenerate F by the diagonalisation of Irving, Teran, Fedkiw 2004,
+// "Invertible finite elements for robust simulation of large deformation" (sec. 4): F = U S V^T
+// with U, V proper rotations and the smallest singular value negated when det F < 0. R = U V^T is
+// then the rotation maximising tr(R^T F), R^T F = V S V^T is symmetric, and the linear stress of
+// S - I pushes an inverted element back through its flat state. When the two smallest singular
+// values tie, either may take the sign; the choice nearest the last rotation keeps R continuous.
+Eigen::Matrix3d invertibleRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Matrix3d U = svd.matrixU();
+    const Eigen::Matrix3d& V = svd.matrixV();
+    if ((U * V.transpose()).determinant() > 0) return U * V.transpose();
+    // det(U V^T) = -1: negate the column of the smallest singular value (sorted descending)
+    const Eigen::Vector3d sv = svd.singularValues();
+    U.col(2) = -U.col(2);
+    Eigen::Matrix3d R = U * V.transpose();
+    if (sv[1] - sv[2] <= 1e-9 * sv[0]) {
+        U.col(2) = -U.col(2);
+        U.col(1) = -U.col(1);
+        const Eigen::Matrix3d R2 = U * V.transpose();
+        if ((R2 - Rprev).squaredNorm() < (R - Rprev).squaredNorm()) R = R2;
     }
     return R;
 }
@@ -69,7 +76,7 @@ namespace {
 inline Eigen::Matrix3d polarRotation(const Eigen::Matrix3d& F, double detF, const Eigen::Matrix3d& Rprev) {
     // Newton needs det F well away from 0: its first step divides by it.
     const double scale = F.squaredNorm() / 3.0;
-    if (!(detF > 1e-6 * scale * std::sqrt(scale))) return muellerRotation(F, Rprev);
+    if (!(detF > 1e-6 * scale * std::sqrt(scale))) return invertibleRotation(F, Rprev);
     Eigen::Matrix3d X = F;
     for (int it = 0; it < 30; ++it) {
         // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
@@ -143,10 +150,10 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
         LaneMask active = (det > 0) & (det * det > 1e-12 * sc * sc * sc);
         for (int l = 0; l < count; ++l) {
             if (active[l]) continue;
-            // degenerate or inverted: Mueller's iteration warm-started from the last rotation
+            // degenerate or inverted (rare): the invertible-FEM rotation, per element
             Eigen::Matrix3d Fl;
             for (int k = 0; k < 9; ++k) Fl(k % 3, k / 3) = F[k][l];
-            const Eigen::Matrix3d R = muellerRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
+            const Eigen::Matrix3d R = invertibleRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
             for (int k = 0; k < 9; ++k) X[k][l] = R(k % 3, k / 3);
         }
         for (int l = count; l < kLanes; ++l) active[l] = 0;  // padding: F = I is its own rotation

@@ -18,8 +18,9 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 void computeForces(const Model& model, State& state, const double* alpha = nullptr);
 
 // Rotation of the polar decomposition F = R S. Newton's iteration X <- (X + X^-T) / 2 (Higham
-// 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the quaternion
-// iteration of Mueller et al. 2016, warm-started from Rprev, which always returns a proper rotation.
+// 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the SVD of
+// invertible FEM (Irving, Teran, Fedkiw 2004): the proper rotation maximising tr(R^T F), with
+// Rprev deciding a tie between two equal smallest singular values.
 Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev);
 
 // Elastic energy 1/2 V (lambda tr(e)^2 + 2 mu e:e) with e = sym(R^T F) - I [J].

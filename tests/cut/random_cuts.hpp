@@ -15,30 +15,39 @@
 #include <cstdio>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace cutsim::test {
 
+using cutsim::describeRun;
 using cutsim::kBlowUpSpeed;
+using cutsim::RandomCutRun;
 using cutsim::RandomCutStats;
+using cutsim::runRandomCutSequence;
 
-// The liver (fixed at its back, gravity) or a bar (fixed at one end), as a model.
+// The liver (clamped over its back, gravity) or a bar (clamped at one end), as a model.
 inline Model randomCutModel(bool liver) {
     return liver ? randomCutLiverModel(readTetMesh(data("tet/sofa_liver.msh"), ReadOptions{})) : randomCutBarModel();
 }
 
-// As cutsim::runRandomCuts on randomCutModel(liver); every cut keeps volume and mass.
+// As cutsim::runRandomCuts on randomCutModel(liver); every cut keeps volume and mass. verbose
+// prints each run that blew up or inverted.
 inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsigned seed,
-                                    MassLumping lumping = MassLumping::Enrichment, double dtFactor = 0.9) {
-    const RandomCutStats st = cutsim::runRandomCuts(randomCutModel(liver), runs, stepsBetween, seed, lumping, dtFactor);
+                                    MassLumping lumping = MassLumping::Enrichment, double dtFactor = 0.9,
+                                    bool verbose = false) {
+    std::vector<std::string> log;
+    const RandomCutStats st = cutsim::runRandomCuts(randomCutModel(liver), runs, stepsBetween, seed, lumping, dtFactor,
+                                                    verbose ? &log : nullptr);
+    for (const auto& line : log) std::printf("%s\n", line.c_str());
     EXPECT_LT(st.maxVolumeError, 1e-9);
     EXPECT_LT(st.maxMassError, 1e-9);
     return st;
 }
 
 inline void printRandomCuts(const char* name, const RandomCutStats& st) {
-    std::printf("%s: %d runs, %d cuts, %ld steps, %d blew up, %d with an inverted element, max speed %.3g m/s, "
-                "min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns, st.maxSpeed,
-                st.minDtRatio);
+    std::printf("%s: %d runs, %d cuts, %ld steps, %d blew up, %d with an inverted element (%d still at the end), "
+                "max speed %.3g m/s, min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps, st.failures,
+                st.invertedRuns, st.invertedAtEnd, st.maxSpeed, st.minDtRatio);
 }
 
 } // namespace cutsim::test
