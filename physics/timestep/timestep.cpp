@@ -22,24 +22,29 @@ void ElementEstimates::resize(int n) {
 // ---- assembled stiffness by node rows ----
 
 void assembleStiffnessRow(const Model& m, int i, std::vector<int>& nbr, std::vector<Eigen::Matrix3d>& block) {
-    nbr.clear();
-    block.clear();
-    nbr.push_back(i);
-    block.push_back(Eigen::Matrix3d::Zero());
+    // The neighbour list first, in a per-thread scratch list, then the row sized exactly once: a
+    // growing pair of vectors per node cost more in allocation than the blocks themselves.
+    thread_local std::vector<int> scratch;
+    scratch.clear();
+    scratch.push_back(i);
+    const int s0 = m.nodeSlotStart[i], s1 = m.nodeSlotStart[i + 1];
+    for (int s = s0; s < s1; ++s) {
+        const int e = m.nodeSlots[s] / 4;
+        for (int b = 0; b < 4; ++b) {
+            const int j = m.tets(b, e);
+            if (std::find(scratch.begin(), scratch.end(), j) == scratch.end()) scratch.push_back(j);
+        }
+    }
+    nbr.assign(scratch.begin(), scratch.end());
+    block.assign(nbr.size(), Eigen::Matrix3d::Zero());
     const double lam = m.material.lambda(), mu = m.material.mu();
-    for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
+    for (int s = s0; s < s1; ++s) {
         const int e = m.nodeSlots[s] / 4, a = m.nodeSlots[s] % 4;
         const double V = m.volume(e) * m.fraction(e);
         const Mat34 g = shapeGradients(m.dmInv(e));
         const Eigen::Vector3d ga = g.col(a);
         for (int b = 0; b < 4; ++b) {
-            const int j = m.tets(b, e);
-            size_t k = 0;
-            while (k < nbr.size() && nbr[k] != j) ++k;
-            if (k == nbr.size()) {
-                nbr.push_back(j);
-                block.push_back(Eigen::Matrix3d::Zero());
-            }
+            const size_t k = static_cast<size_t>(std::find(nbr.begin(), nbr.end(), m.tets(b, e)) - nbr.begin());
             // Block (a,b) of the element stiffness (METHOD.md sec. 1).
             const Eigen::Vector3d gb = g.col(b);
             block[k] += V * (lam * ga * gb.transpose() + mu * gb * ga.transpose() +
@@ -59,11 +64,17 @@ StiffnessRows assembleStiffnessRows(const Model& m) {
 
 Eigen::Vector3d nodeStiffnessDiagonal(const Model& m, int i) {
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    const double eh = m.material.pWaveModulus(), mu = m.material.mu();
     for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
         const int e = m.nodeSlots[s] / 4, a = m.nodeSlots[s] % 4;
-        // Eqs. 4.3-4.10: the diagonal of K_e needs only the shape gradients.
-        const Vec12 de = elementStiffnessDiagonal(shapeGradients(m.dmInv(e)), m.volume(e) * m.fraction(e), m.material);
-        d += de.segment<3>(3 * a);
+        // Eqs. 4.3-4.10: the diagonal of K_e needs only the shape gradients; here node a's three
+        // entries (as elementStiffnessDiagonal), from g_a alone.
+        const double* dm = m.DmInv.col(e).data();  // column-major: rows of Dm^-1 are g_1 .. g_3
+        Eigen::Vector3d ga;
+        for (int k = 0; k < 3; ++k) ga(k) = a > 0 ? dm[3 * k + a - 1] : -(dm[3 * k] + dm[3 * k + 1] + dm[3 * k + 2]);
+        const Eigen::Vector3d sq = ga.cwiseAbs2();
+        const double sum = sq.sum(), V = m.volume(e) * m.fraction(e);
+        for (int k = 0; k < 3; ++k) d(k) += V * (eh * sq(k) + mu * (sum - sq(k)));
     }
     return d;
 }
@@ -434,14 +445,39 @@ void elementBlock(const Model& m, const int* elems, int count, double* lambda) {
     largestEigenvaluesLanes<6>(A, count, lambda);
 }
 
-// D_r = diag(K_r) / M_r at the 12 DOFs of e (0 at a fixed DOF).
-Vec12 scaledDiagonal(const Model& m, const Eigen::Matrix3Xd& diag, int e) {
-    Vec12 D;
-    for (int a = 0; a < 4; ++a) {
-        const int i = m.tets(a, e);
-        D.segment<3>(3 * a) = diag.col(i) * m.invMass(i);
+// Hs and Hp lambdas of elems[0 .. count-1], count <= kLanes, from D_r = diag(K_r) / M_r at the
+// 12 DOFs (0 at a fixed DOF), one element per lane.
+void heuristicBlock(const Model& m, const Eigen::Matrix3Xd& diag, const int* elems, int count, double* hs, double* hp) {
+    Lane D[12];
+    for (int l = 0; l < kLanes; ++l) {
+        const int e = elems[l < count ? l : 0];
+        for (int a = 0; a < 4; ++a) {
+            const int i = m.tets(a, e);
+            for (int k = 0; k < 3; ++k) D[3 * a + k][l] = diag(k, i) * m.invMass(i);
+        }
     }
-    return D;
+    // Descending by odd-even transposition: 12 rounds sort 12 values, with no branches.
+    for (int round = 0; round < 12; ++round)
+        for (int k = round % 2; k + 1 < 12; k += 2) {
+            const Lane hi = D[k] > D[k + 1] ? D[k] : D[k + 1], lo = D[k] > D[k + 1] ? D[k + 1] : D[k];
+            D[k] = hi, D[k + 1] = lo;
+        }
+    // Hs: lambda ~ max D_r (the thesis's scalar read as 1, METHOD.md sec. 3).
+    // Hp (thesis sec. 4.3, reading of METHOD.md sec. 3): j is the first index whose PRECEDING
+    // running sum D_r[0] + ... + D_r[j-1] exceeds half of the total; then lambda ~ D_r[0] + D_r[j].
+    // Fixed DOFs count as 0 and sort last, so they never change j; all zero gives D_r[0] = 0.
+    Lane total = D[0];
+    for (int k = 1; k < 12; ++k) total += D[k];
+    const Lane half = 0.5 * total;
+    Lane run = Lane{}, lambda = D[0];
+    LaneMask found = LaneMask{};
+    for (int j = 0; j < 12; ++j) {
+        const LaneMask take = ~found & (run > half);
+        lambda = take ? D[0] + D[j] : lambda;
+        found |= take;
+        run += D[j];
+    }
+    for (int l = 0; l < count; ++l) hs[l] = D[0][l], hp[l] = lambda[l];
 }
 
 } // namespace
@@ -467,23 +503,15 @@ double elementLambda(const Model& m, int e) {
 }
 
 double hsLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e) {
-    // Hs: lambda ~ max D_r (the thesis's scalar read as 1, METHOD.md sec. 3).
-    return scaledDiagonal(m, diag, e).maxCoeff();
+    double hs, hp;
+    heuristicBlock(m, diag, &e, 1, &hs, &hp);
+    return hs;
 }
 
 double hpLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e) {
-    // Hp (thesis sec. 4.3, reading of METHOD.md sec. 3): sort D_r descending; j is the first index
-    // whose PRECEDING running sum D_r[0] + ... + D_r[j-1] exceeds half of the total; then
-    // lambda ~ D_r[0] + D_r[j]. Fixed DOFs count as 0 and sort last, so they never change j.
-    Vec12 D = scaledDiagonal(m, diag, e);
-    std::sort(D.data(), D.data() + 12, std::greater<double>());
-    const double half = 0.5 * D.sum();
-    double run = 0;
-    for (int j = 0; j < 12; ++j) {
-        if (run > half) return D(0) + D(j);
-        run += D(j);
-    }
-    return D(0);  // all zero: nothing free
+    double hs, hp;
+    heuristicBlock(m, diag, &e, 1, &hs, &hp);
+    return hp;
 }
 
 double characteristicLength(const Model& m, int e) {
@@ -501,13 +529,14 @@ void estimateOneRing(const Model& m, const StiffnessRows& rows, const Eigen::Mat
                      int n, ElementEstimates& out) {
     for (int b = 0; b < n; b += kLanes) {
         const int count = std::min(kLanes, n - b);
-        double lambda[kLanes];
-        r1rBlock(m, rows, elems + b, count, lambda);
+        double r1r[kLanes], hs[kLanes], hp[kLanes];
+        r1rBlock(m, rows, elems + b, count, r1r);
+        heuristicBlock(m, diag, elems + b, count, hs, hp);
         for (int l = 0; l < count; ++l) {
             const int e = elems[b + l];
-            out.r1r(e) = dtFromLambda(lambda[l]);
-            out.hs(e) = dtFromLambda(hsLambda(m, diag, e));
-            out.hp(e) = dtFromLambda(hpLambda(m, diag, e));
+            out.r1r(e) = dtFromLambda(r1r[l]);
+            out.hs(e) = dtFromLambda(hs[l]);
+            out.hp(e) = dtFromLambda(hp[l]);
         }
     }
 }
