@@ -22,33 +22,41 @@ void ElementEstimates::resize(int n) {
 // ---- assembled stiffness by node rows ----
 
 void assembleStiffnessRow(const Model& m, int i, std::vector<int>& nbr, std::vector<Eigen::Matrix3d>& block) {
-    // The neighbour list first, in a per-thread scratch list, then the row sized exactly once: a
-    // growing pair of vectors per node cost more in allocation than the blocks themselves.
-    thread_local std::vector<int> scratch;
-    scratch.clear();
-    scratch.push_back(i);
+    // The neighbour list and each corner's place in it first, then the row sized exactly once: a
+    // growing pair of vectors per node cost more in allocation than the blocks themselves. Per
+    // thread scratch: the list, the places, and each node's place in the list (-1 when not in
+    // it; reset after use), so no search.
+    thread_local std::vector<int> list, place, where;
+    if (where.size() < static_cast<size_t>(m.nodes())) where.resize(static_cast<size_t>(m.nodes()), -1);
     const int s0 = m.nodeSlotStart[i], s1 = m.nodeSlotStart[i + 1];
+    list.assign(1, i);
+    where[static_cast<size_t>(i)] = 0;
+    place.resize(static_cast<size_t>(4 * (s1 - s0)));
     for (int s = s0; s < s1; ++s) {
         const int e = m.nodeSlots[s] / 4;
         for (int b = 0; b < 4; ++b) {
-            const int j = m.tets(b, e);
-            if (std::find(scratch.begin(), scratch.end(), j) == scratch.end()) scratch.push_back(j);
+            int& w = where[static_cast<size_t>(m.tets(b, e))];
+            if (w < 0) w = static_cast<int>(list.size()), list.push_back(m.tets(b, e));
+            place[static_cast<size_t>(4 * (s - s0) + b)] = w;
         }
     }
-    nbr.assign(scratch.begin(), scratch.end());
+    for (int j : list) where[static_cast<size_t>(j)] = -1;
+    nbr.assign(list.begin(), list.end());
     block.assign(nbr.size(), Eigen::Matrix3d::Zero());
     const double lam = m.material.lambda(), mu = m.material.mu();
     for (int s = s0; s < s1; ++s) {
         const int e = m.nodeSlots[s] / 4, a = m.nodeSlots[s] % 4;
         const double V = m.volume(e) * m.fraction(e);
         const Mat34 g = shapeGradients(m.dmInv(e));
-        const Eigen::Vector3d ga = g.col(a);
+        const Eigen::Vector3d la = V * lam * g.col(a), ma = V * mu * g.col(a);
         for (int b = 0; b < 4; ++b) {
-            const size_t k = static_cast<size_t>(std::find(nbr.begin(), nbr.end(), m.tets(b, e)) - nbr.begin());
-            // Block (a,b) of the element stiffness (METHOD.md sec. 1).
+            // Block (a,b) of the element stiffness, V [lambda g_a g_b^T + mu g_b g_a^T + mu (g_a.g_b) I]
+            // (METHOD.md sec. 1).
             const Eigen::Vector3d gb = g.col(b);
-            block[k] += V * (lam * ga * gb.transpose() + mu * gb * ga.transpose() +
-                             mu * ga.dot(gb) * Eigen::Matrix3d::Identity());
+            Eigen::Matrix3d& K = block[static_cast<size_t>(place[static_cast<size_t>(4 * (s - s0) + b)])];
+            const double d = ma.dot(gb);
+            for (int c = 0; c < 3; ++c)
+                for (int r = 0; r < 3; ++r) K(r, c) += la(r) * gb(c) + gb(r) * ma(c) + (r == c ? d : 0.0);
         }
     }
 }
