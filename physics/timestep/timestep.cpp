@@ -412,13 +412,11 @@ void elementBlock(const Model& m, const int* elems, int count, double* lambda) {
         for (int a = 1; a < 4; ++a)
             for (int k = 0; k < 3; ++k) g[a][k] = dm[3 * k + a - 1];
         for (int k = 0; k < 3; ++k) g[0][k] = -(g[1][k] + g[2][k] + g[3][k]);
+        for (int a = 0; a < 4; ++a)
+            if (!(m.invMass(m.tets(a, e)) > 0)) g[a][0] = g[a][1] = g[a][2] = 0;  // fixed: no DOFs
         for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) {
-                double s = 0;
-                for (int a = 0; a < 4; ++a)
-                    if (m.invMass(m.tets(a, e)) > 0) s += g[a][r] * g[a][c];
-                Q[r][c][l] = s;
-            }
+            for (int c = r; c < 3; ++c)
+                Q[r][c][l] = g[0][r] * g[0][c] + g[1][r] * g[1][c] + g[2][r] * g[2][c] + g[3][r] * g[3][c];
     }
     const Lane &xx = Q[0][0], &yy = Q[1][1], &zz = Q[2][2], &xy = Q[0][1], &yz = Q[1][2], &xz = Q[0][2];
     const Lane z = Lane{};
