@@ -121,7 +121,8 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
     // In chunks of 64 elements: the estimators run 8 at a time on vector lanes.
     constexpr int chunk = 64;
 #pragma omp parallel for schedule(static) if (nElems > kParallelUpdate)
-    for (int b = 0; b < nElems; b += chunk) estimateOneRing(m, rows_, diag_, elems.data() + b, std::min(chunk, nElems - b), est_);
+    for (int b = 0; b < nElems; b += chunk)
+        estimateOneRing(m, rows_, diag_, elems.data() + b, std::min(chunk, nElems - b), est_);
     // Le, the isolated element estimate and the shape measures see only the element itself (rest
     // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
 #pragma omp parallel for schedule(static) if (nGeom > kParallelUpdate)
