@@ -214,6 +214,9 @@ void tridiagonalize(double (&a)[N][N], double (&d)[N], double (&e)[N - 1]) {
 // them go through it together. GCC/Clang vector extensions; lanes take exactly the scalar steps
 // (masked where the scalar code branches), so they agree with it to rounding.
 constexpr int kLanes = 8;
+// The lane helpers have internal linkage: GCC's note that a 64-byte vector return changes the ABI
+// without AVX-512 (non-native builds) concerns calls between objects only.
+#pragma GCC diagnostic ignored "-Wpsabi"
 typedef double Lane __attribute__((vector_size(8 * kLanes)));
 typedef long LaneMask __attribute__((vector_size(8 * kLanes)));  // comparison result: -1 true, 0 false
 
