@@ -118,22 +118,18 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
         }
     }
     const int nElems = static_cast<int>(elems.size()), nGeom = static_cast<int>(geom.size());
+    // In chunks of 64 elements: the estimators run 8 at a time on vector lanes.
+    constexpr int chunk = 64;
 #pragma omp parallel for schedule(static) if (nElems > kParallelUpdate)
-    for (int k = 0; k < nElems; ++k) {
-        const int e = elems[k];
-        est_.r1r(e) = dtFromLambda(r1rLambda(m, rows_, e));
-        est_.hs(e) = dtFromLambda(hsLambda(m, diag_, e));
-        est_.hp(e) = dtFromLambda(hpLambda(m, diag_, e));
-    }
+    for (int b = 0; b < nElems; b += chunk)
+        estimateOneRing(m, rows_, diag_, elems.data() + b, std::min(chunk, nElems - b), est_);
     // Le, the isolated element estimate and the shape measures see only the element itself (rest
     // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
-    const double cp = m.material.pWaveSpeed();
 #pragma omp parallel for schedule(static) if (nGeom > kParallelUpdate)
-    for (int k = 0; k < nGeom; ++k) {
-        const int e = geom[k];
-        est_.le(e) = characteristicLength(m, e) / cp;
-        est_.element(e) = dtFromLambda(elementLambda(m, e));
-        shapes_.set(e, elementShape(m, e));
+    for (int b = 0; b < nGeom; b += chunk) {
+        const int count = std::min(chunk, nGeom - b);
+        estimateOwn(m, geom.data() + b, count, est_);
+        for (int k = b; k < b + count; ++k) shapes_.set(geom[k], elementShape(m, geom[k]));
     }
     // Gershgorin rows that see a changed block or mass: the nodes of those elements, plus N.
     for (int e : elems)

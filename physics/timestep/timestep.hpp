@@ -63,6 +63,9 @@ double certifiedDt(const Model& m);
 // Largest eigenvalue of a symmetric 12x12 matrix (Householder tridiagonalisation, then Laguerre
 // iterations from the Gershgorin bound; accurate to ~1e-14 relative).
 double largestEigenvalue(const Mat12& A);
+// The same for A[0 .. n-1], 8 at a time on vector lanes (the estimators' path); equal to
+// largestEigenvalue to rounding.
+void largestEigenvalues(const Mat12* A, int n, double* lambda);
 
 // Per-element estimates of the critical step [s] (METHOD.md sec. 3; +inf when nothing is free).
 struct ElementEstimates {
@@ -76,13 +79,22 @@ struct ElementEstimates {
 
 // lambda_max(M_r^-1 K_r) of element e from the assembled rows; fixed DOFs dropped.
 double r1rLambda(const Model& m, const StiffnessRows& rows, int e);
+// The same for elems[0 .. n-1] into lambda, 8 elements at a time on vector lanes.
+void r1rLambdas(const Model& m, const StiffnessRows& rows, const int* elems, int n, double* lambda);
 // Hs and Hp lambdas from D_r = diag(K_r) / M_r (diag: assembleStiffnessDiagonal).
 double hsLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e);
 double hpLambda(const Model& m, const Eigen::Matrix3Xd& diag, int e);
 // lambda_max(M_e^-1 K_e), masses rho V / 4 (fraction cancels); fixed DOFs dropped.
 double elementLambda(const Model& m, int e);
+void elementLambdas(const Model& m, const int* elems, int n, double* lambda);  // as r1rLambdas
 // Le = 3 V / largest face area of the rest element [m].
 double characteristicLength(const Model& m, int e);
+
+// R1R, Hs and Hp of elems[0 .. n-1] (what the assembled one-ring changes), serially.
+void estimateOneRing(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag, const int* elems,
+                     int n, ElementEstimates& out);
+// Le and the element eigenvalue of elems[0 .. n-1] (what only the element itself changes), serially.
+void estimateOwn(const Model& m, const int* elems, int n, ElementEstimates& out);
 
 // Fills the estimates of the listed elements (all when elements is null), in parallel.
 void estimateElements(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag,

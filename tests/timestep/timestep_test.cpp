@@ -55,6 +55,102 @@ TEST(LargestEigenvalue, MatchesDenseSolverOnRandomAndDegenerateMatrices) {
     EXPECT_DOUBLE_EQ(largestEigenvalue(D), 5);
 }
 
+// The estimators' path: 8 matrices at a time on vector lanes, with splits (zero rows, repeated
+// eigenvalues) finished per lane. Against Eigen's dense solver and the scalar routine.
+TEST(LargestEigenvalue, LanesMatchDenseSolverOnSpdZeroRowAndRepeatedCases) {
+    std::mt19937 rng(11);
+    std::normal_distribution<double> nd;
+    std::vector<Mat12, Eigen::aligned_allocator<Mat12>> A;
+    for (int t = 0; t < 120; ++t) {
+        Mat12 B;
+        for (int i = 0; i < 144; ++i) B(i) = nd(rng);
+        Mat12 M;
+        if (t % 3 == 2) {
+            // Repeated eigenvalues: Q diag Q^T with a spectrum of few distinct values.
+            const Eigen::HouseholderQR<Mat12> qr(B);
+            const Mat12 Q = qr.householderQ();
+            Vec12 ev;
+            for (int i = 0; i < 12; ++i) ev(i) = 1 + (i * (t % 5 + 1)) % 3;
+            M = Q * ev.asDiagonal() * Q.transpose();
+        } else {
+            M = B * B.transpose() + 0.1 * Mat12::Identity();  // SPD
+        }
+        M *= std::pow(10.0, t % 9 - 4);
+        // Fixed nodes: their three rows and columns are zero, as in K_r.
+        for (int a = 0; a < 4; ++a)
+            if ((t >> a) % 5 == 1) {
+                M.middleRows<3>(3 * a).setZero();
+                M.middleCols<3>(3 * a).setZero();
+            }
+        M = 0.5 * (M + M.transpose()).eval();
+        A.push_back(M);
+    }
+    A.push_back(Mat12::Identity() * 3);
+    A.push_back(Mat12::Zero());
+    Mat12 D = Mat12::Zero();
+    D.diagonal() << 1, 5, 5, 2, 5, 0, 0, 1, 3, 4, 5, 2;
+    A.push_back(D);
+    const int n = static_cast<int>(A.size());  // not a multiple of 8: the last block is padded
+    std::vector<double> lanes(A.size());
+    largestEigenvalues(A.data(), n, lanes.data());
+    int zeroRows = 0;
+    for (int t = 0; t < n; ++t) {
+        const double ref = Eigen::SelfAdjointEigenSolver<Mat12>(A[t], Eigen::EigenvaluesOnly).eigenvalues()(11);
+        EXPECT_NEAR(lanes[t], ref, 1e-12 * ref) << "case " << t;
+        EXPECT_NEAR(lanes[t], largestEigenvalue(A[t]), 1e-12 * ref) << "case " << t;
+        zeroRows += A[t].row(0).isZero() || A[t].row(3).isZero();
+    }
+    EXPECT_GE(zeroRows, 20);
+    EXPECT_DOUBLE_EQ(lanes[n - 3], 3);
+    EXPECT_EQ(lanes[n - 2], 0);
+    EXPECT_DOUBLE_EQ(lanes[n - 1], 5);
+}
+
+// R1R and the element eigenvalue of every element of the liver, fixed at its back, some elements
+// virtual: the lane path against 12x12 dense solves built from the assembled sparse K.
+TEST(Estimators, LanePathMatchesDenseSolvesOnMeshElements) {
+    ReadOptions ro;
+    ro.scale = 0.0254;
+    Model m = buildModel(readTetMesh(test::data("tet/sofa_liver.msh"), ro), Material{});
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(2, i) < -0.028;
+    for (int e = 0; e < m.elements(); e += 7) m.fraction(e) = 0.1 + 0.8 * (e % 5) / 5.0;
+    updateMasses(m);
+    const Eigen::SparseMatrix<double> K = assembleStiffness(m);
+    const StiffnessRows rows = assembleStiffnessRows(m);
+    std::vector<int> elems(static_cast<size_t>(m.elements()));
+    for (int e = 0; e < m.elements(); ++e) elems[static_cast<size_t>(e)] = e;
+    std::vector<double> r1r(elems.size()), element(elems.size());
+    r1rLambdas(m, rows, elems.data(), m.elements(), r1r.data());
+    elementLambdas(m, elems.data(), m.elements(), element.data());
+    int withFixed = 0;
+    for (int e = 0; e < m.elements(); ++e) {
+        Mat12 Kr, Ke;
+        const Mat12 Kel = elementStiffness(shapeGradients(m.dmInv(e)), m.volume(e), m.material);
+        bool fixedNode = false;
+        for (int a = 0; a < 4; ++a)
+            for (int b = 0; b < 4; ++b) {
+                const int i = m.tets(a, e), j = m.tets(b, e);
+                const double si = std::sqrt(m.invMass(i)), sj = std::sqrt(m.invMass(j));
+                const double own = (m.invMass(i) > 0 && m.invMass(j) > 0) ? 4.0 / (m.material.rho * m.volume(e)) : 0.0;
+                for (int r = 0; r < 3; ++r)
+                    for (int c = 0; c < 3; ++c) {
+                        Kr(3 * a + r, 3 * b + c) = si * sj * K.coeff(3 * i + r, 3 * j + c);
+                        Ke(3 * a + r, 3 * b + c) = own * Kel(3 * a + r, 3 * b + c);
+                    }
+                fixedNode |= !(m.invMass(i) > 0);
+            }
+        withFixed += fixedNode;
+        const double refR = Eigen::SelfAdjointEigenSolver<Mat12>(Kr, Eigen::EigenvaluesOnly).eigenvalues()(11);
+        const double refE = Eigen::SelfAdjointEigenSolver<Mat12>(Ke, Eigen::EigenvaluesOnly).eigenvalues()(11);
+        EXPECT_NEAR(r1r[static_cast<size_t>(e)], refR, 1e-12 * refR) << "element " << e;
+        EXPECT_NEAR(element[static_cast<size_t>(e)], refE, 1e-12 * refE) << "element " << e;
+        // The single-element entry points are the same computation.
+        EXPECT_EQ(r1rLambda(m, rows, e), r1r[static_cast<size_t>(e)]);
+        EXPECT_EQ(elementLambda(m, e), element[static_cast<size_t>(e)]);
+    }
+    EXPECT_GT(withFixed, 10);
+}
+
 TEST(ExactDt, SingleRegularTetAgreesWithR1RElementAndDenseSolve) {
     const Model m = buildModel(regularTet(0.01), Material{});
     const double ref = denseLambdaMax(m);
