@@ -259,14 +259,19 @@ double linearStaticTip(const Model& m, const TipFn& tip) {
 
 // First bending frequency in z with the lumped mass: the lowest eigenpairs of M^-1/2 K M^-1/2
 // (shift-invert Lanczos about 0); of those, the mode whose tip moves most along z.
-double firstBendingFrequency(const Model& m) {
-    int nf = 0;
-    const auto map = freeDofMap(m, &nf);
+// M^-1/2 K M^-1/2 over the free DOFs (map, nf from freeDofMap).
+Eigen::SparseMatrix<double> scaledFreeStiffness(const Model& m, const std::vector<int>& map, int nf) {
     Eigen::VectorXd s(nf);
     for (int i = 0; i < m.nodes(); ++i)
         for (int k = 0; k < 3; ++k)
             if (map[3 * i + k] >= 0) s(map[3 * i + k]) = 1.0 / std::sqrt(m.mass(i));
-    const Eigen::SparseMatrix<double> A = freeStiffness(m, map, nf, &s);
+    return freeStiffness(m, map, nf, &s);
+}
+
+double firstBendingFrequency(const Model& m) {
+    int nf = 0;
+    const auto map = freeDofMap(m, &nf);
+    const Eigen::SparseMatrix<double> A = scaledFreeStiffness(m, map, nf);
     Spectra::SparseSymShiftSolve<double> op(A);
     const int nev = 4;
     Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, nev, std::min(nf, 20), 0.0);
@@ -293,11 +298,7 @@ double firstBendingFrequency(const Model& m) {
 double lowestFrequency(const Model& m) {
     int nf = 0;
     const auto map = freeDofMap(m, &nf);
-    Eigen::VectorXd s(nf);
-    for (int i = 0; i < m.nodes(); ++i)
-        for (int k = 0; k < 3; ++k)
-            if (map[3 * i + k] >= 0) s(map[3 * i + k]) = 1.0 / std::sqrt(m.mass(i));
-    const Eigen::SparseMatrix<double> A = freeStiffness(m, map, nf, &s);
+    const Eigen::SparseMatrix<double> A = scaledFreeStiffness(m, map, nf);
     Spectra::SparseSymShiftSolve<double> op(A);
     Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, 1, std::min(nf, 12), 0.0);
     eigs.init();
