@@ -264,7 +264,7 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
 Model liverModel(const TetMesh& inches, int levels, double damping) {
     TetMesh t = inches;
     for (int l = 0; l < levels; ++l) t = refineTets(t);
-    Model m = randomCutLiverModel(t, -0.028);
+    Model m = randomCutLiverModel(t, kSceneLiverClampZ);
     m.massDamping = damping;
     return m;
 }
@@ -314,7 +314,7 @@ MiLiver miLiverModel(const SurfaceMesh& inches, int cells, double damping) {
     MiLiver out{std::move(r.model), std::move(r.surface)};
     Model& m = out.model;
     m.gravity = Eigen::Vector3d(0, -9.81, 0);
-    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(2, i) < -0.028;
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(2, i) < kSceneLiverClampZ;
     m.massDamping = damping;
     updateMasses(m);
     return out;
@@ -437,7 +437,7 @@ std::vector<AfterCutModel> afterCutModels(bool tiny) {
     const std::string path = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
     if (tiny || !std::filesystem::exists(path)) return out;
     // The liver fixed at its back, cut by the four planes of thesis sec. 5.2 (liver_cuts.json).
-    const Model liver = randomCutLiverModel(readTetMesh(path, ReadOptions{}), -0.028);
+    const Model liver = randomCutLiverModel(readTetMesh(path, ReadOptions{}), kSceneLiverClampZ);
     const double dt0 = exactCriticalDt(liver).dt;
     const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> planes = {
         {{-0.085, 0.06, 0.0}, {1, 0, 0.15}}, {{-0.045, 0.06, 0.0}, {1, 0.1, 0}},

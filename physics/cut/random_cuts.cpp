@@ -60,6 +60,14 @@ void pieceOf(const Model& m, int e, RandomCutRun& r) {
 
 } // namespace
 
+CutSurface randomCutPlane(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::mt19937& rng) {
+    std::uniform_real_distribution<double> uni(0, 1);
+    CutSurface cs;
+    for (int k = 0; k < 3; ++k) cs.point[k] = lo[k] + (0.15 + 0.7 * uni(rng)) * (hi[k] - lo[k]);
+    cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
+    return cs;
+}
+
 RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, int run, int stepsBetween,
                                   MassLumping lumping, double dtFactor) {
     std::seed_seq seq{seed, static_cast<unsigned>(run)};
@@ -103,10 +111,7 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
             }
         }
         if (c == nCuts) break;
-        CutSurface cs;
-        for (int k = 0; k < 3; ++k) cs.point[k] = lo[k] + (0.15 + 0.7 * uni(rng)) * (hi[k] - lo[k]);
-        cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
-        const CutResult r = eng.cut(m, s, cs);
+        const CutResult r = eng.cut(m, s, randomCutPlane(lo, hi, rng));
         ++out.cuts;
         out.maxVolumeError = std::max(out.maxVolumeError, std::abs(r.volumeAfter - r.volumeBefore) / r.volumeBefore);
         out.maxMassError = std::max(out.maxMassError, std::abs(r.massAfter - r.massBefore) / r.massBefore);

@@ -7,6 +7,7 @@
 #include "fem/model.hpp"
 #include "mesh/mesh.hpp"
 
+#include <random>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,9 @@ struct RandomCutRun {
     double invFraction = 0, pieceVolume = 0;
 };
 
+// The liver's clamp in the shipped scenes (demo.json, liver_cuts.json) and the benchmarks that
+// follow them: the 10 nodes behind this plane.
+inline constexpr double kSceneLiverClampZ = -0.028;  // [m]
 // The liver's clamp for the stress: its back quarter (28 nodes). A clamp on the 10 nodes behind
 // z = -0.028 m (the scenes') is a point support: it leaves the uncut liver at a smallest principal
 // stretch of 0.63 and caused most inversions of the stress run; over this region 0.885.
@@ -58,6 +62,10 @@ Model randomCutBarModel();
 // One sequence of 1-4 random planes through the model's box, the generator seeded with
 // (seed, run) so any run replays alone: `stepsBetween` symplectic Euler steps at 0.9 x the uncut
 // exact dt0 before the first cut and dtFactor x the cut model's exact dt after each.
+// A random plane through the box [lo, hi]: a point uniform in its middle 70% on each axis, a
+// direction uniform in a cube (6 draws of U(0, 1) from rng, in that order).
+CutSurface randomCutPlane(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::mt19937& rng);
+
 RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, int run, int stepsBetween,
                                   MassLumping lumping = MassLumping::Enrichment, double dtFactor = 0.9);
 

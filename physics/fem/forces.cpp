@@ -1,5 +1,7 @@
 #include "fem/forces.hpp"
 
+#include "fem/lanes.hpp"
+
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <omp.h>
@@ -101,14 +103,8 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d&
 
 namespace {
 
-// Elements per block of the force kernel: one AVX-512 register of doubles. Each quantity of a
-// block is a vector of 8 lanes, one element per lane, so the per-element arithmetic runs across
-// lanes (Eigen's fixed 3x3 products vectorise only within one element, and GCC does not reliably
-// vectorise the masked Newton loop from plain loops). GCC/Clang vector extensions; without
-// AVX-512 they are split into narrower registers.
-constexpr int kLanes = 8;
-typedef double Lane __attribute__((vector_size(8 * kLanes)));
-typedef long LaneMask __attribute__((vector_size(8 * kLanes)));  // comparison result: -1 true, 0 false
+// Elements per block of the force kernel: kLanes (fem/lanes.hpp), one element per lane; GCC does
+// not reliably vectorise the masked Newton loop from plain per-element loops.
 
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes); lanes past count are padded
 // with an undeformed unit element and not written back. Matrices are column-major, (r, c) at 3c + r.
@@ -161,9 +157,7 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
         // that lane's update is below 1e-6 (quadratic convergence: its error is then ~1e-12);
         // converged lanes are frozen, so each lane gets exactly the iterations it would alone.
         for (int it = 0; it < 30; ++it) {
-            bool any = false;
-            for (int l = 0; l < kLanes; ++l) any = any || active[l];
-            if (!any) break;
+            if (!anyLane(active)) break;
             // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
             const Lane c0 = X[4] * X[8] - X[5] * X[7], c1 = X[5] * X[6] - X[3] * X[8], c2 = X[3] * X[7] - X[4] * X[6];
             const Lane c3 = X[7] * X[2] - X[8] * X[1], c4 = X[8] * X[0] - X[6] * X[2], c5 = X[6] * X[1] - X[7] * X[0];

@@ -1,5 +1,7 @@
 #include "timestep/timestep.hpp"
 
+#include "fem/lanes.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -213,24 +215,6 @@ void tridiagonalize(double (&a)[N][N], double (&d)[N], double (&e)[N - 1]) {
 // kernel (fem/forces.cpp): every estimator element runs the same fixed-size arithmetic, so 8 of
 // them go through it together. GCC/Clang vector extensions; lanes take exactly the scalar steps
 // (masked where the scalar code branches), so they agree with it to rounding.
-constexpr int kLanes = 8;
-// The lane helpers have internal linkage: GCC's note that a 64-byte vector return changes the ABI
-// without AVX-512 (non-native builds) concerns calls between objects only.
-#pragma GCC diagnostic ignored "-Wpsabi"
-typedef double Lane __attribute__((vector_size(8 * kLanes)));
-typedef long LaneMask __attribute__((vector_size(8 * kLanes)));  // comparison result: -1 true, 0 false
-
-inline Lane sqrtLanes(Lane x) {
-    for (int l = 0; l < kLanes; ++l) x[l] = __builtin_sqrt(x[l]);
-    return x;
-}
-inline Lane absLanes(Lane x) { return x < 0 ? -x : x; }
-inline bool anyLane(LaneMask m) {
-    bool any = false;
-    for (int l = 0; l < kLanes; ++l) any = any || m[l];
-    return any;
-}
-
 template <int N>
 void tridiagonalizeLanes(Lane (&a)[N][N], Lane (&d)[N], Lane (&e)[N - 1]) {
     for (int k = 0; k < N - 2; ++k) {

@@ -13,6 +13,7 @@
 // runs its loops in parallel above 256 items: OMP_NUM_THREADS=1 measures it serially.
 // Run: build/tests/cutsim_bench --benchmark_filter=Cut
 // No main here: cutsim_bench's main lives in another file of this folder.
+#include "cut/random_cuts.hpp"
 #include "cut/xfem.hpp"
 #include "fem/model.hpp"
 #include "fem/state.hpp"
@@ -54,14 +55,8 @@ const Scene& uncut() {
     static std::unique_ptr<Scene> sc;
     if (!sc) {
         sc = std::make_unique<Scene>();
-        ReadOptions ro;
-        ro.scale = 0.0254;
         Model& m = sc->m;
-        m = buildModel(readTetMesh(std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh", ro), Material{});
-        m.gravity = Eigen::Vector3d(0, -9.81, 0);
-        for (int i = 0; i < m.nodes(); ++i) m.fixed[i] = m.X(2, i) < -0.028;
-        m.massDamping = 5;
-        updateMasses(m);
+        m = randomCutLiverModel(readTetMesh(std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh"), kSceneLiverClampZ);
         sc->s = makeState(m);
         sc->eng.prepare(m);
         sc->an.compute(m);

@@ -10,7 +10,6 @@ namespace {
 
 TEST(CutConsistency, RandomCutsKeepEnergyAndForcesOfTheMoment) {
     std::mt19937 rng(5);
-    std::uniform_real_distribution<double> uni(0, 1);
     for (bool liver : {true, false}) {
         Model m = test::randomCutModel(liver);
         State s = makeState(m);
@@ -33,10 +32,7 @@ TEST(CutConsistency, RandomCutsKeepEnergyAndForcesOfTheMoment) {
             };
             const Eigen::Matrix3Xd f0 = grouped();
             const double e0 = elasticEnergy(m, s), k0 = kineticEnergy(m, s);
-            CutSurface cs;
-            for (int d = 0; d < 3; ++d) cs.point[d] = lo[d] + (0.15 + 0.7 * uni(rng)) * (hi[d] - lo[d]);
-            cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
-            const CutResult r = eng.cut(m, s, cs);
+            const CutResult r = eng.cut(m, s, randomCutPlane(lo, hi, rng));
             opt.dt = 0.9 * TimestepAnalyzer(m).exact(m).dt;
             stepper.reset();
             computeForces(m, s);
@@ -68,7 +64,6 @@ std::map<int, Eigen::Matrix3d> rowOf(const StiffnessRows& rows, int i) {
 // element of an uncut parent moves to another copy; its rows are then stale unless it is reported.
 TEST(CutConsistency, LocalTimestepUpdateMatchesRebuild) {
     std::mt19937 rng(225);
-    std::uniform_real_distribution<double> uni(0, 1);
     int compared = 0;
     for (bool liver : {false, true}) {
         Model m = test::randomCutModel(liver);
@@ -81,10 +76,7 @@ TEST(CutConsistency, LocalTimestepUpdateMatchesRebuild) {
         TimestepAnalyzer ta(m);
         for (int c = 0; c < 8; ++c) {
             for (int k = 0; k < 30; ++k) stepper.step(m, s, opt);
-            CutSurface cs;
-            for (int d = 0; d < 3; ++d) cs.point[d] = lo[d] + (0.15 + 0.7 * uni(rng)) * (hi[d] - lo[d]);
-            cs.normal = Eigen::Vector3d(uni(rng) - 0.5, uni(rng) - 0.5, uni(rng) - 0.5).normalized();
-            const CutResult r = eng.cut(m, s, cs);
+            const CutResult r = eng.cut(m, s, randomCutPlane(lo, hi, rng));
             ta.update(m, r.changedElements, r.changedNodes);
             stepper.reset();
             const TimestepAnalyzer fresh(m);

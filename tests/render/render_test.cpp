@@ -4,6 +4,7 @@
 #include "golden.hpp"
 #include "renderer.hpp"
 #include "snapshot/snapshot.hpp"
+#include "cut/random_cuts.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
@@ -233,16 +234,7 @@ TEST(RenderGolden, HudFrame) {
 }
 
 // The SOFA liver as the demo scene has it: scale 0.0254, fixed at its back, gravity along -y.
-Model goldenLiver() {
-    ReadOptions ro;
-    ro.scale = 0.0254;
-    Model m = buildModel(readTetMesh(test::data("tet/sofa_liver.msh"), ro), Material{});
-    m.gravity = Eigen::Vector3d(0, -9.81, 0);
-    m.massDamping = 5;
-    for (int i = 0; i < m.nodes(); ++i) m.fixed[i] = m.X(2, i) < -0.028;
-    updateMasses(m);
-    return m;
-}
+Model goldenLiver() { return randomCutLiverModel(readTetMesh(test::data("tet/sofa_liver.msh")), kSceneLiverClampZ); }
 
 // Coloured by each element's R1R step over dt = 0.9 of the exact limit; the five most critical
 // elements (the smallest estimates) drawn through the surface.

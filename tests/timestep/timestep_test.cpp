@@ -2,6 +2,7 @@
 // GCC 12 flags Eigen's AVX-512 max reduction (a system header) as uninitialized: a false positive.
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
+#include "cut/random_cuts.hpp"
 #include "fem/model.hpp"
 #include "fem/tet.hpp"
 #include "mesh/io.hpp"
@@ -112,7 +113,7 @@ TEST(Estimators, LanePathMatchesDenseSolvesOnMeshElements) {
     ReadOptions ro;
     ro.scale = 0.0254;
     Model m = buildModel(readTetMesh(test::data("tet/sofa_liver.msh"), ro), Material{});
-    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(2, i) < -0.028;
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(2, i) < kSceneLiverClampZ;
     for (int e = 0; e < m.elements(); e += 7) m.fraction(e) = 0.1 + 0.8 * (e % 5) / 5.0;
     updateMasses(m);
     const Eigen::SparseMatrix<double> K = assembleStiffness(m);
