@@ -707,24 +707,33 @@ int runStability(const StabilityArgs& a) {
     j["random_cuts"] = json::array();
     if (a.cutRuns > 0) {
         if (!a.json)
-            std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping)\n%-10s %6s %6s %9s %9s %14s %15s %12s\n",
-                        a.cutSteps, "object", "runs", "cuts", "steps", "failures", "inverted runs", "inverted at end", "min dt ratio");
+            std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
+                        "integrator.min_volume_ratio)\n%-10s %6s %6s %6s %9s %9s %14s %15s %13s %12s\n",
+                        a.cutSteps, "object", "limit", "runs", "cuts", "steps", "failures", "inverted runs", "inverted at end",
+                        "limited runs", "min dt ratio");
         std::vector<std::pair<std::string, Model>> objects;
         objects.emplace_back("bar", randomCutBarModel());
         const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
         if (fs::exists(liver)) objects.emplace_back("liver", randomCutLiverModel(readTetMesh(liver, ReadOptions{})));
         unsigned seed = 21;
         for (const auto& [name, model] : objects) {
-            const auto t0 = Clock::now();
-            const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed++);
-            j["random_cuts"].push_back({{"object", name}, {"runs", st.runs}, {"cuts", st.cuts}, {"steps", st.steps},
-                                        {"failures", st.failures}, {"inverted_runs", st.invertedRuns},
-                                        {"inverted_at_end", st.invertedAtEnd}, {"max_speed", st.maxSpeed}, {"min_dt_ratio", st.minDtRatio},
-                                        {"max_volume_error", st.maxVolumeError}, {"max_mass_error", st.maxMassError},
-                                        {"first_failure", st.firstFailure}, {"seconds", since(t0)}});
-            if (!a.json)
-                std::printf("%-10s %6d %6d %9ld %9d %14d %15d %12.4f%s%s\n", name.c_str(), st.runs, st.cuts, st.steps, st.failures,
-                            st.invertedRuns, st.invertedAtEnd, st.minDtRatio, st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
+            // the same sequences plain and with volume-ratio limiting (fem/forces.hpp limitVolumeRatio)
+            for (const double limit : {0.0, 0.2}) {
+                const auto t0 = Clock::now();
+                const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, {MassLumping::Enrichment, 0.9, limit});
+                j["random_cuts"].push_back({{"object", name}, {"min_volume_ratio", limit}, {"runs", st.runs}, {"cuts", st.cuts},
+                                            {"steps", st.steps}, {"failures", st.failures}, {"inverted_runs", st.invertedRuns},
+                                            {"inverted_at_end", st.invertedAtEnd}, {"limited_runs", st.limitedRuns},
+                                            {"limited_steps", st.limitedSteps}, {"max_speed", st.maxSpeed},
+                                            {"min_dt_ratio", st.minDtRatio}, {"max_volume_error", st.maxVolumeError},
+                                            {"max_mass_error", st.maxMassError}, {"first_failure", st.firstFailure},
+                                            {"seconds", since(t0)}});
+                if (!a.json)
+                    std::printf("%-10s %6.2f %6d %6d %9ld %9d %14d %15d %13d %12.4f%s%s\n", name.c_str(), limit, st.runs, st.cuts,
+                                st.steps, st.failures, st.invertedRuns, st.invertedAtEnd, st.limitedRuns, st.minDtRatio,
+                                st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
+            }
+            ++seed;
         }
     }
     // Energy drift of a long undamped run at 0.9 of the limit (symplectic Euler): relative to the
@@ -978,7 +987,7 @@ void addBenchCommand(CLI::App& app) {
                                                      "energy drift of a long run");
         c->add_flag("--json", a->json, "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
                                        "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
-                                       "random_cuts: [{object, runs, cuts, steps, failures, inverted_runs, inverted_at_end, min_dt_ratio}], energy_drift}");
+                                       "random_cuts: [{object, min_volume_ratio, runs, cuts, steps, failures, inverted_runs, inverted_at_end, limited_runs, min_dt_ratio}], energy_drift}");
         c->add_option("--steps", a->steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
         c->add_option("--cut-runs", a->cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
             ->check(CLI::Range(0, 100000))->capture_default_str();

@@ -423,6 +423,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     State state = makeState(model);
     Stepper stepper;
     StepOptions so{sc.integrator, dt};
+    so.minVolumeRatio = sc.minVolumeRatio;
     if (alphaElem.size()) so.alphaElem = &alphaElem;
 
     const double frameDt = 1.0 / sc.capture.fps;
@@ -430,8 +431,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     json energy = json::array();
     std::string status = "ok";
     int exitCode = 0;
-    long invertedSteps = 0;
-    int maxInverted = 0;
+    long invertedSteps = 0, limitedSteps = 0;
+    int maxInverted = 0, maxLimited = 0;
     Progress progress(sc.duration, opt.quiet);
     const double mass0 = model.mass.sum();
     const int nodes0 = model.nodes(), elements0 = model.elements(), fixed0 = model.nodes() - model.freeDofs() / 3;
@@ -636,6 +637,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             ++invertedSteps;
             maxInverted = std::max(maxInverted, state.flags.inverted);
         }
+        if (state.flags.limited > 0) {
+            ++limitedSteps;
+            maxLimited = std::max(maxLimited, state.flags.limited);
+        }
         if (state.flags.nonFinite > 0) {
             status = "diverged: non-finite positions or velocities at step " + std::to_string(state.steps) +
                      " (t = " + std::to_string(state.time) + " s)";
@@ -691,7 +696,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["pieces"] = countPieces(model);
     report["mass"] = {{"initial", mass0}, {"final", model.mass.sum()}};
     report["energy"] = energy;
-    report["inverted"] = {{"steps", invertedSteps}, {"max_elements", maxInverted}};
+    report["inverted"] = {{"steps", invertedSteps}, {"max_elements", maxInverted},
+                          {"limited_steps", limitedSteps}, {"max_limited", maxLimited}};
     report["stages"] = stages.toJson();
     if (tools.world) {
         json names = json::array(), k = json::array(), c = json::array();

@@ -69,7 +69,7 @@ CutSurface randomCutPlane(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, 
 }
 
 RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, int run, int stepsBetween,
-                                  MassLumping lumping, double dtFactor) {
+                                  const RandomCutOptions& ro) {
     std::seed_seq seq{seed, static_cast<unsigned>(run)};
     std::mt19937 rng(seq);
     std::uniform_real_distribution<double> uni(0, 1);
@@ -79,11 +79,12 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
     State s = makeState(m);
     TimestepAnalyzer ta(m);
     CutOptions co;
-    co.lumping = lumping;
+    co.lumping = ro.lumping;
     CutEngine eng(co);
     Stepper stepper;
     StepOptions opt;
     opt.dt = 0.9 * dt0;
+    opt.minVolumeRatio = ro.minVolumeRatio;
     const int nCuts = 1 + static_cast<int>(uni(rng) * 4);
     for (int c = 0; c <= nCuts; ++c) {
         for (int k = 0; k < stepsBetween; ++k) {
@@ -103,6 +104,8 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
                 pieceOf(m, out.invElem, out);
             }
             out.invertedAtEnd = s.flags.inverted > 0;
+            out.limitedSteps += s.flags.limited > 0;
+            out.maxLimited = std::max(out.maxLimited, s.flags.limited);
             if (s.flags.nonFinite > 0 || !(vmax < kBlowUpSpeed)) {
                 out.failed = true;
                 out.failure = "cut " + std::to_string(c) + ", step " + std::to_string(k) + " after it: " +
@@ -118,29 +121,35 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
         ta.update(m, r.changedElements, r.changedNodes);
         const double dt = ta.exact(m).dt;
         out.minDtRatio = std::min(out.minDtRatio, dt / dt0);
-        opt.dt = dtFactor * dt;
+        opt.dt = ro.dtFactor * dt;
         stepper.reset();
     }
     return out;
 }
 
 std::string describeRun(int run, const RandomCutRun& r) {
-    char buf[400];
+    char buf[500];
+    if (!r.inverted) {
+        std::snprintf(buf, sizeof buf, "run %d: %d cuts%s%s; no inversion; volume limiting in %ld steps, at most %d elements",
+                      run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "", r.limitedSteps,
+                      r.maxLimited);
+        return buf;
+    }
     std::snprintf(buf, sizeof buf,
                   "run %d: %d cuts%s%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
-                  "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes",
+                  "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes; volume limiting in %ld steps",
                   run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "",
                   r.invertedAtEnd ? ", still inverted at the end" : ", recovered", r.invCut, r.invStep, r.invElem,
-                  r.invFraction, r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed);
+                  r.invFraction, r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed, r.limitedSteps);
     return buf;
 }
 
-RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsigned seed, MassLumping lumping,
-                             double dtFactor, std::vector<std::string>* log) {
+RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsigned seed, const RandomCutOptions& opt,
+                             std::vector<std::string>* log) {
     RandomCutStats st;
     const double dt0 = TimestepAnalyzer(base).exact(base).dt;
     for (int run = 0; run < runs; ++run) {
-        const RandomCutRun r = runRandomCutSequence(base, dt0, seed, run, stepsBetween, lumping, dtFactor);
+        const RandomCutRun r = runRandomCutSequence(base, dt0, seed, run, stepsBetween, opt);
         st.cuts += r.cuts;
         st.steps += r.steps;
         st.maxSpeed = std::max(st.maxSpeed, r.maxSpeed);
@@ -150,8 +159,10 @@ RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsi
         st.failures += r.failed;
         st.invertedRuns += r.inverted;
         st.invertedAtEnd += r.invertedAtEnd;
+        st.limitedRuns += r.limitedSteps > 0;
+        st.limitedSteps += r.limitedSteps;
         if (r.failed && st.firstFailure.empty()) st.firstFailure = "run " + std::to_string(run) + " " + r.failure;
-        if (log && (r.failed || r.inverted)) log->push_back(describeRun(run, r));
+        if (log && (r.failed || r.inverted || r.limitedSteps > 0)) log->push_back(describeRun(run, r));
         ++st.runs;
     }
     return st;

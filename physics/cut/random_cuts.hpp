@@ -4,6 +4,7 @@
 #pragma once
 
 #include "cut/xfem.hpp"
+#include "fem/integrate.hpp"
 #include "fem/model.hpp"
 #include "mesh/mesh.hpp"
 
@@ -20,6 +21,8 @@ struct RandomCutStats {
     int failures = 0;        // runs that blew up: a non-finite value or a speed above kBlowUpSpeed
     int invertedRuns = 0;    // runs in which some element had det F <= 0, even for one step
     int invertedAtEnd = 0;   // of those, runs with an element still inverted at their last step
+    int limitedRuns = 0;     // runs in which volume-ratio limiting corrected an element
+    long limitedSteps = 0;   // steps in which it did
     double maxSpeed = 0;     // [m/s]
     long steps = 0;
     double minDtRatio = 1;   // smallest exact dt after a cut over the uncut one [-]
@@ -35,6 +38,8 @@ struct RandomCutRun {
     bool failed = false;        // a non-finite value or a speed above kBlowUpSpeed
     bool inverted = false;      // some element had det F <= 0
     bool invertedAtEnd = false; // an element still had det F <= 0 at the last step
+    long limitedSteps = 0;      // steps in which volume-ratio limiting corrected an element
+    int maxLimited = 0;         // most elements it corrected in one step
     double maxSpeed = 0;        // [m/s]
     double minDtRatio = 1;      // smallest exact dt after a cut over the uncut one [-]
     double maxVolumeError = 0, maxMassError = 0; // relative, over the cuts [-]
@@ -59,23 +64,30 @@ inline constexpr double kStressLiverClampZ = -0.015;  // [m]
 Model randomCutLiverModel(const TetMesh& liverInches, double clampZ = kStressLiverClampZ);
 Model randomCutBarModel();
 
+// How the sequences step: the lumping of the cuts, the step as a fraction of the current exact
+// limit, and the volume-ratio limiting of the scenes (0: off, inversions only counted).
+struct RandomCutOptions {
+    MassLumping lumping = MassLumping::Enrichment;
+    double dtFactor = 0.9;                          // step / exact dt of the current model [-]
+    double minVolumeRatio = 0;                      // StepOptions::minVolumeRatio, 0: off [-]
+};
+
 // One sequence of 1-4 random planes through the model's box, the generator seeded with
 // (seed, run) so any run replays alone: `stepsBetween` symplectic Euler steps at 0.9 x the uncut
-// exact dt0 before the first cut and dtFactor x the cut model's exact dt after each.
+// exact dt0 before the first cut and opt.dtFactor x the cut model's exact dt after each.
 // A random plane through the box [lo, hi]: a point uniform in its middle 70% on each axis, a
 // direction uniform in a cube (6 draws of U(0, 1) from rng, in that order).
 CutSurface randomCutPlane(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::mt19937& rng);
 
 RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, int run, int stepsBetween,
-                                  MassLumping lumping = MassLumping::Enrichment, double dtFactor = 0.9);
+                                  const RandomCutOptions& opt = {});
 
-// One line for a run that blew up or inverted.
+// One line for a run that blew up, inverted or was limited.
 std::string describeRun(int run, const RandomCutRun& r);
 
 // Runs 0 .. runs-1 of runRandomCutSequence; `log`, when given, gets describeRun of each run that
-// blew up or inverted.
+// blew up, inverted or was limited.
 RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsigned seed,
-                             MassLumping lumping = MassLumping::Enrichment, double dtFactor = 0.9,
-                             std::vector<std::string>* log = nullptr);
+                             const RandomCutOptions& opt = {}, std::vector<std::string>* log = nullptr);
 
 } // namespace cutsim

@@ -109,7 +109,7 @@ namespace {
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes); lanes past count are padded
 // with an undeformed unit element and not written back. Matrices are column-major, (r, c) at 3c + r.
 inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
-                        bool corot) {
+                        bool corot, double watch, int* nearFlat) {
     Lane Ds[9], Dm[9], scale;
     const double* xs = s.x.data();
     for (int l = 0; l < kLanes; ++l) {
@@ -134,8 +134,12 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
         for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
     const Lane det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) +
                      F[6] * (F[1] * F[5] - F[4] * F[2]);
-    int inv = 0;
-    for (int l = 0; l < count; ++l) inv += det[l] <= 0;
+    int inv = 0, near = 0;
+    for (int l = 0; l < count; ++l) {
+        inv += det[l] <= 0;
+        near += det[l] < watch;
+    }
+    *nearFlat += near;
     Lane X[9];
     if (corot) {
         for (int k = 0; k < 9; ++k) X[k] = F[k];
@@ -206,13 +210,15 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
 
 } // namespace
 
-void elementForces(const Model& m, State& s, const double* alpha, int begin, int end, int* inverted) {
+void elementForces(const Model& m, State& s, const double* alpha, int begin, int end, int* inverted, double watch,
+                   int* nearFlat) {
     const double lam = m.material.lambda(), mu = m.material.mu();
     const bool corot = m.elementModel == ElementModel::Corotational;
-    int inv = 0;
+    int inv = 0, near = 0;
     for (int e = begin; e < end; e += kLanes)
-        inv += elementBlock(m, s, alpha, e, std::min(kLanes, end - e), lam, mu, corot);
+        inv += elementBlock(m, s, alpha, e, std::min(kLanes, end - e), lam, mu, corot, watch, &near);
     if (inverted) *inverted += inv;
+    if (nearFlat) *nearFlat += near;
 }
 
 void gatherForces(const Model& m, State& s, int begin, int end) {
@@ -226,19 +232,20 @@ void gatherForces(const Model& m, State& s, int begin, int end) {
     }
 }
 
-void computeForces(const Model& m, State& s, const double* alpha) {
-    int inverted = 0;
+void computeForces(const Model& m, State& s, const double* alpha, double watch) {
+    int inverted = 0, nearFlat = 0;
     const int ne = m.elements(), nn = m.nodes();
-#pragma omp parallel reduction(+ : inverted) if (ne >= kParallelElements)
+#pragma omp parallel reduction(+ : inverted, nearFlat) if (ne >= kParallelElements)
     {
         const int nt = omp_get_num_threads(), t = omp_get_thread_num();
         elementForces(m, s, alpha, static_cast<int>(static_cast<long>(ne) * t / nt),
-                      static_cast<int>(static_cast<long>(ne) * (t + 1) / nt), &inverted);
+                      static_cast<int>(static_cast<long>(ne) * (t + 1) / nt), &inverted, watch, &nearFlat);
 #pragma omp barrier
         gatherForces(m, s, static_cast<int>(static_cast<long>(nn) * t / nt),
                      static_cast<int>(static_cast<long>(nn) * (t + 1) / nt));
     }
     s.flags.inverted = inverted;
+    s.flags.nearFlat = nearFlat;
     s.flags.firstInverted = -1;
     // Rare: find one for messages with a scan instead of a shared write in the hot loop.
     for (int e = 0; inverted > 0 && e < ne; ++e) {
@@ -250,6 +257,81 @@ void computeForces(const Model& m, State& s, const double* alpha) {
             break;
         }
     }
+}
+
+namespace {
+
+// det F of element e at the current positions and, into g, its gradient with respect to the four
+// nodes: d det(Ds) / d Ds = cof(Ds), times det(DmInv); node 0 takes minus the sum.
+double volumeRatio(const Model& m, const State& s, int e, Eigen::Matrix<double, 3, 4>* g) {
+    const int* n = m.tets.col(e).data();
+    const Eigen::Vector3d x0 = s.x.col(n[0]);
+    const Eigen::Vector3d a = s.x.col(n[1]) - x0, b = s.x.col(n[2]) - x0, c = s.x.col(n[3]) - x0;
+    const double detDmInv = m.dmInv(e).determinant();
+    if (g) {
+        g->col(1) = detDmInv * b.cross(c);
+        g->col(2) = detDmInv * c.cross(a);
+        g->col(3) = detDmInv * a.cross(b);
+        g->col(0) = -(g->col(1) + g->col(2) + g->col(3));
+    }
+    return detDmInv * a.dot(b.cross(c));
+}
+
+} // namespace
+
+int limitVolumeRatio(const Model& m, State& s, double jMin, std::vector<int>& scratch) {
+    // Gauss-Seidel over the violated elements: elements sharing nodes converge together; the
+    // linearised correction of det F (cubic in x) is exact to first order, so a few sweeps suffice.
+    // A correction can push a neighbour below the ratio: scan again, a few rounds at most.
+    constexpr int kRounds = 4, kSweeps = 8;
+    constexpr double kTol = 1e-9;
+    Eigen::Matrix<double, 3, 4> g;
+    int corrected = 0;
+    for (int round = 0; round < kRounds; ++round) {
+        scratch.clear();
+        for (int e = 0; e < m.elements(); ++e)
+            if (volumeRatio(m, s, e, nullptr) < jMin * (1 - kTol)) scratch.push_back(e);
+        if (scratch.empty()) break;
+        corrected = std::max(corrected, static_cast<int>(scratch.size()));
+        for (int sweep = 0; sweep < kSweeps; ++sweep) {
+            bool moved = false;
+            for (const int e : scratch) {
+                const double C = volumeRatio(m, s, e, &g) - jMin;
+                if (C >= -kTol * jMin) continue;
+                const int* n = m.tets.col(e).data();
+                // Weights: the inverse node mass, capped at the inverse of the element's mean free-node
+                // mass. Pure 1/m moves the light control points of a small cut share by up to half an
+                // element per step and rings them; the cap keeps the correction geometric there.
+                double mean = 0;
+                int free = 0;
+                for (int a = 0; a < 4; ++a)
+                    if (m.invMass(n[a]) > 0) {
+                        mean += m.mass(n[a]);
+                        ++free;
+                    }
+                if (free == 0) continue;  // all four nodes prescribed
+                mean /= free;
+                double w[4], denom = 0;
+                for (int a = 0; a < 4; ++a) {
+                    w[a] = m.invMass(n[a]) > 0 ? 1.0 / std::max(m.mass(n[a]), mean) : 0.0;
+                    denom += w[a] * g.col(a).squaredNorm();
+                }
+                if (!(denom > 0)) continue;
+                const double lambda = -C / denom;
+                // the rate of det F, g . v; a closing one is removed (an inelastic stop), an opening one kept
+                double rate = 0;
+                for (int a = 0; a < 4; ++a) rate += g.col(a).dot(s.v.col(n[a]));
+                const double mu = std::min(rate, 0.0) / denom;
+                for (int a = 0; a < 4; ++a) {
+                    s.x.col(n[a]) += lambda * w[a] * g.col(a);
+                    s.v.col(n[a]) -= mu * w[a] * g.col(a);
+                }
+                moved = true;
+            }
+            if (!moved) break;
+        }
+    }
+    return corrected;
 }
 
 double elasticEnergy(const Model& m, const State& s) {

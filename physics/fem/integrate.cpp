@@ -143,21 +143,28 @@ void checkFinite(const Model& m, State& s) {
     s.flags.nonFinite = bad;
 }
 
-void Stepper::forces(const Model& m, State& s, const double* alpha) {
+void Stepper::forces(const Model& m, State& s, const double* alpha, double watch) {
     const auto t0 = std::chrono::steady_clock::now();
-    computeForces(m, s, alpha);
+    computeForces(m, s, alpha, watch);
     forceSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {
+    if (opt.minVolumeRatio > 0 && nearFlat > 0)
+        s.flags.limited = limitVolumeRatio(m, s, opt.minVolumeRatio, limitScratch_);
 }
 
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     forceSeconds_ = 0;
     const double dt = opt.dt, c = m.massDamping;
     const double* alpha = opt.alphaElem ? opt.alphaElem->data() : nullptr;
+    const double watch = opt.minVolumeRatio > 0 ? opt.minVolumeRatio + kVolumeWatchMargin : 0;
     const int n = m.nodes();
+    const int nearBefore = s.flags.nearFlat;   // Newmark moves before its force stage
     s.flags = {};
     switch (opt.integrator) {
     case Integrator::SymplecticEuler: {
-        forces(m, s, alpha);
+        forces(m, s, alpha, watch);
         // damping taken implicitly so it never limits the step: v = (v + dt a) / (1 + c dt)
         const double damp = 1.0 / (1.0 + c * dt);
 #pragma omp parallel for schedule(static) if (n >= kParallelNodes)
@@ -167,11 +174,12 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
             s.v.col(i) = (s.v.col(i) + dt * w * s.f.col(i)) * damp;
             s.x.col(i) += dt * s.v.col(i);
         }
+        limit(m, s, opt, s.flags.nearFlat);
         break;
     }
     case Integrator::CentralDifference: {
         // v_{n+1/2} = ((1 - c dt/2) v_{n-1/2} + dt a_n) / (1 + c dt/2); the first step is a half step.
-        forces(m, s, alpha);
+        forces(m, s, alpha, watch);
         const double h = s.started ? dt : 0.5 * dt;
         const double cm = 1.0 - 0.5 * c * h, cp = 1.0 / (1.0 + 0.5 * c * h);
 #pragma omp parallel for schedule(static) if (n >= kParallelNodes)
@@ -182,13 +190,14 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
             s.x.col(i) += dt * s.v.col(i);
         }
         s.started = true;
+        limit(m, s, opt, s.flags.nearFlat);
         break;
     }
     case Integrator::Newmark: {
         // Explicit Newmark (beta = 0, gamma = 1/2) with the damping factor alpha on the
         // acceleration (thesis eqs. 3.11-3.12); mass damping centred like the velocity update.
         if (!s.started) {
-            forces(m, s, alpha);
+            forces(m, s, alpha, watch);
             for (int i = 0; i < n; ++i) s.a.col(i) = m.invMass(i) * s.f.col(i);
             s.started = true;
         }
@@ -198,7 +207,8 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
             if (m.invMass(i) == 0) continue;
             s.x.col(i) += dt * s.v.col(i) + 0.5 * dt * dt * al * (s.a.col(i) - c * s.v.col(i));
         }
-        forces(m, s, alpha);
+        limit(m, s, opt, nearBefore);
+        forces(m, s, alpha, watch);
         const double cm = 1.0 - 0.5 * c * dt, cp = 1.0 / (1.0 + 0.5 * c * dt);
 #pragma omp parallel for schedule(static) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
@@ -212,8 +222,9 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     }
     case Integrator::BackwardEuler: {
         if (!implicit_) implicit_ = std::make_unique<ImplicitWorkspace>();
-        forces(m, s, nullptr);
+        forces(m, s, nullptr, watch);
         implicit_->step(m, s, dt);
+        limit(m, s, opt, s.flags.nearFlat);
         break;
     }
     }

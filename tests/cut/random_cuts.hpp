@@ -21,6 +21,7 @@ namespace cutsim::test {
 
 using cutsim::describeRun;
 using cutsim::kBlowUpSpeed;
+using cutsim::RandomCutOptions;
 using cutsim::RandomCutRun;
 using cutsim::RandomCutStats;
 using cutsim::runRandomCutSequence;
@@ -33,10 +34,9 @@ inline Model randomCutModel(bool liver) {
 // As cutsim::runRandomCuts on randomCutModel(liver); every cut keeps volume and mass. verbose
 // prints each run that blew up or inverted.
 inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsigned seed,
-                                    MassLumping lumping = MassLumping::Enrichment, double dtFactor = 0.9,
-                                    bool verbose = false) {
+                                    const RandomCutOptions& opt = {}, bool verbose = false) {
     std::vector<std::string> log;
-    const RandomCutStats st = cutsim::runRandomCuts(randomCutModel(liver), runs, stepsBetween, seed, lumping, dtFactor,
+    const RandomCutStats st = cutsim::runRandomCuts(randomCutModel(liver), runs, stepsBetween, seed, opt,
                                                     verbose ? &log : nullptr);
     for (const auto& line : log) std::printf("%s\n", line.c_str());
     EXPECT_LT(st.maxVolumeError, 1e-9);
@@ -46,8 +46,8 @@ inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsi
 
 inline void printRandomCuts(const char* name, const RandomCutStats& st) {
     std::printf("%s: %d runs, %d cuts, %ld steps, %d blew up, %d with an inverted element (%d still at the end), "
-                "max speed %.3g m/s, min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps, st.failures,
-                st.invertedRuns, st.invertedAtEnd, st.maxSpeed, st.minDtRatio);
+                "%d limited (%ld steps), max speed %.3g m/s, min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps,
+                st.failures, st.invertedRuns, st.invertedAtEnd, st.limitedRuns, st.limitedSteps, st.maxSpeed, st.minDtRatio);
 }
 
 } // namespace cutsim::test

@@ -36,7 +36,7 @@ TEST(RandomCuts, BarSequencesThatBlewUp) {
 // The same sequences at 1.2 x the exact step of the cut mesh blow up: the detector works and the
 // limit the analyser gives after each cut is the real one.
 TEST(RandomCuts, AboveTheLimitBlowsUp) {
-    const auto st = test::runRandomCuts(false, 3, 400, 2, MassLumping::Enrichment, 1.2);
+    const auto st = test::runRandomCuts(false, 3, 400, 2, {MassLumping::Enrichment, 1.2});
     test::printRandomCuts("bar at 1.2 dt", st);
     EXPECT_EQ(st.failures, st.runs);
 }

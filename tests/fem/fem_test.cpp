@@ -233,6 +233,91 @@ TEST(Forces, InvertedTetRecovers) {
     }
 }
 
+// Volume-ratio limiting by hand: three corners clamped on z = 0, the fourth pushed through the
+// face to z = -0.3 h. det F = z / h and its gradient for node 3 is the face normal, so one
+// projection puts node 3 at z = j h exactly, x and y unchanged, and stops its closing velocity.
+TEST(Forces, VolumeLimitProjectsToTheRatio) {
+    TetMesh t = unitTet();
+    t.X *= 0.01;
+    Model m = buildModel(t, Material{});
+    fixNodes(m, {0, 1, 2});
+    State s = makeState(m);
+    s.x.col(3) << 0.003, 0.002, -0.003;
+    s.v.col(3) << 0.5, -0.25, -2.0;
+    std::vector<int> scratch;
+    EXPECT_EQ(limitVolumeRatio(m, s, 0.2, scratch), 1);
+    EXPECT_NEAR(s.x(0, 3), 0.003, 1e-15);
+    EXPECT_NEAR(s.x(1, 3), 0.002, 1e-15);
+    EXPECT_NEAR(s.x(2, 3), 0.002, 1e-15);
+    EXPECT_NEAR(s.v(0, 3), 0.5, 1e-15);
+    EXPECT_NEAR(s.v(1, 3), -0.25, 1e-15);
+    EXPECT_NEAR(s.v(2, 3), 0.0, 1e-15);
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(s.x.col(i), m.X.col(i));
+    // an opening element is left alone, and so is one above the ratio
+    s.v.col(3) << 0, 0, 1.0;
+    s.x(2, 3) = 0.001;
+    limitVolumeRatio(m, s, 0.2, scratch);
+    EXPECT_NEAR(s.v(2, 3), 1.0, 1e-15);
+    EXPECT_EQ(limitVolumeRatio(m, s, 0.05, scratch), 0);
+}
+
+// On a free tet with equal node masses the correction keeps momentum and the centre of mass.
+TEST(Forces, VolumeLimitKeepsMomentum) {
+    TetMesh t = unitTet();
+    t.X *= 0.01;
+    Model m = buildModel(t, Material{});
+    State s = makeState(m);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int i = 0; i < 4; ++i) s.v.col(i) << u(rng), u(rng), u(rng);
+    s.x.col(3) << 0.004, 0.001, -0.002;
+    const Eigen::Vector3d p0 = s.v * m.mass, c0 = s.x * m.mass;
+    std::vector<int> scratch;
+    ASSERT_EQ(limitVolumeRatio(m, s, 0.3, scratch), 1);
+    EXPECT_LT((s.v * m.mass - p0).norm(), 1e-15);
+    EXPECT_LT((s.x * m.mass - c0).norm(), 1e-17);
+    Eigen::Matrix3d Ds;
+    Ds << s.x.col(1) - s.x.col(0), s.x.col(2) - s.x.col(0), s.x.col(3) - s.x.col(0);
+    // det F is cubic in x: the linearised step lands at or a little above the ratio
+    const double J = (Ds * m.dmInv(0)).determinant();
+    EXPECT_GE(J, 0.3 - 1e-9);
+    EXPECT_LT(J, 0.35);
+}
+
+// A clamped tet loaded through its face, the load ramped to 10 N (far beyond what E = 30 kPa on
+// 1 cm holds): without limiting it inverts, with it det F stays at the ratio and the step never
+// sees an inverted element.
+TEST(Forces, VolumeLimitStopsInversion) {
+    for (const double ratio : {0.0, 0.2}) {
+        TetMesh t = unitTet();
+        t.X *= 0.01;
+        Model m = buildModel(t, Material{});
+        m.massDamping = 20;
+        fixNodes(m, {0, 1, 2});
+        State s = makeState(m);
+        Stepper st;
+        StepOptions opt;
+        opt.dt = 1.0 / std::sqrt(test::denseLambdaMax(m));
+        opt.minVolumeRatio = ratio;
+        int inverted = 0, limited = 0;
+        double minJ = 1;
+        for (int k = 0; k < 4000; ++k) {
+            s.fExt.col(3) << 0, 0, -10.0 * std::min(1.0, k / 2000.0);   // [N]
+            st.step(m, s, opt);
+            inverted += s.flags.inverted > 0;
+            limited += s.flags.limited > 0;
+            minJ = std::min(minJ, s.x(2, 3) / 0.01);
+        }
+        if (ratio == 0) {
+            EXPECT_GT(inverted, 0);
+        } else {
+            EXPECT_EQ(inverted, 0);
+            EXPECT_GT(limited, 0);
+            EXPECT_GT(minJ, ratio - 1e-9);
+        }
+    }
+}
+
 // Row-sum lumping: every tet gives rho V / 4 to its nodes; gravity gives total weight.
 TEST(Model, LumpedMassAndGravity) {
     const TetMesh box = test::boxMesh(0.2, 0.1, 0.1, 4, 2, 2);
