@@ -708,7 +708,7 @@ int runStability(const StabilityArgs& a) {
     if (a.cutRuns > 0) {
         if (!a.json)
             std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
-                        "integrator.min_volume_ratio)\n%-10s %6s %6s %6s %9s %9s %14s %15s %13s %12s\n",
+                        "integrator.min_stretch)\n%-10s %6s %6s %6s %9s %9s %14s %15s %13s %12s\n",
                         a.cutSteps, "object", "limit", "runs", "cuts", "steps", "failures", "inverted runs", "inverted at end",
                         "limited runs", "min dt ratio");
         std::vector<std::pair<std::string, Model>> objects;
@@ -717,11 +717,11 @@ int runStability(const StabilityArgs& a) {
         if (fs::exists(liver)) objects.emplace_back("liver", randomCutLiverModel(readTetMesh(liver, ReadOptions{})));
         unsigned seed = 21;
         for (const auto& [name, model] : objects) {
-            // the same sequences plain and with volume-ratio limiting (fem/forces.hpp limitVolumeRatio)
+            // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
             for (const double limit : {0.0, 0.2}) {
                 const auto t0 = Clock::now();
                 const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, {MassLumping::Enrichment, 0.9, limit});
-                j["random_cuts"].push_back({{"object", name}, {"min_volume_ratio", limit}, {"runs", st.runs}, {"cuts", st.cuts},
+                j["random_cuts"].push_back({{"object", name}, {"min_stretch", limit}, {"runs", st.runs}, {"cuts", st.cuts},
                                             {"steps", st.steps}, {"failures", st.failures}, {"inverted_runs", st.invertedRuns},
                                             {"inverted_at_end", st.invertedAtEnd}, {"limited_runs", st.limitedRuns},
                                             {"limited_steps", st.limitedSteps}, {"max_speed", st.maxSpeed},
@@ -987,7 +987,7 @@ void addBenchCommand(CLI::App& app) {
                                                      "energy drift of a long run");
         c->add_flag("--json", a->json, "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
                                        "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
-                                       "random_cuts: [{object, min_volume_ratio, runs, cuts, steps, failures, inverted_runs, inverted_at_end, limited_runs, min_dt_ratio}], energy_drift}");
+                                       "random_cuts: [{object, min_stretch, runs, cuts, steps, failures, inverted_runs, inverted_at_end, limited_runs, min_dt_ratio}], energy_drift}");
         c->add_option("--steps", a->steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
         c->add_option("--cut-runs", a->cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
             ->check(CLI::Range(0, 100000))->capture_default_str();

@@ -423,7 +423,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     State state = makeState(model);
     Stepper stepper;
     StepOptions so{sc.integrator, dt};
-    so.minVolumeRatio = sc.minVolumeRatio;
+    so.minStretch = sc.minStretch;
     if (alphaElem.size()) so.alphaElem = &alphaElem;
 
     const double frameDt = 1.0 / sc.capture.fps;

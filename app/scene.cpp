@@ -296,7 +296,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
             s.dt.onLimit = d.string("on_limit", "refuse", {"refuse", "clamp", "damp"});
             d.finish();
         }
-        s.minVolumeRatio = in.number("min_volume_ratio", 0, 0, 0.9);
+        s.minStretch = in.number("min_stretch", 0, 0, 0.9);
         in.finish();
     }
     s.duration = root.number("duration", 1, 0, 1e6, true);

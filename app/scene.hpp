@@ -117,7 +117,7 @@ struct SceneDef {
     std::vector<ForceLoad> forces;
 
     Integrator integrator = Integrator::SymplecticEuler;
-    double minVolumeRatio = 0;      // integrator.min_volume_ratio: volume-ratio limiting, 0 off [-]
+    double minStretch = 0;      // integrator.min_stretch: stretch limiting, 0 off [-]
     DtPolicy dt;
     double duration = 1;          // [s]
 

@@ -84,7 +84,7 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
     Stepper stepper;
     StepOptions opt;
     opt.dt = 0.9 * dt0;
-    opt.minVolumeRatio = ro.minVolumeRatio;
+    opt.minStretch = ro.minStretch;
     const int nCuts = 1 + static_cast<int>(uni(rng) * 4);
     for (int c = 0; c <= nCuts; ++c) {
         for (int k = 0; k < stepsBetween; ++k) {

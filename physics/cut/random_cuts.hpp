@@ -21,7 +21,7 @@ struct RandomCutStats {
     int failures = 0;        // runs that blew up: a non-finite value or a speed above kBlowUpSpeed
     int invertedRuns = 0;    // runs in which some element had det F <= 0, even for one step
     int invertedAtEnd = 0;   // of those, runs with an element still inverted at their last step
-    int limitedRuns = 0;     // runs in which volume-ratio limiting corrected an element
+    int limitedRuns = 0;     // runs in which stretch limiting corrected an element
     long limitedSteps = 0;   // steps in which it did
     double maxSpeed = 0;     // [m/s]
     long steps = 0;
@@ -38,7 +38,7 @@ struct RandomCutRun {
     bool failed = false;        // a non-finite value or a speed above kBlowUpSpeed
     bool inverted = false;      // some element had det F <= 0
     bool invertedAtEnd = false; // an element still had det F <= 0 at the last step
-    long limitedSteps = 0;      // steps in which volume-ratio limiting corrected an element
+    long limitedSteps = 0;      // steps in which stretch limiting corrected an element
     int maxLimited = 0;         // most elements it corrected in one step
     double maxSpeed = 0;        // [m/s]
     double minDtRatio = 1;      // smallest exact dt after a cut over the uncut one [-]
@@ -65,11 +65,11 @@ Model randomCutLiverModel(const TetMesh& liverInches, double clampZ = kStressLiv
 Model randomCutBarModel();
 
 // How the sequences step: the lumping of the cuts, the step as a fraction of the current exact
-// limit, and the volume-ratio limiting of the scenes (0: off, inversions only counted).
+// limit, and the stretch limiting of the scenes (0: off, inversions only counted).
 struct RandomCutOptions {
     MassLumping lumping = MassLumping::Enrichment;
     double dtFactor = 0.9;                          // step / exact dt of the current model [-]
-    double minVolumeRatio = 0;                      // StepOptions::minVolumeRatio, 0: off [-]
+    double minStretch = 0;                      // StepOptions::minStretch, 0: off [-]
 };
 
 // One sequence of 1-4 random planes through the model's box, the generator seeded with

@@ -134,18 +134,19 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
         for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
     const Lane det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) +
                      F[6] * (F[1] * F[5] - F[4] * F[2]);
+    // watch: the lower bound 2 det F / |F|^2 of the smallest principal stretch (limitStretch)
+    Lane f2 = F[0] * F[0];
+    for (int k = 1; k < 9; ++k) f2 += F[k] * F[k];
     int inv = 0, near = 0;
     for (int l = 0; l < count; ++l) {
         inv += det[l] <= 0;
-        near += det[l] < watch;
+        near += 2 * det[l] < watch * f2[l];
     }
     *nearFlat += near;
     Lane X[9];
     if (corot) {
         for (int k = 0; k < 9; ++k) X[k] = F[k];
-        Lane sc = F[0] * F[0];
-        for (int k = 1; k < 9; ++k) sc += F[k] * F[k];
-        sc /= 3.0;
+        const Lane sc = f2 / 3.0;
         // Newton needs det F well away from 0 (its first step divides by it): det > 1e-6 sc^1.5
         LaneMask active = (det > 0) & (det * det > 1e-12 * sc * sc * sc);
         for (int l = 0; l < count; ++l) {
@@ -261,28 +262,55 @@ void computeForces(const Model& m, State& s, const double* alpha, double watch) 
 
 namespace {
 
-// det F of element e at the current positions and, into g, its gradient with respect to the four
-// nodes: d det(Ds) / d Ds = cof(Ds), times det(DmInv); node 0 takes minus the sum.
-double volumeRatio(const Model& m, const State& s, int e, Eigen::Matrix<double, 3, 4>* g) {
+// F of element e at the current positions.
+Eigen::Matrix3d deformationGradient(const Model& m, const State& s, int e) {
     const int* n = m.tets.col(e).data();
     const Eigen::Vector3d x0 = s.x.col(n[0]);
-    const Eigen::Vector3d a = s.x.col(n[1]) - x0, b = s.x.col(n[2]) - x0, c = s.x.col(n[3]) - x0;
-    const double detDmInv = m.dmInv(e).determinant();
-    if (g) {
-        g->col(1) = detDmInv * b.cross(c);
-        g->col(2) = detDmInv * c.cross(a);
-        g->col(3) = detDmInv * a.cross(b);
-        g->col(0) = -(g->col(1) + g->col(2) + g->col(3));
+    Eigen::Matrix3d Ds;
+    Ds << s.x.col(n[1]) - x0, s.x.col(n[2]) - x0, s.x.col(n[3]) - x0;
+    return Ds * m.dmInv(e);
+}
+
+// A lower bound of the smallest singular value: sigma1 sigma2 <= |F|^2 / 2, so
+// sigma3 = det F / (sigma1 sigma2) >= 2 det F / |F|^2 (negative when inverted).
+double smallestStretchBound(const Eigen::Matrix3d& F) { return 2 * F.determinant() / F.squaredNorm(); }
+
+// The smallest principal stretch of F and its gradient with respect to the four nodes:
+// sigma3 = u3^T Ds DmInv v3 (U, V rotations), so d sigma3 / d x_a = (DmInv v3)_a u3 for a = 1..3,
+// node 0 minus their sum. For det F <= 0, det F itself and its gradient (below).
+double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<double, 3, 4>& g) {
+    const Eigen::Matrix3d F = deformationGradient(m, s, e);
+    if (!(F.determinant() > 0)) {
+        // Inverted or flat: the sign of invertible FEM sits on the smallest singular value, which
+        // need not be the direction that went through (F = diag(1, 1, -3) negates a 1). det F and
+        // its gradient (the cofactor of Ds times det DmInv) always point back; the stretch
+        // constraint takes over once det F > 0.
+        const int* n = m.tets.col(e).data();
+        const Eigen::Vector3d x0 = s.x.col(n[0]);
+        const Eigen::Vector3d a = s.x.col(n[1]) - x0, b = s.x.col(n[2]) - x0, c = s.x.col(n[3]) - x0;
+        const double d = m.dmInv(e).determinant();
+        g.col(1) = d * b.cross(c);
+        g.col(2) = d * c.cross(a);
+        g.col(3) = d * a.cross(b);
+        g.col(0) = -(g.col(1) + g.col(2) + g.col(3));
+        return F.determinant();
     }
-    return detDmInv * a.dot(b.cross(c));
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Vector3d u3 = svd.matrixU().col(2), v3 = svd.matrixV().col(2);
+    if (svd.matrixU().determinant() < 0) u3 = -u3;
+    if (svd.matrixV().determinant() < 0) v3 = -v3;
+    const Eigen::Vector3d w = m.dmInv(e) * v3;
+    for (int a = 0; a < 3; ++a) g.col(a + 1) = w[a] * u3;
+    g.col(0) = -(w[0] + w[1] + w[2]) * u3;
+    return u3.dot(F * v3);
 }
 
 } // namespace
 
-int limitVolumeRatio(const Model& m, State& s, double jMin, std::vector<int>& scratch) {
-    // Gauss-Seidel over the violated elements: elements sharing nodes converge together; the
-    // linearised correction of det F (cubic in x) is exact to first order, so a few sweeps suffice.
-    // A correction can push a neighbour below the ratio: scan again, a few rounds at most.
+int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratch) {
+    // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
+    // is linear in x along its gradient while the singular vectors hold, so a few sweeps suffice.
+    // A correction can push a neighbour below the limit: scan again, a few rounds at most.
     constexpr int kRounds = 4, kSweeps = 8;
     constexpr double kTol = 1e-9;
     Eigen::Matrix<double, 3, 4> g;
@@ -290,14 +318,16 @@ int limitVolumeRatio(const Model& m, State& s, double jMin, std::vector<int>& sc
     for (int round = 0; round < kRounds; ++round) {
         scratch.clear();
         for (int e = 0; e < m.elements(); ++e)
-            if (volumeRatio(m, s, e, nullptr) < jMin * (1 - kTol)) scratch.push_back(e);
+            if (smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
+                smallestStretch(m, s, e, g) < sMin * (1 - kTol))
+                scratch.push_back(e);
         if (scratch.empty()) break;
         corrected = std::max(corrected, static_cast<int>(scratch.size()));
         for (int sweep = 0; sweep < kSweeps; ++sweep) {
             bool moved = false;
             for (const int e : scratch) {
-                const double C = volumeRatio(m, s, e, &g) - jMin;
-                if (C >= -kTol * jMin) continue;
+                const double C = smallestStretch(m, s, e, g) - sMin;
+                if (C >= -kTol * sMin) continue;
                 const int* n = m.tets.col(e).data();
                 // Weights: the inverse node mass, capped at the inverse of the element's mean free-node
                 // mass. Pure 1/m moves the light control points of a small cut share by up to half an
@@ -318,7 +348,7 @@ int limitVolumeRatio(const Model& m, State& s, double jMin, std::vector<int>& sc
                 }
                 if (!(denom > 0)) continue;
                 const double lambda = -C / denom;
-                // the rate of det F, g . v; a closing one is removed (an inelastic stop), an opening one kept
+                // the rate of sigma3, g . v; a closing one is removed (an inelastic stop), an opening one kept
                 double rate = 0;
                 for (int a = 0; a < 4; ++a) rate += g.col(a).dot(s.v.col(n[a]));
                 const double mu = std::min(rate, 0.0) / denom;

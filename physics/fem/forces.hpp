@@ -10,7 +10,8 @@ namespace cutsim {
 
 // Elastic force of elements [begin, end) into state.fe; alpha (nullable, nElems) scales each
 // element's force (per-element damping factor alpha_e, thesis eq. 3.16). Counts inverted elements
-// into *inverted and those with det F < watch into *nearFlat (nullable). Updates state.rot (corotational).
+// into *inverted and into *nearFlat (nullable) those whose smallest principal stretch may be below
+// watch (its lower bound 2 det F / |F|^2 is). Updates state.rot (corotational).
 void elementForces(const Model& model, State& state, const double* alpha, int begin, int end, int* inverted,
                    double watch = 0, int* nearFlat = nullptr);
 
@@ -18,17 +19,18 @@ void elementForces(const Model& model, State& state, const double* alpha, int be
 void gatherForces(const Model& model, State& state, int begin, int end);
 
 // Both stages over all elements and nodes on all threads; fills state.f and state.flags.inverted
-// (and .nearFlat: elements with det F < watch).
+// (and .nearFlat: elements whose smallest principal stretch may be below watch).
 void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0);
 
-// Volume-ratio limiting (strain limiting on det F; bounding deformation by projection as in
-// Thomaszewski, Pabst, Strasser 2009): each element with det F < jMin at the current positions is
-// moved back to det F = jMin along the gradient of det F, Gauss-Seidel over those elements and
-// rescanned for neighbours a correction pushed below; the closing rate g . v of each is removed
-// from the velocities (an inelastic stop). Prescribed nodes do not move; a free element with equal
-// node masses keeps its momentum and centre of mass. Returns the most elements corrected in a
-// round. Serial: it runs only in steps where the force stage saw an element below its watch ratio.
-int limitVolumeRatio(const Model& model, State& state, double jMin, std::vector<int>& scratch);
+// Stretch limiting (strain limiting on the principal stretches by projection, as Thomaszewski,
+// Pabst, Strasser 2009 do for cloth): each element whose smallest principal stretch sigma3 (signed:
+// negative when inverted) is below sMin at the current positions is moved back to sigma3 = sMin
+// along the gradient of sigma3, Gauss-Seidel over those elements and rescanned for neighbours a
+// correction pushed below; the closing rate of sigma3 is removed from the velocities (an inelastic
+// stop). Prescribed nodes do not move; a free element with equal node masses keeps its momentum
+// and centre of mass. Returns the most elements corrected in a round. Serial: it runs only in
+// steps where the force stage saw an element that may be below its watch stretch.
+int limitStretch(const Model& model, State& state, double jMin, std::vector<int>& scratch);
 
 // Rotation of the polar decomposition F = R S. Newton's iteration X <- (X + X^-T) / 2 (Higham
 // 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the SVD of

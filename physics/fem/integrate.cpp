@@ -150,15 +150,15 @@ void Stepper::forces(const Model& m, State& s, const double* alpha, double watch
 }
 
 void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {
-    if (opt.minVolumeRatio > 0 && nearFlat > 0)
-        s.flags.limited = limitVolumeRatio(m, s, opt.minVolumeRatio, limitScratch_);
+    if (opt.minStretch > 0 && nearFlat > 0)
+        s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_);
 }
 
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     forceSeconds_ = 0;
     const double dt = opt.dt, c = m.massDamping;
     const double* alpha = opt.alphaElem ? opt.alphaElem->data() : nullptr;
-    const double watch = opt.minVolumeRatio > 0 ? opt.minVolumeRatio + kVolumeWatchMargin : 0;
+    const double watch = opt.minStretch > 0 ? opt.minStretch + kStretchWatchMargin : 0;
     const int n = m.nodes();
     const int nearBefore = s.flags.nearFlat;   // Newmark moves before its force stage
     s.flags = {};

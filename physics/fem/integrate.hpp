@@ -2,7 +2,7 @@
 //   1. contact   (tools; applied as fExt by the caller before step())
 //   2. forces    computeForces: element stage, then node gather
 //   3. integrate velocity and position update of the chosen scheme; fixed nodes stay put
-//   4. checks    volume-ratio limiting when asked; non-finite values and inverted elements into state.flags
+//   4. checks    stretch limiting when asked; non-finite values and inverted elements into state.flags
 #pragma once
 
 #include "fem/state.hpp"
@@ -29,13 +29,14 @@ struct StepOptions {
     double alpha = 1.0;                // Newmark's global damping factor on the acceleration, (0, 1]
     const Eigen::VectorXd* alphaElem = nullptr; // per-element factor alpha_e (nElems), scales element
                                        // forces; (dt_crit_e / dt)^2 where dt > dt_crit_e (eq. 3.16)
-    double minVolumeRatio = 0;         // > 0: project elements below this det F back to it after
-                                       // the position update (fem/forces.hpp limitVolumeRatio); 0: off
+    double minStretch = 0;             // > 0: project elements whose smallest principal stretch is
+                                       // below it back to it after the position update
+                                       // (fem/forces.hpp limitStretch); 0: off
 };
 
-// The force stage watches for elements within this margin above minVolumeRatio, so that the
-// limiting pass runs only in steps that can need it; no element closes the margin in one stable step.
-inline constexpr double kVolumeWatchMargin = 0.3;
+// The force stage watches for elements whose smallest stretch may be within this margin above
+// minStretch, so that the limiting pass runs only in steps that can need it.
+inline constexpr double kStretchWatchMargin = 0.3;
 
 // Per-element damping factors for a step dt from per-element critical steps (thesis eq. 3.16).
 Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt);
@@ -62,7 +63,7 @@ private:
 
     std::unique_ptr<ImplicitWorkspace> implicit_;
     double forceSeconds_ = 0;
-    std::vector<int> limitScratch_;   // elements below the volume ratio (reused)
+    std::vector<int> limitScratch_;   // elements below the smallest stretch (reused)
 };
 
 // Checks positions and velocities for non-finite values (state.flags.nonFinite).

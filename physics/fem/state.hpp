@@ -12,8 +12,8 @@ struct StepFlags {
     int nonFinite = 0;          // nodes with a non-finite position or velocity
     int inverted = 0;           // elements with det F <= 0
     int firstInverted = -1;     // one inverted element, for messages
-    int nearFlat = 0;           // elements with det F below the step's watch ratio (volume limiting)
-    int limited = 0;            // elements the step projected back to its smallest volume ratio
+    int nearFlat = 0;           // elements whose smallest stretch may be below the watch (stretch limiting)
+    int limited = 0;            // elements the step projected back to its smallest stretch
     bool ok() const { return nonFinite == 0 && inverted == 0; }
 };
 

@@ -198,8 +198,8 @@ TEST(Run, RefusesZeroAndNegativeE) {
     expectRefused(writeScene(workDir(), "e0.json", j), "", "material.E");
     j["material"]["E"] = -1e6;
     expectRefused(writeScene(workDir(), "eneg.json", j), "", "material.E");
-    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set integrator.min_volume_ratio=1.5",
-                  "integrator.min_volume_ratio");
+    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set integrator.min_stretch=1.5",
+                  "integrator.min_stretch");
 }
 
 TEST(Run, RefusesMissingMeshFile) {

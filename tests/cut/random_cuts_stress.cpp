@@ -1,8 +1,8 @@
 // The stress test of cutting: 500 random cut sequences on the liver and on a bar, each run at
 // 0.9 of the current exact dt; none may blow up or invert an element (det F <= 0, even for one
 // step). Each failing run is printed with its first inverted element and the piece holding it.
-// Twice: plain (inversions only counted), and with volume-ratio limiting at 0.2 (scene key
-// integrator.min_volume_ratio), which is what keeps elements from inverting.
+// Twice: plain (inversions only counted), and with stretch limiting at 0.2 (scene key
+// integrator.min_stretch), which is what keeps elements from inverting.
 #include "random_cuts.hpp"
 
 namespace cutsim {
