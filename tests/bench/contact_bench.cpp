@@ -50,7 +50,7 @@ const Liver& liver() {
     l->dt = 0.8 * 4.51e-4;  // 0.8 of the exact limit, as in probe.json
     l->probe.kind = ToolDef::Kind::Sphere;
     l->probe.radius = 0.01;
-    l->probe.stiffness = 0.8 * stableStiffness(l->pts, l->model.invMass, l->dt, 4.51e-4);
+    l->probe.stiffness = 0.8 * stableStiffness(l->pts, l->model, l->dt, 4.51e-4);
     l->probe.damping = 0.05;
     ToolKey a, b;
     a.pose.position << 0.0, 0.1287 + 0.01 - 0.003, 0.0039;  // 3 mm into the top, above node (0.0115, 0.1287)
