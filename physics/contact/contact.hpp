@@ -84,8 +84,8 @@ double stableStiffness(const ContactPoints& pts, const Model& model, double dt, 
 // A tool's default stiffness as a fraction of that limit. The limit certifies the linearised
 // (bilateral) penalty; real contact switches on and off, and when its mode is near the limit a
 // point entering and leaving the tool on alternate steps gains energy: on an MI slab pressed over
-// its whole face (tests/contact/contact_test.cpp) the points stay within 3.3 mm of a 1 mm press
-// at 0.5 x the limit, 1.5 cm at 0.6 x, 0.54 m at 1.0 x.
+// its whole face (tests/contact/contact_test.cpp) the points stay within 3.1 mm of a 1 mm press
+// at 0.5 x the limit, 9.5 mm at 0.6 x, 0.54 m at 1.0 x (1500 steps).
 inline constexpr double kDefaultStiffnessFraction = 0.5;
 
 // What contact did in the last step.
