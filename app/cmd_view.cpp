@@ -194,8 +194,11 @@ int runView(const ViewArgs& a) {
         ++cutsDone;
         stepChanged();
         EmbeddedSurface cutSurface = cutter->surface(sim.model);
-        if (contact.world)
-            contact.world->setSurface(contactPoints(cutSurface, sim.model.tets, sim.model.X, contact.spacing));
+        if (contact.world) {
+            ContactPoints pts = contactPoints(cutSurface, sim.model.tets, sim.model.X, contact.spacing);
+            scaleByMass(pts, sim.model.invMass, contact.massRef);
+            contact.world->setSurface(std::move(pts));
+        }
         scene.topologyChanged(sim.model, std::move(cutSurface), sim.ta.estimates().r1r, sim.dt);
     };
     auto reset = [&] {

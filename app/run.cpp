@@ -106,6 +106,7 @@ void writeJsonFile(const fs::path& p, const json& j) {
 struct ToolRun {
     std::unique_ptr<ContactWorld> world;
     double stiffnessLimit = 0;     // stable penalty stiffness per point [N/m]
+    double massRef = 1;            // effective mass of a point with the full penalty [kg]
     double spacing = 0;            // largest gap between surface contact points [m]
     std::vector<std::string> clamped;  // tools whose stiffness was lowered to the limit
     double maxForce = 0;           // largest |reaction| at full rate [N]
@@ -349,29 +350,29 @@ ContactSetup makeContact(const SceneDef& sc, const Simulation& sim) {
                                                       ? std::max({p.size.x(), p.size.y(), p.size.z()}) : p.size.x()));
     }
     c.spacing = spacing;
-    // an embedded (MI) object is touched on its own fine surface, through the embedding weights
-    c.world->setSurface(contactPoints(sim.surface ? *sim.surface : boundarySurface(model.tets, model.X), model.tets,
-                                      model.X, spacing));
+    // an embedded (MI) object is touched on its own fine surface, through the embedding weights;
+    // each point's penalty scaled by its effective mass (contact/contact.hpp scaleByMass)
+    ContactPoints pts = contactPoints(sim.surface ? *sim.surface : boundarySurface(model.tets, model.X), model.tets,
+                                      model.X, spacing);
+    c.massRef = referenceMass(pts, model.invMass);
+    scaleByMass(pts, model.invMass, c.massRef);
+    c.world->setSurface(std::move(pts));
     // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
-    c.stiffnessLimit = explicitScheme ? stableStiffness(c.world->points(), model.invMass, std::min(dt, 0.9 * sim.exact.dt), sim.exact.dt)
+    c.stiffnessLimit = explicitScheme ? stableStiffness(c.world->points(), model, std::min(dt, 0.9 * sim.exact.dt), sim.exact.dt)
                                       : std::numeric_limits<double>::infinity();
-    double mMin = 1e300;  // lightest free node under the surface points
-    const ContactPoints& P = c.world->points();
-    for (int p = 0; p < P.points(); ++p)
-        for (int i = 0; i < ContactPoints::kMaxNodes; ++i)
-            if (P.weights(i, p) > 0 && model.invMass(P.nodes(i, p)) > 0) mMin = std::min(mMin, model.mass(P.nodes(i, p)));
     for (auto& t : c.world->tools()) {
         if (t.stiffness <= 0) {
             if (!std::isfinite(c.stiffnessLimit)) throw InputError(sc.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
-            t.stiffness = 0.8 * c.stiffnessLimit;
+            t.stiffness = kDefaultStiffnessFraction * c.stiffnessLimit;
         } else if (t.stiffness > c.stiffnessLimit) {
             std::fprintf(stderr, "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; using the limit\n",
                          t.name.c_str(), t.stiffness, c.stiffnessLimit, dt);
             t.stiffness = c.stiffnessLimit;
             c.clamped.push_back(t.name);
         }
-        // damping ratio 0.3 on the lightest node: c dt / m stays well below the explicit limit 2
-        if (t.damping < 0) t.damping = mMin < 1e300 ? 0.6 * std::sqrt(t.stiffness * mMin) : 0.0;
+        // damping ratio 0.3 on every point of mass <= massRef (k and c scale alike below it);
+        // c dt / m stays below the explicit limit 2
+        if (t.damping < 0) t.damping = 0.6 * std::sqrt(t.stiffness * c.massRef);
     }
     return c;
 }
@@ -400,6 +401,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         tools.world = std::move(cs.world);
         tools.spacing = cs.spacing;
         tools.stiffnessLimit = cs.stiffnessLimit;
+        tools.massRef = cs.massRef;
         tools.clamped = std::move(cs.clamped);
         tools.sampleDt = 1.0 / sc.forceRate;
     }
@@ -526,7 +528,11 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             tc = Clock::now();
             EmbeddedSurface cutSurface = cutter->surface(model);
             // tools touch the new cut faces too
-            if (tools.world) tools.world->setSurface(contactPoints(cutSurface, model.tets, model.X, tools.spacing));
+            if (tools.world) {
+                ContactPoints pts = contactPoints(cutSurface, model.tets, model.X, tools.spacing);
+                scaleByMass(pts, model.invMass, tools.massRef);
+                tools.world->setSurface(std::move(pts));
+            }
             stages.contact += since(tc);
             if (sink) sink->topologyChanged(model, std::move(cutSurface), ta.estimates().r1r, dt);
         }
@@ -709,7 +715,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         report["tool"] = {{"names", names}, {"max_force", tools.maxForce}, {"contact_steps", tools.contactSteps},
                           {"max_depth", tools.maxDepth}, {"final_depth", tools.world->last().maxDepth},
                           {"final_force", {tools.force.x(), tools.force.y(), tools.force.z()}},
-                          {"stiffness", k}, {"damping", c}, {"stiffness_limit", std::isfinite(tools.stiffnessLimit) ? json(tools.stiffnessLimit) : json(nullptr)},
+                          {"stiffness", k}, {"damping", c}, {"mass_ref", tools.massRef}, {"stiffness_limit", std::isfinite(tools.stiffnessLimit) ? json(tools.stiffnessLimit) : json(nullptr)},
                           {"stiffness_clamped", tools.clamped}, {"contact_points", tools.world->points().points()},
                           {"seconds_per_step", state.steps > 0 ? stages.contact / state.steps : 0.0},
                           {"force_rate", sc.forceRate}, {"series", tools.series}};

@@ -65,6 +65,7 @@ struct ContactSetup {
     std::unique_ptr<ContactWorld> world; // null when the scene has no tools
     double spacing = 0;                  // largest gap between contact points [m]
     double stiffnessLimit = 0;           // stable penalty stiffness per point [N/m]
+    double massRef = 1;                  // effective mass of a point with the full penalty [kg] (scaleByMass)
     std::vector<std::string> clamped;    // tools whose stiffness was lowered to the limit
 };
 ContactSetup makeContact(const SceneDef& sc, const Simulation& sim);

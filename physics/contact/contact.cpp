@@ -1,14 +1,21 @@
 #include "contact/contact.hpp"
 
+#include "timestep/timestep.hpp"
+
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpa2.h>
 #include <btBulletCollisionCommon.h>
+#include <Eigen/SparseCore>
+#include <Spectra/MatOp/SparseCholesky.h>
+#include <Spectra/MatOp/SparseSymMatProd.h>
+#include <Spectra/SymGEigsSolver.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <limits>
 #include <map>
+#include <string>
 #include <utility>
 
 namespace cutsim {
@@ -103,6 +110,7 @@ ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& te
     out.nodes.setZero(ContactPoints::kMaxNodes, static_cast<Eigen::Index>(acc.size()));
     out.weights.setZero(ContactPoints::kMaxNodes, static_cast<Eigen::Index>(acc.size()));
     out.count.resize(acc.size());
+    out.scale = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(acc.size()));
     out.triangles = s.triangles;
     out.triStart = std::move(triStart);
     out.triPoints = std::move(triPoints);
@@ -116,19 +124,76 @@ ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& te
     return out;
 }
 
-double stableStiffness(const ContactPoints& pts, const Eigen::VectorXd& invMass, double dt, double dtCrit) {
-    const double headroom = 4.0 / (dt * dt) - 4.0 / (dtCrit * dtCrit);
-    if (!(headroom > 0)) return 0;
-    // block Gershgorin row sum of M^-1/2 (sum_p w_p w_p^T) M^-1/2 per free node a
-    Eigen::VectorXd row = Eigen::VectorXd::Zero(invMass.size());
-    for (int p = 0; p < pts.points(); ++p) {
-        double s = 0;
-        for (int i = 0; i < ContactPoints::kMaxNodes; ++i) s += pts.weights(i, p) * std::sqrt(invMass(pts.nodes(i, p)));
-        for (int i = 0; i < ContactPoints::kMaxNodes; ++i)
-            row(pts.nodes(i, p)) += pts.weights(i, p) * std::sqrt(invMass(pts.nodes(i, p))) * s;
-    }
-    const double worst = row.size() ? row.maxCoeff() : 0.0;
-    return worst > 0 ? headroom / worst : std::numeric_limits<double>::infinity();
+namespace {
+// 1 / (w_p^T M^-1 w_p) over the free nodes [kg]; infinity when the point moves no free node
+double effectiveMass(const ContactPoints& pts, const Eigen::VectorXd& invMass, int p) {
+    double s = 0;
+    for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i) s += pts.weights(i, p) * pts.weights(i, p) * invMass(pts.nodes(i, p));
+    return s > 0 ? 1.0 / s : std::numeric_limits<double>::infinity();
+}
+} // namespace
+
+void scaleByMass(ContactPoints& pts, const Eigen::VectorXd& invMass, double mRef) {
+    pts.scale.resize(pts.points());
+    for (int p = 0; p < pts.points(); ++p) pts.scale(p) = std::min(1.0, effectiveMass(pts, invMass, p) / mRef);
+}
+
+double referenceMass(const ContactPoints& pts, const Eigen::VectorXd& invMass) {
+    std::vector<double> m;
+    for (int p = 0; p < pts.points(); ++p)
+        if (const double mp = effectiveMass(pts, invMass, p); std::isfinite(mp)) m.push_back(mp);
+    if (m.empty()) return 1;
+    const auto q = m.begin() + static_cast<std::ptrdiff_t>(0.9 * static_cast<double>(m.size() - 1));
+    std::nth_element(m.begin(), q, m.end());
+    return *q;
+}
+
+double stableStiffness(const ContactPoints& pts, const Model& model, double dt, double dtCrit) {
+    if (!(dt > 0) || !(dt < dtCrit)) return 0;
+    const double target = 4.0 / (dt * dt);
+    std::vector<int> compact(static_cast<size_t>(model.nodes()), -1);
+    int nf = 0;
+    for (int i = 0; i < model.nodes(); ++i)
+        if (model.invMass(i) > 0) compact[static_cast<size_t>(i)] = nf++;
+    // B = target I - M^-1/2 K M^-1/2 and C = M^-1/2 (sum_p w_p w_p^T (x) I) M^-1/2 over the free DOFs
+    using Triplet = Eigen::Triplet<double>;
+    std::vector<Triplet> tb, tc;
+    const Eigen::SparseMatrix<double> K = assembleStiffness(model);
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it) {
+            const int a = compact[static_cast<size_t>(it.row() / 3)], b = compact[static_cast<size_t>(it.col() / 3)];
+            if (a < 0 || b < 0) continue;
+            const double s = std::sqrt(model.invMass(it.row() / 3) * model.invMass(it.col() / 3));
+            tb.emplace_back(3 * a + it.row() % 3, 3 * b + it.col() % 3, -s * it.value());
+        }
+    for (int d = 0; d < 3 * nf; ++d) tb.emplace_back(d, d, target);
+    for (int p = 0; p < pts.points(); ++p)
+        for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i)
+            for (int j = 0; j < pts.count[static_cast<size_t>(p)]; ++j) {
+                const int ni = pts.nodes(i, p), nj = pts.nodes(j, p);
+                const int a = compact[static_cast<size_t>(ni)], b = compact[static_cast<size_t>(nj)];
+                if (a < 0 || b < 0) continue;
+                const double v = pts.scale(p) * pts.weights(i, p) * pts.weights(j, p) *
+                                 std::sqrt(model.invMass(ni) * model.invMass(nj));
+                for (int k = 0; k < 3; ++k) tc.emplace_back(3 * a + k, 3 * b + k, v);
+            }
+    if (tc.empty()) return std::numeric_limits<double>::infinity();
+    Eigen::SparseMatrix<double> B(3 * nf, 3 * nf), C(3 * nf, 3 * nf);
+    B.setFromTriplets(tb.begin(), tb.end());
+    C.setFromTriplets(tc.begin(), tc.end());
+    // k_max = 1 / nu_max of C x = nu B x: B is positive definite exactly when dt < dtCrit
+    using Op = Spectra::SparseSymMatProd<double>;
+    using BOp = Spectra::SparseCholesky<double>;
+    Op op(C);
+    BOp bop(B);
+    if (bop.info() != Spectra::CompInfo::Successful) return 0;  // rounding at dt ~ dtCrit: no headroom
+    Spectra::SymGEigsSolver<Op, BOp, Spectra::GEigsMode::Cholesky> eigs(op, bop, 1, std::min(24, 3 * nf));
+    eigs.init();
+    eigs.compute(Spectra::SortRule::LargestAlge, 2000, 1e-10);
+    if (eigs.info() != Spectra::CompInfo::Successful)
+        throw EigenSolveError("contact stiffness limit: Lanczos did not converge (" + std::to_string(3 * nf) + " free DOFs)");
+    const double nu = eigs.eigenvalues()(0);
+    return nu > 0 ? 1.0 / nu : std::numeric_limits<double>::infinity();
 }
 
 // ---- ContactWorld ----
@@ -349,7 +414,7 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
             for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) vp += P.weights(i, p) * v.col(P.nodes(i, p));
             const Eigen::Vector3d vTool = dt > 0 ? Eigen::Vector3d((eig(toolNext * xp) - eig(xp)) / dt) : Eigen::Vector3d::Zero();
             const double vn = n.dot(vp - vTool);
-            const double fn = std::max(0.0, tool.stiffness * (-d) - tool.damping * vn);
+            const double fn = P.scale(p) * std::max(0.0, tool.stiffness * (-d) - tool.damping * vn);
             const Eigen::Vector3d fp = fn * n;
             for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) f.col(P.nodes(i, p)) += P.weights(i, p) * fp;
             st.reaction[static_cast<size_t>(m.partTool[o])] -= fp;

@@ -320,6 +320,24 @@ TEST(Run, DemoPressesAndCuts) {
     EXPECT_GT(r["stages"]["cut"].get<double>(), 0.0);
 }
 
+TEST(Run, DemoMiPressesTheEmbeddedSurface) {
+    // the embedded liver at half its exact step: the probe is held by the mass-scaled penalty at
+    // its exact limit (contact/contact.hpp), not by the lightest embedded node (0.05 N, 9 mm before)
+    const std::string out = workDir() + "/out";
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/demo_mi.json") + " --out " + out + " --no-render --quiet",
+                              nullptr, &err),
+              0)
+        << err;
+    const json r = readReport(out);
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_TRUE(r["embedding"].is_object());
+    EXPECT_GT(r["dt"].get<double>(), 2 * 0.451e-3);        // twice the conforming liver's exact step
+    EXPECT_GT(r["tool"]["max_force"].get<double>(), 1.0);
+    EXPECT_LT(r["tool"]["max_depth"].get<double>(), 0.006);
+    EXPECT_EQ(r["tool"]["final_force"][1].get<double>(), 0.0);
+}
+
 TEST(Run, LiverCutsReportEachCut) {
     const std::string out = workDir() + "/out";
     std::string err;

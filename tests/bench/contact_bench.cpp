@@ -3,6 +3,8 @@
 //   build/tests/cutsim_bench --benchmark_filter=Contact
 // - BM_ContactQuery: the collision cost of one step (point refit, broad phase, GJK/EPA, forces).
 // - BM_ContactStep: a whole explicit step with contact; steps_per_s is the achievable step rate.
+// - BM_ContactStiffnessLimit: the stable penalty stiffness of the liver's mass-scaled points
+//   (contact/contact.hpp stableStiffness), paid once per run.
 // - BM_ContactElementBroadphase: refit of the element tree and one query with a blade's swept box.
 // - BM_ContactRep*: the representations not chosen, for the cost comparison in contact/contact.hpp:
 //   every surface point a collision object in a btCollisionWorld, and a refitted
@@ -50,7 +52,8 @@ const Liver& liver() {
     l->dt = 0.8 * 4.51e-4;  // 0.8 of the exact limit, as in probe.json
     l->probe.kind = ToolDef::Kind::Sphere;
     l->probe.radius = 0.01;
-    l->probe.stiffness = 0.8 * stableStiffness(l->pts, l->model.invMass, l->dt, 4.51e-4);
+    scaleByMass(l->pts, l->model.invMass, referenceMass(l->pts, l->model.invMass));
+    l->probe.stiffness = kDefaultStiffnessFraction * stableStiffness(l->pts, l->model, l->dt, 4.51e-4);
     l->probe.damping = 0.05;
     ToolKey a, b;
     a.pose.position << 0.0, 0.1287 + 0.01 - 0.003, 0.0039;  // 3 mm into the top, above node (0.0115, 0.1287)
@@ -97,6 +100,16 @@ void BM_ContactStep(benchmark::State& st) {
     st.counters["mean_contacts"] = static_cast<double>(contacts) / static_cast<double>(st.iterations());
     st.counters["hash"] = s.x.sum();
     setThreads(0);
+}
+
+void BM_ContactStiffnessLimit(benchmark::State& st) {
+    const Liver& l = liver();
+    double k = 0;
+    for (auto _ : st) {
+        k = stableStiffness(l.pts, l.model, l.dt, 4.51e-4);
+        benchmark::DoNotOptimize(k);
+    }
+    st.counters["k_N_per_m"] = k;
 }
 
 // Every contact point a tiny sphere object in the world; the probe an object too.
@@ -218,6 +231,7 @@ void BM_ContactElementBroadphase(benchmark::State& st) {
 
 BENCHMARK(BM_ContactElementBroadphase)->UseRealTime()->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ContactQuery)->UseRealTime()->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ContactStiffnessLimit)->UseRealTime()->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_ContactStep)->Arg(1)->Arg(2)->UseRealTime()->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ContactRepWorldProxies)->UseRealTime()->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ContactRepTriangleBvh)->UseRealTime()->Unit(benchmark::kMicrosecond);

@@ -1,17 +1,26 @@
 // Tool contact: penalty forces against hand-computed depths, the spread to nodes by embedding
-// weights, the stable stiffness bound, tool paths, and the element broad phase against a scan.
+// weights, the stable stiffness limit (one point on one free node by hand, a box against a dense
+// bisection, the mass scale by hand, explicit steps of an MI slab pressed over its whole top face:
+// bounded at the limit, diverging above it), tool paths, and the element broad phase against a scan.
 #include "contact/broadphase.hpp"
 #include "contact/contact.hpp"
 #include "contact/tool.hpp"
+#include "embed/mi.hpp"
+#include "fem/integrate.hpp"
 #include "fem/model.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
+#include "timestep/timestep.hpp"
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
+#include <vector>
 
 namespace cutsim {
 namespace {
@@ -26,6 +35,17 @@ ToolDef sphereAt(const Eigen::Vector3d& c, double r, double k) {
     key.pose.position = c;
     t.keys.push_back(key);
     return t;
+}
+
+// One surface triangle whose three vertices lie in tet 0 with weights w0, w1, w2.
+EmbeddedSurface oneTriangle(const Eigen::Vector4d& w0, const Eigen::Vector4d& w1, const Eigen::Vector4d& w2) {
+    EmbeddedSurface es;
+    es.triangles.resize(3, 1);
+    es.triangles << 0, 1, 2;
+    es.element = {0, 0, 0};
+    es.weights.resize(4, 3);
+    es.weights << w0, w1, w2;
+    return es;
 }
 
 // A 10 x 10 x 2 cm slab of 1 cm cubes: its top face z = 0.02 has a vertex every centimetre.
@@ -163,14 +183,7 @@ TEST(Contact, ForceOnEmbeddedVertexSpreadsByItsWeights) {
     X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
     Eigen::Matrix4Xi tets(4, 1);
     tets << 0, 1, 2, 3;
-    EmbeddedSurface es;
-    es.triangles.resize(3, 1);
-    es.triangles << 0, 1, 2;
-    es.element = {0, 0, 0};
-    es.weights.resize(4, 3);
-    es.weights.col(0) << 0.1, 0.2, 0.3, 0.4;
-    es.weights.col(1) << 0.7, 0.1, 0.1, 0.1;
-    es.weights.col(2) << 0.1, 0.1, 0.7, 0.1;
+    const EmbeddedSurface es = oneTriangle({0.1, 0.2, 0.3, 0.4}, {0.7, 0.1, 0.1, 0.1}, {0.1, 0.1, 0.7, 0.1});
     Eigen::Matrix3Xd p;
     embeddedPositions(es, tets, X, p);   // vertex 0 at (0.2, 0.3, 0.4)
     const double k = 100, d = 0.01, r = 0.05;
@@ -208,16 +221,203 @@ TEST(Contact, PointsOnEdgesAndFacesAtMostSpacingApart) {
     }
 }
 
-TEST(Contact, StableStiffnessIsHeadroomTimesLightestNodeForVertices) {
+TEST(ContactStiffness, OnePointOnOneFreeNodeIsHeadroomOverItsInverseMass) {
+    // One tet, nodes 1-3 fixed: the free DOFs are node 0's. The surface's vertices 1 and 2 sit on
+    // fixed nodes; vertex 0 has weight w0 = 0.4 on node 0, so C = (w0^2 / m0) I and
+    // lambda_max(K_00 / m0 + k C) = (2 / dtCrit)^2 + k w0^2 / m0 = (2 / dt)^2 at
+    // k = ((2/dt)^2 - (2/dtCrit)^2) m0 / w0^2.
+    TetMesh mesh;
+    mesh.X.resize(3, 4);
+    mesh.X << 0, 0.01, 0, 0, 0, 0, 0.01, 0, 0, 0, 0, 0.01;
+    mesh.tets.resize(4, 1);
+    mesh.tets << 0, 1, 2, 3;
+    Model m = buildModel(mesh, Material{});
+    fixNodes(m, {1, 2, 3});
+    const double dtc = exactCriticalDt(m).dt, dt = 0.9 * dtc;
+    const EmbeddedSurface es = oneTriangle({0.4, 0.2, 0.2, 0.2}, {0, 1, 0, 0}, {0, 0, 1, 0});
+    const ContactPoints pts = contactPoints(es, mesh.tets, mesh.X, 0);
+    const double expected = (4 / (dt * dt) - 4 / (dtc * dtc)) * m.mass(0) / (0.4 * 0.4);
+    EXPECT_NEAR(stableStiffness(pts, m, dt, dtc), expected, 1e-6 * expected);
+    EXPECT_EQ(stableStiffness(pts, m, dtc, dtc), 0);
+}
+
+TEST(ContactStiffness, BoxLimitIsTheDenseBisection) {
+    // 2 x 2 x 2 cubes, bottom fixed, points on edges and faces: the largest k with
+    // lambda_max(M^-1/2 (K + k sum_p w_p w_p^T (x) I) M^-1/2) <= (2/dt)^2, by bisection on dense
+    // eigenvalues, against the pencil solved by Lanczos.
     Model m = buildModel(test::boxMesh(0.02, 0.02, 0.02, 2, 2, 2), Material{});
-    const ContactPoints pts = contactPoints(boundarySurface(m.tets, m.X), m.tets, m.X, 0);
-    const double dtc = 1e-3, dt = 0.8e-3;
-    // one point per boundary node with weight 1: the Gershgorin row of node a is 1 / m_a
+    std::vector<int> bottom;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(2, i) < 1e-9) bottom.push_back(i);
+    fixNodes(m, bottom);
+    const ContactPoints pts = contactPoints(boundarySurface(m.tets, m.X), m.tets, m.X, 0.006);
+    const double dtc = exactCriticalDt(m).dt, dt = 0.8 * dtc;
+    const int n = 3 * m.nodes();
+    const Eigen::MatrixXd K(assembleStiffness(m));
+    Eigen::MatrixXd C = Eigen::MatrixXd::Zero(n, n);
+    for (int p = 0; p < pts.points(); ++p)
+        for (int i = 0; i < pts.count[p]; ++i)
+            for (int j = 0; j < pts.count[p]; ++j)
+                for (int d = 0; d < 3; ++d)
+                    C(3 * pts.nodes(i, p) + d, 3 * pts.nodes(j, p) + d) += pts.weights(i, p) * pts.weights(j, p);
+    Eigen::VectorXd s(n);
+    for (int i = 0; i < n; ++i) s(i) = std::sqrt(m.invMass(i / 3));   // fixed DOFs drop out
+    const Eigen::MatrixXd A = s.asDiagonal() * K * s.asDiagonal(), Cs = s.asDiagonal() * C * s.asDiagonal();
+    auto lambdaMax = [](const Eigen::MatrixXd& S) {
+        return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
+    };
+    double lo = 0, hi = 1e9;
+    for (int it = 0; it < 100 && hi - lo > 1e-7 * hi; ++it) {
+        const double k = 0.5 * (lo + hi);
+        (lambdaMax(A + k * Cs) <= 4 / (dt * dt) ? lo : hi) = k;
+    }
+    EXPECT_NEAR(stableStiffness(pts, m, dt, dtc), lo, 1e-5 * lo);
+}
+
+TEST(ContactStiffness, MassScaleIsEffectiveMassOverReference) {
+    Model m = buildModel(test::boxMesh(0.02, 0.02, 0.02, 2, 2, 2), Material{});
+    fixNodes(m, {0});
+    // vertices only: each point has weight 1 on its node, so its effective mass is the node's
+    ContactPoints pts = contactPoints(boundarySurface(m.tets, m.X), m.tets, m.X, 0);
+    std::vector<double> masses;
+    for (int p = 0; p < pts.points(); ++p)
+        if (m.invMass(pts.nodes(0, p)) > 0) masses.push_back(m.mass(pts.nodes(0, p)));
+    std::sort(masses.begin(), masses.end());
+    const double ref = masses[static_cast<size_t>(0.9 * static_cast<double>(masses.size() - 1))];
+    EXPECT_EQ(referenceMass(pts, m.invMass), ref);
+    EXPECT_LT(masses.front(), ref);   // the corners are lighter than the face centres
+    scaleByMass(pts, m.invMass, ref);
+    for (int p = 0; p < pts.points(); ++p) {
+        const int a = pts.nodes(0, p);
+        EXPECT_NEAR(pts.scale(p), m.invMass(a) > 0 ? std::min(1.0, m.mass(a) / ref) : 1.0, 1e-15) << p;
+    }
+    // and the penalty on a scaled point is scaled: one corner vertex under a sphere
+    int corner = -1;
+    for (int p = 0; p < pts.points(); ++p)
+        if ((m.X.col(pts.nodes(0, p)) - Eigen::Vector3d(0.02, 0.02, 0.02)).norm() < 1e-12) corner = p;
+    ASSERT_GE(corner, 0);
+    const double k = 100, d = 1e-3, r = 0.004;
+    ContactWorld w({sphereAt(Eigen::Vector3d(0.02, 0.02, 0.02 + r - d), r, k)});
+    w.setSurface(pts);
+    Eigen::Matrix3Xd f = Eigen::Matrix3Xd::Zero(3, m.nodes()), v = Eigen::Matrix3Xd::Zero(3, m.nodes());
+    w.addForces(m.X, v, 0, 1e-4, f);
+    ASSERT_EQ(w.last().contacts, 1);
+    EXPECT_LT(pts.scale(corner), 1);
+    EXPECT_NEAR(w.last().reaction[0].z(), pts.scale(corner) * k * d, 1e-12);
+}
+
+// An MI slab whose top face cuts its lattice cells at 15% (light outside nodes above it), bottom
+// lattice nodes fixed, contact points on the top face only, pressed 1 mm over all of it by a large
+// sphere: every point is in contact with the normal -z, so the limit is nearly reached.
+struct PressedMiSlab {
+    MiResult mi;
+    ContactPoints pts;
+    double dt = 0, dtc = 0;
+
+    PressedMiSlab() {
+        MiOptions o;
+        o.h = 0.01;
+        o.latticeCells = Eigen::Vector3i(4, 4, 2);
+        o.latticeOrigin = Eigen::Vector3d::Zero();
+        mi = buildMi(boxSurface({0.001, 0.001, 0.001}, {0.039, 0.039, 0.0115}), Material{}, o);
+        std::vector<int> bottom;
+        for (int i = 0; i < mi.model.nodes(); ++i)
+            if (mi.model.X(2, i) < 1e-9) bottom.push_back(i);
+        fixNodes(mi.model, bottom);
+        mi.model.elementModel = ElementModel::Linear;
+        // the top face: its triangles and their vertices, renumbered
+        const EmbeddedSurface& s = mi.surface;
+        Eigen::Matrix3Xd rest;
+        embeddedPositions(s, mi.model.tets, mi.model.X, rest);
+        EmbeddedSurface top;
+        std::vector<int> map(static_cast<size_t>(s.vertices()), -1);
+        std::vector<int> tris;
+        for (int t = 0; t < s.faces(); ++t) {
+            bool up = true;
+            for (int k = 0; k < 3; ++k) up = up && std::abs(rest(2, s.triangles(k, t)) - 0.0115) < 1e-12;
+            if (!up) continue;
+            for (int k = 0; k < 3; ++k) {
+                const int v = s.triangles(k, t);
+                if (map[static_cast<size_t>(v)] < 0) {
+                    map[static_cast<size_t>(v)] = top.vertices();
+                    top.element.push_back(s.element[static_cast<size_t>(v)]);
+                    top.weights.conservativeResize(4, top.vertices());
+                    top.weights.col(top.vertices() - 1) = s.weights.col(v);
+                }
+                tris.push_back(map[static_cast<size_t>(v)]);
+            }
+        }
+        top.triangles = Eigen::Map<Eigen::Matrix3Xi>(tris.data(), 3, static_cast<Eigen::Index>(tris.size() / 3));
+        pts = contactPoints(top, mi.model.tets, mi.model.X, 0.004);
+        scaleByMass(pts, mi.model.invMass, referenceMass(pts, mi.model.invMass));
+        dtc = exactCriticalDt(mi.model).dt;
+        dt = 0.9 * dtc;
+    }
+
+    // Largest displacement of a contact point over `steps` symplectic Euler steps from rest [m]
+    // (infinity once non-finite), pressed by a box whose bottom is 1 mm below the face: through
+    // the ContactWorld (unilateral), or as the linear spring the limit certifies (bilateral, -z).
+    double run(double k, int steps, bool bilateral) const {
+        const double zTool = 0.0115 - 1e-3;
+        ToolDef box = sphereAt(Eigen::Vector3d::Zero(), 0, k);
+        box.kind = ToolDef::Kind::Hull;
+        box.hull.resize(3, 8);
+        for (int c = 0; c < 8; ++c) box.hull.col(c) << (c & 1 ? 0.09 : -0.05), (c & 2 ? 0.09 : -0.05), (c & 4 ? 0.06 : zTool);
+        ContactWorld w({box});
+        w.setSurface(pts);
+        State st = makeState(mi.model);
+        Stepper stepper;
+        StepOptions so;
+        so.dt = dt;
+        auto point = [&](const Eigen::Matrix3Xd& x, int p) {
+            Eigen::Vector3d xp = Eigen::Vector3d::Zero();
+            for (int q = 0; q < pts.count[p]; ++q) xp += pts.weights(q, p) * x.col(pts.nodes(q, p));
+            return xp;
+        };
+        double worst = 0;
+        for (int i = 0; i < steps; ++i) {
+            st.fExt.setZero();
+            if (bilateral) {
+                for (int p = 0; p < pts.points(); ++p) {
+                    const double fz = -pts.scale(p) * k * (point(st.x, p).z() - zTool);
+                    for (int q = 0; q < pts.count[p]; ++q) st.fExt(2, pts.nodes(q, p)) += pts.weights(q, p) * fz;
+                }
+            } else {
+                w.addForces(st.x, st.v, st.time, dt, st.fExt);
+                if (i == 0) {
+                    EXPECT_EQ(w.last().contacts, pts.points());
+                }
+            }
+            stepper.step(mi.model, st, so);
+            for (int p = 0; p < pts.points(); ++p) {
+                const double u = (point(st.x, p) - point(mi.model.X, p)).norm();
+                if (!std::isfinite(u)) return INFINITY;
+                worst = std::max(worst, u);
+            }
+        }
+        return worst;
+    }
+};
+
+TEST(ContactStiffness, MiSlabPressedAtTheLimitStaysBoundedAndBlowsUpAbove) {
+    const PressedMiSlab s;
+    ASSERT_GT(s.mi.count(ElementClass::Interface), 0);
     double mMin = 1e300;
-    for (int p = 0; p < pts.points(); ++p) mMin = std::min(mMin, m.mass(pts.nodes(0, p)));
-    const double expected = (4 / (dt * dt) - 4 / (dtc * dtc)) * mMin;
-    EXPECT_NEAR(stableStiffness(pts, m.invMass, dt, dtc), expected, 1e-9 * expected);
-    EXPECT_EQ(stableStiffness(pts, m.invMass, dtc, dtc), 0);
+    for (int i = 0; i < s.mi.model.nodes(); ++i)
+        if (s.mi.model.invMass(i) > 0) mMin = std::min(mMin, s.mi.model.mass(i));
+    EXPECT_LT(mMin, 1e-4 * s.mi.model.mass.maxCoeff());   // light outside corners, as on the MI liver
+    const double k = stableStiffness(s.pts, s.mi.model, s.dt, s.dtc);
+    ASSERT_GT(k, 0);
+    // the certified linearisation: released from 1 mm deep the points oscillate within a few mm
+    // at the limit; 1.3 x beyond it (the z direction alone has a little slack) the top mode grows
+    EXPECT_LT(s.run(0.98 * k, 1500, true), 0.01);
+    EXPECT_EQ(s.run(1.3 * k, 1500, true), INFINITY);
+    EXPECT_EQ(s.run(2.0 * k, 1500, true), INFINITY);
+    // unilateral contact: entering and leaving the tool on alternate steps pumps energy when the
+    // contact mode is near the limit (0.54 m at 1.0 x, 9.5 mm at 0.6 x), so tools default to
+    // kDefaultStiffnessFraction x the limit: here within 3.1 mm, as the bilateral spring
+    EXPECT_LT(s.run(kDefaultStiffnessFraction * k, 1500, false), 0.005);
+    EXPECT_GT(s.run(k, 1500, false), 0.05);
 }
 
 TEST(Tool, KeyframesInterpolateLinearlyAndSlerp) {
