@@ -193,7 +193,7 @@ int runView(const ViewArgs& a) {
         }
         ++cutsDone;
         stepChanged();
-        EmbeddedSurface cutSurface = cutter->surface(sim.model);
+        EmbeddedSurface cutSurface = sim.surface ? cutter->surface(sim.model, *sim.surface) : cutter->surface(sim.model);
         if (contact.world) {
             ContactPoints pts = contactPoints(cutSurface, sim.model.tets, sim.model.X, contact.spacing);
             scaleByMass(pts, sim.model.invMass, contact.massRef);

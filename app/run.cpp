@@ -526,7 +526,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             criticalElements += ta.estimates().r1r(e) < sc.capture.criticalFactor * dt;
         if (sink || tools.world) {
             tc = Clock::now();
-            EmbeddedSurface cutSurface = cutter->surface(model);
+            // an MI object keeps its own surface, split by the cuts, with cut faces only inside it
+            EmbeddedSurface cutSurface = sim.surface ? cutter->surface(model, *sim.surface) : cutter->surface(model);
             // tools touch the new cut faces too
             if (tools.world) {
                 ContactPoints pts = contactPoints(cutSurface, model.tets, model.X, tools.spacing);

@@ -110,6 +110,15 @@ public:
     // element, plus the cut faces (cutFace = 1), all riding their elements.
     EmbeddedSurface surface(const Model& m) const;
 
+    // The same for an object given by its surface (mesh intersection, thesis ch. 6): `original` is
+    // that surface as embedded in the uncut model (elements are parents). Each of its triangles is
+    // split by the parents it crosses and by their cuts, each part riding the virtual element whose
+    // side it is on; the cut faces are kept only inside the original surface (winding number of the
+    // rest surface, sampled on capLevels subdivision levels of each cap triangle of an element the
+    // surface crosses, and the cap clipped where its linear interpolant crosses 1/2). Lattice faces
+    // are never drawn: the embedded surface replaces them. Defined in cut/embedded_cut.cpp.
+    EmbeddedSurface surface(const Model& m, const EmbeddedSurface& original, int capLevels = 3) const;
+
     int cuts() const { return nextCut_; }
     int pendingElements() const { return static_cast<int>(stroke_.pending.size()); }
     // Convex polygons of the open stroke's swept area (straight stretches are merged into one).

@@ -311,6 +311,7 @@ TEST(Run, DemoPressesAndCuts) {
         << err;
     const json r = readReport(out);
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_TRUE(r["embedding"].is_object());                 // the liver given by its surface (MI)
     EXPECT_GT(r["tool"]["max_force"].get<double>(), 0.1);   // the probe presses the sagging liver
     EXPECT_GT(r["tool"]["contact_steps"].get<int>(), 100);
     EXPECT_EQ(r["tool"]["final_force"][1].get<double>(), 0.0); // and leaves it

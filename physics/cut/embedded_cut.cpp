@@ -1,0 +1,274 @@
+// The drawn and touched surface of a cut object given by its surface (mesh intersection, thesis
+// ch. 6, with XFEM cuts, sec. 2.3; METHOD.md sec. 5). The lattice faces of a cut element are not
+// the object's boundary: the embedded surface is, split where the cuts separate it, plus the cut
+// faces inside the original surface.
+#include "cut/xfem.hpp"
+
+#include "embed/winding.hpp"
+#include "mesh/mesh.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <map>
+#include <string>
+#include <utility>
+
+namespace cutsim {
+
+namespace {
+
+using Poly = std::vector<Eigen::Vector4d>;  // convex polygon: barycentric weights in one parent, in order
+
+// Part of a convex polygon where an affine function, with values f at its vertices, is >= 0
+// (Sutherland-Hodgman; the vertex order, so the orientation, is kept). Empty below 3 vertices.
+Poly clipPoly(const Poly& p, const std::vector<double>& f) {
+    Poly out;
+    const size_t n = p.size();
+    for (size_t i = 0; i < n; ++i) {
+        const size_t j = (i + 1) % n;
+        if (f[i] >= 0) out.push_back(p[i]);
+        if ((f[i] > 0 && f[j] < 0) || (f[i] < 0 && f[j] > 0)) {
+            const double t = f[i] / (f[i] - f[j]);
+            out.push_back(p[i] + t * (p[j] - p[i]));
+        }
+    }
+    if (out.size() < 3) out.clear();
+    return out;
+}
+
+template <class F>
+Poly clipBy(const Poly& p, F&& f) {
+    std::vector<double> v(p.size());
+    for (size_t i = 0; i < p.size(); ++i) v[i] = f(p[i]);
+    return clipPoly(p, v);
+}
+
+} // namespace
+
+EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
+    if (!prepared_) return original;
+    const int nParents = static_cast<int>(tets0_.cols());
+    const int nv = original.vertices();
+    // Rest position of parent weights: the parent's original corners (their rest positions never change).
+    auto rest = [&](int p, const Eigen::Vector4d& w) {
+        Eigen::Vector3d y = Eigen::Vector3d::Zero();
+        for (int a = 0; a < 4; ++a) y += w[a] * m.X.col(tets0_(a, p));
+        return y;
+    };
+    SurfaceMesh restSurface;
+    restSurface.V.resize(3, nv);
+    restSurface.F = original.triangles;
+    for (int v = 0; v < nv; ++v) {
+        const int p = original.element[static_cast<size_t>(v)];
+        if (p < 0 || p >= nParents)
+            throw InputError("embedded surface: vertex " + std::to_string(v) + " rides element " + std::to_string(p) +
+                             ", not an element of the uncut model");
+        restSurface.V.col(v) = rest(p, original.weights.col(v));
+    }
+    const double diag = nv > 0 ? (restSurface.V.rowwise().maxCoeff() - restSurface.V.rowwise().minCoeff()).norm() : 0;
+    const double tinyArea = 1e-14 * diag * diag;  // [m^2] parts below it are slivers of round-off
+    auto area = [&](int p, const Poly& poly) {
+        Eigen::Vector3d a = Eigen::Vector3d::Zero();
+        const Eigen::Vector3d y0 = rest(p, poly[0]);
+        for (size_t k = 1; k + 1 < poly.size(); ++k) a += (rest(p, poly[k]) - y0).cross(rest(p, poly[k + 1]) - y0);
+        return 0.5 * a.norm();
+    };
+    // A crossed parent has a piece even when one side was merged (it then has no other virtual element).
+    auto isCut = [&](int p) { return virt_.count(p) > 0; };
+
+    std::vector<int> elem;
+    std::vector<Eigen::Vector4d> weights;
+    std::vector<Eigen::Vector3i> tris;
+    std::vector<std::uint8_t> cutFace;
+    std::vector<int> kept(static_cast<size_t>(nv), -1);  // output index of an original vertex kept as is
+    auto keepOriginal = [&](int v) {
+        int& k = kept[static_cast<size_t>(v)];
+        if (k < 0) {
+            k = static_cast<int>(elem.size());
+            elem.push_back(original.element[static_cast<size_t>(v)]);
+            weights.push_back(original.weights.col(v));
+        }
+        return k;
+    };
+    // New vertices are shared within one element (smooth shading inside a piece).
+    std::map<std::pair<int, std::array<long long, 4>>, int> welded;
+    auto vertex = [&](int e, const Eigen::Vector4d& w) {
+        std::array<long long, 4> key{};
+        for (int a = 0; a < 4; ++a) key[static_cast<size_t>(a)] = std::llround(w[a] * 1e9);
+        auto [it, added] = welded.emplace(std::make_pair(e, key), static_cast<int>(elem.size()));
+        if (added) {
+            const Eigen::Vector4d c = w.cwiseMax(0.0);  // clipped inside the parent: only round-off is negative
+            elem.push_back(e);
+            weights.push_back(c / c.sum());
+        }
+        return it->second;
+    };
+    auto emit = [&](int p, int e, const Poly& poly, std::uint8_t cap) {
+        if (poly.size() < 3 || area(p, poly) <= tinyArea) return;
+        const int v0 = vertex(e, poly[0]);
+        for (size_t k = 1; k + 1 < poly.size(); ++k) {
+            const int v1 = vertex(e, poly[k]), v2 = vertex(e, poly[k + 1]);
+            if (v0 == v1 || v1 == v2 || v0 == v2) continue;
+            tris.emplace_back(v0, v1, v2);
+            cutFace.push_back(cap);
+        }
+    };
+    // A polygon in cut parent p: split by each cut of p, each cell to the virtual element whose
+    // sides it is on (a merged sliver's cell, on no element's sides, to the one it violates least).
+    auto emitInCutParent = [&](int p, const Poly& poly) {
+        const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
+        std::vector<const Halfspace*> planes;        // one per cut
+        for (int e : ves)
+            for (const Halfspace& h : virt_.at(e).hs)
+                if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
+                    planes.push_back(&h);
+        std::vector<Poly> cells{poly}, next;
+        for (const Halfspace* h : planes) {
+            next.clear();
+            for (const Poly& c : cells) {
+                Poly pos = clipBy(c, [&](const Eigen::Vector4d& w) { return w.dot(h->s); });
+                Poly neg = clipBy(c, [&](const Eigen::Vector4d& w) { return -w.dot(h->s); });
+                if (!pos.empty()) next.push_back(std::move(pos));
+                if (!neg.empty()) next.push_back(std::move(neg));
+            }
+            std::swap(cells, next);
+        }
+        for (const Poly& c : cells) {
+            Eigen::Vector4d mid = Eigen::Vector4d::Zero();
+            for (const auto& w : c) mid += w;
+            mid /= static_cast<double>(c.size());
+            int best = ves[0], fewest = 1 << 30;
+            for (int e : ves) {
+                int bad = 0;
+                for (const Halfspace& h : virt_.at(e).hs) bad += (mid.dot(h.s) >= 0) != h.positive;
+                if (bad < fewest) {
+                    fewest = bad;
+                    best = e;
+                }
+            }
+            emit(p, best, c, 0);
+        }
+    };
+
+    // 1. The original triangles. One inside a single uncut parent stays as it is; any other is
+    // clipped to each parent it crosses (flood fill over face neighbours from its vertices' parents).
+    std::vector<std::pair<int, Poly>> parts;
+    std::vector<int> queue, visited;
+    for (int t = 0; t < original.faces(); ++t) {
+        std::array<int, 3> v{}, p{};
+        for (int i = 0; i < 3; ++i) {
+            v[static_cast<size_t>(i)] = original.triangles(i, t);
+            p[static_cast<size_t>(i)] = original.element[static_cast<size_t>(v[static_cast<size_t>(i)])];
+        }
+        bool touchesCut = isCut(p[0]) || isCut(p[1]) || isCut(p[2]);
+        if (!touchesCut && p[0] == p[1] && p[1] == p[2]) {
+            tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
+            cutFace.push_back(0);
+            continue;
+        }
+        parts.clear();
+        queue.clear();
+        visited.clear();
+        for (int q : p)
+            if (std::find(visited.begin(), visited.end(), q) == visited.end()) {
+                visited.push_back(q);
+                queue.push_back(q);
+            }
+        while (!queue.empty()) {
+            const int q = queue.back();
+            queue.pop_back();
+            Poly poly(3);
+            for (size_t i = 0; i < 3; ++i)
+                poly[i] = barycentric(restSurface.V.col(v[i]), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
+                                      m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q)));
+            for (int a = 0; a < 4 && !poly.empty(); ++a)
+                poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
+            if (poly.empty()) continue;
+            for (int k = 0; k < 4; ++k) {
+                const int n = adj_(k, q);
+                if (n < 0 || std::find(visited.begin(), visited.end(), n) != visited.end()) continue;
+                if (std::any_of(poly.begin(), poly.end(), [k](const Eigen::Vector4d& w) { return std::abs(w[k]) < 1e-9; })) {
+                    visited.push_back(n);
+                    queue.push_back(n);
+                }
+            }
+            touchesCut = touchesCut || isCut(q);
+            parts.emplace_back(q, std::move(poly));
+        }
+        if (!touchesCut) {
+            tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
+            cutFace.push_back(0);
+            continue;
+        }
+        for (const auto& [q, poly] : parts) {
+            if (isCut(q)) emitInCutParent(q, poly);
+            else emit(q, q, poly, 0);
+        }
+    }
+
+    // 2. The cut faces. In an element the surface crosses (inside share < 1) only the part inside
+    // it: each cap triangle is subdivided into 4^capLevels, the winding number w of the rest
+    // surface sampled at their corners, and each clipped where the linear interpolant of w - 1/2
+    // changes sign (Jacobson et al. 2013: w is 1 inside a closed surface, 0 outside).
+    WindingTree tree;
+    if (nv > 0) tree = buildWindingTree(restSurface);
+    std::vector<int> cutParents;
+    for (const auto& kv : virt_)
+        if (kv.first < nParents) cutParents.push_back(kv.first);
+    std::sort(cutParents.begin(), cutParents.end());  // deterministic output
+    const int n = 1 << std::max(0, capLevels);
+    std::vector<Eigen::Vector4d> grid;
+    std::vector<double> wind;
+    auto at = [n](int i, int j) { return static_cast<size_t>(i * (n + 1) - i * (i - 1) / 2 + j); };  // i + j <= n
+    for (int p : cutParents) {
+        const bool inside = fraction0_[p] >= 1.0 || nv == 0;
+        const std::vector<int> ves = virtualsOf(p);
+        for (int e : ves) {
+            const ConvexPiece& piece = virt_.at(e).piece;
+            for (const PolyFace& f : piece.faces) {
+                if (f.tag < 4) continue;
+                Poly poly;
+                for (int vi : f.v) poly.push_back(weightsOf(piece.xi[static_cast<size_t>(vi)]));
+                if (inside) {
+                    emit(p, e, poly, 1);
+                    continue;
+                }
+                for (size_t k = 1; k + 1 < poly.size(); ++k) {
+                    const Eigen::Vector4d A = poly[0], B = poly[k], C = poly[k + 1];
+                    grid.assign(static_cast<size_t>((n + 1) * (n + 2) / 2), Eigen::Vector4d::Zero());
+                    wind.assign(grid.size(), 0.0);
+                    for (int i = 0; i <= n; ++i)
+                        for (int j = 0; i + j <= n; ++j) {
+                            const Eigen::Vector4d w = A + (double(i) / n) * (B - A) + (double(j) / n) * (C - A);
+                            grid[at(i, j)] = w;
+                            wind[at(i, j)] = windingNumber(tree, rest(p, w)) - 0.5;
+                        }
+                    auto sub = [&](size_t a, size_t b, size_t c) {
+                        const double fa = wind[a], fb = wind[b], fc = wind[c];
+                        if (fa < 0 && fb < 0 && fc < 0) return;
+                        emit(p, e, clipPoly({grid[a], grid[b], grid[c]}, {fa, fb, fc}), 1);
+                    };
+                    for (int i = 0; i < n; ++i)
+                        for (int j = 0; i + j < n; ++j) {
+                            sub(at(i, j), at(i + 1, j), at(i, j + 1));
+                            if (i + j + 1 < n) sub(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                        }
+                }
+            }
+        }
+    }
+
+    // Fixed-size Eigen vectors are stored contiguously, so the lists are the matrices' columns.
+    EmbeddedSurface out;
+    out.element = std::move(elem);
+    out.weights = Eigen::Map<const Eigen::Matrix4Xd>(weights.empty() ? nullptr : weights[0].data(), 4,
+                                                     static_cast<Eigen::Index>(weights.size()));
+    out.triangles = Eigen::Map<const Eigen::Matrix3Xi>(tris.empty() ? nullptr : tris[0].data(), 3,
+                                                       static_cast<Eigen::Index>(tris.size()));
+    out.cutFace = std::move(cutFace);
+    return out;
+}
+
+} // namespace cutsim
