@@ -86,6 +86,13 @@ double firstBendingFrequency(const Model& m);
 double lowestFrequency(const Model& m);
 // Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
 double richardson(double coarse, double fine);
+// Converged references of a bar family: the linear static tip and the first bending frequency on
+// the model of each level (levels doubling), extrapolated from the two finest.
+struct BarReferences {
+    std::vector<double> tips, freqs;   // per level [m], [Hz]
+    double tip = 0, frequency = 0;     // Richardson from the two finest [m], [Hz]
+};
+BarReferences barReferences(const std::vector<int>& levels, const std::function<Model(int)>& model);
 // Frequency [Hz] of a sampled signal from its upward crossings of its mean (linear
 // interpolation between samples); 0 with fewer than two crossings.
 double crossingFrequency(const std::vector<double>& t, const std::vector<double>& y);

@@ -212,34 +212,6 @@ BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const 
     return p;
 }
 
-namespace {
-
-// Free-DOF numbering of a model: global DOF 3i+k -> free index or -1.
-std::vector<int> freeDofMap(const Model& m, int* nFree) {
-    std::vector<int> map(3 * m.nodes(), -1);
-    int nf = 0;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.invMass(i) > 0)
-            for (int k = 0; k < 3; ++k) map[3 * i + k] = nf++;
-    *nFree = nf;
-    return map;
-}
-
-Eigen::SparseMatrix<double> freeStiffness(const Model& m, const std::vector<int>& map, int nf, const Eigen::VectorXd* scale) {
-    const Eigen::SparseMatrix<double> K = assembleStiffness(m);
-    std::vector<Eigen::Triplet<double>> t;
-    for (int c = 0; c < K.outerSize(); ++c)
-        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it) {
-            const int r = map[it.row()], cc = map[it.col()];
-            if (r >= 0 && cc >= 0) t.emplace_back(r, cc, scale ? it.value() * (*scale)(r) * (*scale)(cc) : it.value());
-        }
-    Eigen::SparseMatrix<double> Kf(nf, nf);
-    Kf.setFromTriplets(t.begin(), t.end());
-    return Kf;
-}
-
-} // namespace
-
 // Linear static tip deflection K u = M g (small-displacement limit of the corotational model).
 double linearStaticTip(const Model& m, const TipFn& tip) {
     int nf = 0;
@@ -259,15 +231,6 @@ double linearStaticTip(const Model& m, const TipFn& tip) {
 
 // First bending frequency in z with the lumped mass: the lowest eigenpairs of M^-1/2 K M^-1/2
 // (shift-invert Lanczos about 0); of those, the mode whose tip moves most along z.
-// M^-1/2 K M^-1/2 over the free DOFs (map, nf from freeDofMap).
-Eigen::SparseMatrix<double> scaledFreeStiffness(const Model& m, const std::vector<int>& map, int nf) {
-    Eigen::VectorXd s(nf);
-    for (int i = 0; i < m.nodes(); ++i)
-        for (int k = 0; k < 3; ++k)
-            if (map[3 * i + k] >= 0) s(map[3 * i + k]) = 1.0 / std::sqrt(m.mass(i));
-    return freeStiffness(m, map, nf, &s);
-}
-
 double firstBendingFrequency(const Model& m) {
     int nf = 0;
     const auto map = freeDofMap(m, &nf);
@@ -309,6 +272,19 @@ double lowestFrequency(const Model& m) {
 
 // Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
 double richardson(double coarse, double fine) { return fine + (fine - coarse) / 3.0; }
+
+BarReferences barReferences(const std::vector<int>& levels, const std::function<Model(int)>& model) {
+    BarReferences r;
+    for (int n : levels) {
+        const Model m = model(n);
+        r.tips.push_back(linearStaticTip(m));
+        r.freqs.push_back(firstBendingFrequency(m));
+    }
+    const size_t k = levels.size() - 1;
+    r.tip = richardson(r.tips[k - 1], r.tips[k]);
+    r.frequency = richardson(r.freqs[k - 1], r.freqs[k]);
+    return r;
+}
 
 namespace {
 
@@ -485,24 +461,18 @@ int runAccuracy(const AccuracyArgs& a) {
         // Converged references: Richardson extrapolation of the two finest reference meshes
         // (linear tets converge as h^2); the coarser pair shows how well converged they are.
         const std::vector<int> levels = a.tiny ? std::vector<int>{2, 4} : std::vector<int>{2, 4, 8};
-        std::vector<double> tips, freqs;
-        for (int r : levels) {
-            const Model m = cantileverModel(ctx.bar, r);
-            tips.push_back(linearStaticTip(m));
-            freqs.push_back(firstBendingFrequency(m));
-        }
-        const size_t k = levels.size() - 1;
-        ctx.tipReference = richardson(tips[k - 1], tips[k]);
-        ctx.frequencyReference = richardson(freqs[k - 1], freqs[k]);
+        const BarReferences br = barReferences(levels, [&](int r) { return cantileverModel(ctx.bar, r); });
+        ctx.tipReference = br.tip;
+        ctx.frequencyReference = br.frequency;
         // Euler-Bernoulli with Timoshenko's shear term (kappa = 5/6) and the first bending frequency.
         const auto& bar = ctx.bar;
         const double E = bar.material.E, G = E / (2 * (1 + bar.material.nu)), A = bar.h * bar.h, I = A * A / 12;
         const double q = bar.material.rho * 9.81 * A, L = bar.L;
         const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
         const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
-        refs["cantilever_static"] = {{"reference", ctx.tipReference}, {"levels", levels}, {"values", tips},
+        refs["cantilever_static"] = {{"reference", ctx.tipReference}, {"levels", levels}, {"values", br.tips},
                                      {"beam_theory", beamTip}, {"reference_over_beam", ctx.tipReference / beamTip}};
-        refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference}, {"levels", levels}, {"values", freqs},
+        refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference}, {"levels", levels}, {"values", br.freqs},
                                         {"beam_theory", beamFreq}, {"reference_over_beam", ctx.frequencyReference / beamFreq}};
         if (!a.json)
             std::fprintf(stderr, "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",

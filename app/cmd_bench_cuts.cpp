@@ -203,22 +203,16 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
     auto add = [&](const BenchPoint& p) { pts.push_back(p); logPoint(ctx, p); };
     // References: conforming notch meshes, Richardson from the two finest.
     const std::vector<int> levels = ctx.tiny ? std::vector<int>{2, 4} : std::vector<int>{2, 4, 8};
-    std::vector<double> tips, freqs;
-    for (int n : levels) {
-        const Model m = notchedConforming(ctx.bar, n);
-        tips.push_back(linearStaticTip(m));
-        freqs.push_back(firstBendingFrequency(m));
-    }
-    const size_t k = levels.size() - 1;
-    TipProbe stat{"cantilever_notch", richardson(tips[k - 1], tips[k]), {}};
-    TipProbe freq{"cantilever_notch", richardson(freqs[k - 1], freqs[k]), {}};
+    const BarReferences br = barReferences(levels, [&](int n) { return notchedConforming(ctx.bar, n); });
+    TipProbe stat{"cantilever_notch", br.tip, {}};
+    TipProbe freq{"cantilever_notch", br.frequency, {}};
     if (ctx.references) {
         (*ctx.references)["cantilever_notch_static"] = {
-            {"reference", stat.reference}, {"levels", levels}, {"values", tips},
+            {"reference", stat.reference}, {"levels", levels}, {"values", br.tips},
             {"notch", {{"x", kNotchX * ctx.bar.L}, {"z_from", kNotchZ * ctx.bar.h}}},
             {"uncut_reference", ctx.tipReference}};
         (*ctx.references)["cantilever_notch_frequency"] = {
-            {"reference", freq.reference}, {"levels", levels}, {"values", freqs}, {"uncut_reference", ctx.frequencyReference}};
+            {"reference", freq.reference}, {"levels", levels}, {"values", br.freqs}, {"uncut_reference", ctx.frequencyReference}};
     }
     char name[160];
     json cuts = json::array();

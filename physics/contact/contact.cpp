@@ -151,35 +151,24 @@ double referenceMass(const ContactPoints& pts, const Eigen::VectorXd& invMass) {
 double stableStiffness(const ContactPoints& pts, const Model& model, double dt, double dtCrit) {
     if (!(dt > 0) || !(dt < dtCrit)) return 0;
     const double target = 4.0 / (dt * dt);
-    std::vector<int> compact(static_cast<size_t>(model.nodes()), -1);
     int nf = 0;
-    for (int i = 0; i < model.nodes(); ++i)
-        if (model.invMass(i) > 0) compact[static_cast<size_t>(i)] = nf++;
+    const std::vector<int> map = freeDofMap(model, &nf);
     // B = target I - M^-1/2 K M^-1/2 and C = M^-1/2 (sum_p w_p w_p^T (x) I) M^-1/2 over the free DOFs
-    using Triplet = Eigen::Triplet<double>;
-    std::vector<Triplet> tb, tc;
-    const Eigen::SparseMatrix<double> K = assembleStiffness(model);
-    for (int c = 0; c < K.outerSize(); ++c)
-        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it) {
-            const int a = compact[static_cast<size_t>(it.row() / 3)], b = compact[static_cast<size_t>(it.col() / 3)];
-            if (a < 0 || b < 0) continue;
-            const double s = std::sqrt(model.invMass(it.row() / 3) * model.invMass(it.col() / 3));
-            tb.emplace_back(3 * a + it.row() % 3, 3 * b + it.col() % 3, -s * it.value());
-        }
-    for (int d = 0; d < 3 * nf; ++d) tb.emplace_back(d, d, target);
+    Eigen::SparseMatrix<double> B = -scaledFreeStiffness(model, map, nf);
+    for (int d = 0; d < nf; ++d) B.coeffRef(d, d) += target;
+    std::vector<Eigen::Triplet<double>> tc;
     for (int p = 0; p < pts.points(); ++p)
         for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i)
             for (int j = 0; j < pts.count[static_cast<size_t>(p)]; ++j) {
                 const int ni = pts.nodes(i, p), nj = pts.nodes(j, p);
-                const int a = compact[static_cast<size_t>(ni)], b = compact[static_cast<size_t>(nj)];
-                if (a < 0 || b < 0) continue;
+                if (map[3 * static_cast<size_t>(ni)] < 0 || map[3 * static_cast<size_t>(nj)] < 0) continue;
                 const double v = pts.scale(p) * pts.weights(i, p) * pts.weights(j, p) *
                                  std::sqrt(model.invMass(ni) * model.invMass(nj));
-                for (int k = 0; k < 3; ++k) tc.emplace_back(3 * a + k, 3 * b + k, v);
+                for (int k = 0; k < 3; ++k)
+                    tc.emplace_back(map[3 * static_cast<size_t>(ni) + k], map[3 * static_cast<size_t>(nj) + k], v);
             }
     if (tc.empty()) return std::numeric_limits<double>::infinity();
-    Eigen::SparseMatrix<double> B(3 * nf, 3 * nf), C(3 * nf, 3 * nf);
-    B.setFromTriplets(tb.begin(), tb.end());
+    Eigen::SparseMatrix<double> C(nf, nf);
     C.setFromTriplets(tc.begin(), tc.end());
     // k_max = 1 / nu_max of C x = nu B x: B is positive definite exactly when dt < dtCrit
     using Op = Spectra::SparseSymMatProd<double>;
@@ -187,11 +176,11 @@ double stableStiffness(const ContactPoints& pts, const Model& model, double dt, 
     Op op(C);
     BOp bop(B);
     if (bop.info() != Spectra::CompInfo::Successful) return 0;  // rounding at dt ~ dtCrit: no headroom
-    Spectra::SymGEigsSolver<Op, BOp, Spectra::GEigsMode::Cholesky> eigs(op, bop, 1, std::min(24, 3 * nf));
+    Spectra::SymGEigsSolver<Op, BOp, Spectra::GEigsMode::Cholesky> eigs(op, bop, 1, std::min(24, nf));
     eigs.init();
     eigs.compute(Spectra::SortRule::LargestAlge, 2000, 1e-10);
     if (eigs.info() != Spectra::CompInfo::Successful)
-        throw EigenSolveError("contact stiffness limit: Lanczos did not converge (" + std::to_string(3 * nf) + " free DOFs)");
+        throw EigenSolveError("contact stiffness limit: Lanczos did not converge (" + std::to_string(nf) + " free DOFs)");
     const double nu = eigs.eigenvalues()(0);
     return nu > 0 ? 1.0 / nu : std::numeric_limits<double>::infinity();
 }

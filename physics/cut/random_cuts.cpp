@@ -130,14 +130,14 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
 std::string describeRun(int run, const RandomCutRun& r) {
     char buf[500];
     if (!r.inverted) {
-        std::snprintf(buf, sizeof buf, "run %d: %d cuts%s%s; no inversion; volume limiting in %ld steps, at most %d elements",
+        std::snprintf(buf, sizeof buf, "run %d: %d cuts%s%s; no inversion; stretch limiting in %ld steps, at most %d elements",
                       run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "", r.limitedSteps,
                       r.maxLimited);
         return buf;
     }
     std::snprintf(buf, sizeof buf,
                   "run %d: %d cuts%s%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
-                  "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes; volume limiting in %ld steps",
+                  "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes; stretch limiting in %ld steps",
                   run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "",
                   r.invertedAtEnd ? ", still inverted at the end" : ", recovered", r.invCut, r.invStep, r.invElem,
                   r.invFraction, r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed, r.limitedSteps);

@@ -310,17 +310,35 @@ double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<doub
 int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratch) {
     // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
     // is linear in x along its gradient while the singular vectors hold, so a few sweeps suffice.
-    // A correction can push a neighbour below the limit: scan again, a few rounds at most.
+    // A correction can push a neighbour below the limit: the next round scans the elements around
+    // the nodes this one moved, a few rounds at most.
     constexpr int kRounds = 4, kSweeps = 8;
     constexpr double kTol = 1e-9;
     Eigen::Matrix<double, 3, 4> g;
+    auto below = [&](int e) {
+        return smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
+               smallestStretch(m, s, e, g) < sMin * (1 - kTol);
+    };
+    std::vector<int> around;
     int corrected = 0;
     for (int round = 0; round < kRounds; ++round) {
-        scratch.clear();
-        for (int e = 0; e < m.elements(); ++e)
-            if (smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
-                smallestStretch(m, s, e, g) < sMin * (1 - kTol))
-                scratch.push_back(e);
+        if (round == 0) {
+            scratch.clear();
+            for (int e = 0; e < m.elements(); ++e)
+                if (below(e)) scratch.push_back(e);
+        } else {
+            around.clear();
+            for (const int e : scratch)
+                for (int a = 0; a < 4; ++a) {
+                    const int i = m.tets(a, e);
+                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) around.push_back(m.nodeSlots[k] >> 2);
+                }
+            std::sort(around.begin(), around.end());
+            around.erase(std::unique(around.begin(), around.end()), around.end());
+            scratch.clear();
+            for (const int e : around)
+                if (below(e)) scratch.push_back(e);
+        }
         if (scratch.empty()) break;
         corrected = std::max(corrected, static_cast<int>(scratch.size()));
         for (int sweep = 0; sweep < kSweeps; ++sweep) {

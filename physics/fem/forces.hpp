@@ -23,14 +23,15 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0);
 
 // Stretch limiting (strain limiting on the principal stretches by projection, as Thomaszewski,
-// Pabst, Strasser 2009 do for cloth): each element whose smallest principal stretch sigma3 (signed:
-// negative when inverted) is below sMin at the current positions is moved back to sigma3 = sMin
-// along the gradient of sigma3, Gauss-Seidel over those elements and rescanned for neighbours a
-// correction pushed below; the closing rate of sigma3 is removed from the velocities (an inelastic
-// stop). Prescribed nodes do not move; a free element with equal node masses keeps its momentum
-// and centre of mass. Returns the most elements corrected in a round. Serial: it runs only in
-// steps where the force stage saw an element that may be below its watch stretch.
-int limitStretch(const Model& model, State& state, double jMin, std::vector<int>& scratch);
+// Pabst, Strasser 2009 do for cloth): each element whose smallest principal stretch sigma3 is
+// below sMin at the current positions is moved back to sigma3 = sMin along the gradient of sigma3
+// (an inverted one first along the gradient of det F), Gauss-Seidel over those elements, then
+// over the elements around the moved nodes that a correction pushed below; the closing rate is
+// removed from the velocities (an inelastic stop). Prescribed nodes do not move; a free element
+// with equal node masses keeps its momentum and centre of mass. Returns the most elements
+// corrected in a round. Serial: it runs only in steps where the force stage saw an element that
+// may be below its watch stretch.
+int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch);
 
 // Rotation of the polar decomposition F = R S. Newton's iteration X <- (X + X^-T) / 2 (Higham
 // 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the SVD of

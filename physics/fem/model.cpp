@@ -94,6 +94,37 @@ Eigen::SparseMatrix<double> assembleStiffness(const Model& m) {
     return K;
 }
 
+std::vector<int> freeDofMap(const Model& m, int* nFree) {
+    std::vector<int> map(3 * static_cast<size_t>(m.nodes()), -1);
+    int nf = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0)
+            for (int k = 0; k < 3; ++k) map[3 * static_cast<size_t>(i) + k] = nf++;
+    *nFree = nf;
+    return map;
+}
+
+Eigen::SparseMatrix<double> freeStiffness(const Model& m, const std::vector<int>& map, int nf, const Eigen::VectorXd* scale) {
+    const Eigen::SparseMatrix<double> K = assembleStiffness(m);
+    std::vector<Eigen::Triplet<double>> t;
+    for (int c = 0; c < K.outerSize(); ++c)
+        for (Eigen::SparseMatrix<double>::InnerIterator it(K, c); it; ++it) {
+            const int r = map[static_cast<size_t>(it.row())], cc = map[static_cast<size_t>(it.col())];
+            if (r >= 0 && cc >= 0) t.emplace_back(r, cc, scale ? it.value() * (*scale)(r) * (*scale)(cc) : it.value());
+        }
+    Eigen::SparseMatrix<double> Kf(nf, nf);
+    Kf.setFromTriplets(t.begin(), t.end());
+    return Kf;
+}
+
+Eigen::SparseMatrix<double> scaledFreeStiffness(const Model& m, const std::vector<int>& map, int nf) {
+    Eigen::VectorXd s(nf);
+    for (int i = 0; i < m.nodes(); ++i)
+        for (int k = 0; k < 3; ++k)
+            if (const int d = map[3 * static_cast<size_t>(i) + k]; d >= 0) s(d) = 1.0 / std::sqrt(m.mass(i));
+    return freeStiffness(m, map, nf, &s);
+}
+
 TetMesh restMesh(const Model& m) {
     TetMesh mesh;
     mesh.X = m.X;

@@ -65,6 +65,15 @@ void buildIncidence(Model& model);
 // Assembled rest stiffness K (3n x 3n), each element scaled by its fraction. DOF 3i+k.
 Eigen::SparseMatrix<double> assembleStiffness(const Model& model);
 
+// Free-DOF numbering: global DOF 3i+k -> its index among the free DOFs (invMass > 0), or -1;
+// a free node's three DOFs are consecutive. *nFree gets their number.
+std::vector<int> freeDofMap(const Model& model, int* nFree);
+// K restricted to the free DOFs of `map` (nf of them), optionally scaled to diag(s) K diag(s).
+Eigen::SparseMatrix<double> freeStiffness(const Model& model, const std::vector<int>& map, int nf,
+                                          const Eigen::VectorXd* scale = nullptr);
+// M^-1/2 K M^-1/2 over the free DOFs (the operator of the exact step, thesis eq. 3.10).
+Eigen::SparseMatrix<double> scaledFreeStiffness(const Model& model, const std::vector<int>& map, int nf);
+
 // The mesh this model was built from (rest positions), e.g. for output.
 TetMesh restMesh(const Model& model);
 

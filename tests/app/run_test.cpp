@@ -47,6 +47,16 @@ json readReport(const std::string& out) {
     return json::parse(in);
 }
 
+// Runs assets/scenes/<name> without frames (plus `extra` flags) into a fresh work folder; its exit
+// code, with the report in *report and stderr in *err.
+int runShipped(const std::string& name, const std::string& extra, json* report, std::string* err) {
+    const std::string out = workDir() + "/out";
+    const int rc = test::runCutsim("run " + test::source("assets/scenes/" + name) + " --out " + out + " --no-render --quiet" + extra,
+                                   nullptr, err);
+    if (rc == 0) *report = readReport(out);
+    return rc;
+}
+
 // A bad scene: exit 2, "error:" and the key path on stderr, and no --out folder.
 void expectRefused(const std::string& scene, const std::string& sets, const std::string& keyPath,
                    std::string* errOut = nullptr) {
@@ -303,13 +313,9 @@ TEST(Run, RefusesAnUnwritableOutputBeforeSimulating) {
 }
 
 TEST(Run, DemoPressesAndCuts) {
-    const std::string out = workDir() + "/out";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/demo.json") + " --out " + out + " --no-render --quiet",
-                              nullptr, &err),
-              0)
-        << err;
-    const json r = readReport(out);
+    json r;
+    ASSERT_EQ(runShipped("demo.json", "", &r, &err), 0) << err;
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
     EXPECT_TRUE(r["embedding"].is_object());                 // the liver given by its surface (MI)
     EXPECT_GT(r["tool"]["max_force"].get<double>(), 0.1);   // the probe presses the sagging liver
@@ -324,13 +330,9 @@ TEST(Run, DemoPressesAndCuts) {
 TEST(Run, DemoMiPressesTheEmbeddedSurface) {
     // the embedded liver at half its exact step: the probe is held by the mass-scaled penalty at
     // its exact limit (contact/contact.hpp), not by the lightest embedded node (0.05 N, 9 mm before)
-    const std::string out = workDir() + "/out";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/demo_mi.json") + " --out " + out + " --no-render --quiet",
-                              nullptr, &err),
-              0)
-        << err;
-    const json r = readReport(out);
+    json r;
+    ASSERT_EQ(runShipped("demo_mi.json", "", &r, &err), 0) << err;
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
     EXPECT_TRUE(r["embedding"].is_object());
     EXPECT_GT(r["dt"].get<double>(), 2 * 0.451e-3);        // twice the conforming liver's exact step
@@ -340,14 +342,9 @@ TEST(Run, DemoMiPressesTheEmbeddedSurface) {
 }
 
 TEST(Run, LiverCutsReportEachCut) {
-    const std::string out = workDir() + "/out";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/liver_cuts.json") + " --out " + out +
-                                  " --no-render --quiet --set duration=0.9",
-                              nullptr, &err),
-              0)
-        << err;
-    const json r = readReport(out);
+    json r;
+    ASSERT_EQ(runShipped("liver_cuts.json", " --set duration=0.9", &r, &err), 0) << err;
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
     const json& cuts = r["cuts"];
     ASSERT_EQ(cuts.size(), 4u);
@@ -410,15 +407,10 @@ TEST(Run, RefusesACutWithAZeroNormal) {
 }
 
 TEST(Run, BladeSeparatesTheLiverIntoTwoPieces) {
-    const std::string out = workDir() + "/out";
     std::string err;
     // the stroke is through the sagging liver by t = 0.37 s; the rest of the scene only lets the piece fall
-    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/blade.json") + " --out " + out +
-                                  " --no-render --quiet --set duration=0.4",
-                              nullptr, &err),
-              0)
-        << err;
-    const json r = readReport(out);
+    json r;
+    ASSERT_EQ(runShipped("blade.json", " --set duration=0.4", &r, &err), 0) << err;
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
     EXPECT_EQ(r["pieces"].get<int>(), 2);
     const json& cuts = r["cuts"];
@@ -451,14 +443,9 @@ TEST(Run, BladeSeparatesTheLiverIntoTwoPieces) {
 }
 
 TEST(Run, ProbeToolBuildsNoCutter) {
-    const std::string out = workDir() + "/out";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/probe.json") + " --out " + out +
-                                  " --no-render --quiet --set duration=0.02",
-                              nullptr, &err),
-              0)
-        << err;
-    const json r = readReport(out);
+    json r;
+    ASSERT_EQ(runShipped("probe.json", " --set duration=0.02", &r, &err), 0) << err;
     EXPECT_TRUE(r["cuts"].empty());
     EXPECT_EQ(r["stages"]["cut"].get<double>(), 0.0);
     EXPECT_FALSE(r.contains("blade"));

@@ -246,10 +246,7 @@ TEST(ContactStiffness, BoxLimitIsTheDenseBisection) {
     // lambda_max(M^-1/2 (K + k sum_p w_p w_p^T (x) I) M^-1/2) <= (2/dt)^2, by bisection on dense
     // eigenvalues, against the pencil solved by Lanczos.
     Model m = buildModel(test::boxMesh(0.02, 0.02, 0.02, 2, 2, 2), Material{});
-    std::vector<int> bottom;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(2, i) < 1e-9) bottom.push_back(i);
-    fixNodes(m, bottom);
+    test::fixBelow(m, 2, 1e-9);
     const ContactPoints pts = contactPoints(boundarySurface(m.tets, m.X), m.tets, m.X, 0.006);
     const double dtc = exactCriticalDt(m).dt, dt = 0.8 * dtc;
     const int n = 3 * m.nodes();
@@ -320,10 +317,7 @@ struct PressedMiSlab {
         o.latticeCells = Eigen::Vector3i(4, 4, 2);
         o.latticeOrigin = Eigen::Vector3d::Zero();
         mi = buildMi(boxSurface({0.001, 0.001, 0.001}, {0.039, 0.039, 0.0115}), Material{}, o);
-        std::vector<int> bottom;
-        for (int i = 0; i < mi.model.nodes(); ++i)
-            if (mi.model.X(2, i) < 1e-9) bottom.push_back(i);
-        fixNodes(mi.model, bottom);
+        test::fixBelow(mi.model, 2, 1e-9);
         mi.model.elementModel = ElementModel::Linear;
         // the top face: its triangles and their vertices, renumbered
         const EmbeddedSurface& s = mi.surface;

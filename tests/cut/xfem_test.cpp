@@ -262,10 +262,7 @@ TEST(Xfem, EnrichmentLumpingKeepsTimeStepOnSlivers) {
 TEST(Xfem, CutPieceFallsFreely) {
     // Bar fixed at x = 0, cut at x = 0.5: the free half falls with g, the fixed half holds.
     Model m = buildModel(test::boxMesh(1, 0.2, 0.2, 10, 2, 2), Material{});
-    std::vector<int> fixedNodes;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
-    fixNodes(m, fixedNodes);
+    test::fixBelow(m, 0, 1e-9);
     m.gravity = Eigen::Vector3d(0, 0, -9.81);
     State s = makeState(m);
     CutEngine eng;

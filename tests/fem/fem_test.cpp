@@ -362,10 +362,7 @@ class StabilityLimit : public ::testing::TestWithParam<Integrator> {};
 TEST_P(StabilityLimit, BoundedBelowDivergentAbove) {
     const TetMesh box = test::boxMesh(0.1, 0.04, 0.04, 5, 2, 2);
     Model m = buildModel(box, Material{}, ElementModel::Linear);
-    std::vector<int> fixedNodes;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
-    fixNodes(m, fixedNodes);
+    test::fixBelow(m, 0, 1e-9);
     const double dtCrit = denseCriticalDt(m);
     for (double frac : {0.9, 1.05}) {
         State s = makeState(m);
@@ -422,10 +419,7 @@ namespace {
 Model cantilever(int nx, int nyz, ElementModel em = ElementModel::Linear, int nz = 0) {
     const double L = 1.0, h = 0.1;
     Model m = buildModel(test::boxMesh(L, h, h, nx, nyz, nz > 0 ? nz : nyz), Material{1e8, 0.3, 1000}, em);
-    std::vector<int> clamp;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) < 1e-9) clamp.push_back(i);
-    fixNodes(m, clamp);
+    test::fixBelow(m, 0, 1e-9);
     m.gravity << 0, 0, -9.81;
     return m;
 }

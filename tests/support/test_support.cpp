@@ -72,4 +72,11 @@ int runCutsim(const std::string& args, std::string* out, std::string* err) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+void fixBelow(Model& m, int axis, double value) {
+    std::vector<int> nodes;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.X(axis, i) < value) nodes.push_back(i);
+    fixNodes(m, nodes);
+}
+
 } // namespace cutsim::test

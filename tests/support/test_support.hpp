@@ -27,6 +27,9 @@ std::string readText(const std::string& path);
 // independent of physics/timestep; for small models only.
 double denseLambdaMax(const Model& m);
 
+// Fixes the nodes whose rest coordinate `axis` is below `value` (a clamp on a plane).
+void fixBelow(Model& m, int axis, double value);
+
 // Runs the cutsim executable with the given arguments; returns its exit code, fills out/err.
 int runCutsim(const std::string& args, std::string* out = nullptr, std::string* err = nullptr);
 
