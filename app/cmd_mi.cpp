@@ -25,6 +25,7 @@ struct MiArgs {
     double h = 0;
     double scale = 1;
     int refine = 0;
+    bool fixOutside = false;  // fix the outside corners of interface tets (thesis sec. 6.3)
     Material material;
     bool json = false;
     std::string vtu;
@@ -44,6 +45,7 @@ int runMi(const MiArgs& a) {
         o.cells = a.cells;
         o.h = a.h;
         o.refineLevels = a.refine;
+        o.fixOutsideNodes = a.fixOutside;
         const MiResult r = buildMi(s, a.material, o);
         const SurfaceCheck check = checkSurface(s);
 
@@ -71,6 +73,7 @@ int runMi(const MiArgs& a) {
                              {"boundary", r.count(NodeClass::Boundary)}};
         j["nodes"] = r.model.nodes();
         j["dofs"] = r.model.freeDofs();
+        j["fix_outside"] = a.fixOutside;
         j["elements"] = {{"inside", r.count(ElementClass::Inside)}, {"interface", r.count(ElementClass::Interface)},
                          {"outside", r.count(ElementClass::Outside)}};
         j["volume_embedded"] = vEmb;
@@ -122,7 +125,8 @@ int runMi(const MiArgs& a) {
                     r.count(NodeClass::Outside), r.count(NodeClass::Boundary));
         std::printf("elements:  %d inside, %d interface, %d outside\n", r.count(ElementClass::Inside),
                     r.count(ElementClass::Interface), r.count(ElementClass::Outside));
-        std::printf("model:     %d nodes, %d elements, %d dofs\n", r.model.nodes(), r.model.elements(), r.model.freeDofs());
+        std::printf("model:     %d nodes, %d elements, %d dofs%s\n", r.model.nodes(), r.model.elements(), r.model.freeDofs(),
+                    a.fixOutside ? " (outside corners of interface tets fixed)" : "");
         std::printf("volume:    embedded %.6g m^3, surface %.6g m^3, error %+.3e\n", vEmb, vSurf,
                     vSurf != 0 ? (vEmb - vSurf) / vSurf : 0.0);
         for (const auto& lv : j.value("volume_refined", nlohmann::json::array()))
@@ -164,6 +168,9 @@ void addMiCommand(CLI::App& app) {
     cmd->add_option("--refine", args->refine,
                     "Also compute interface volumes by L levels of refinement (thesis: 5) and report their error "
                     "against the exact volumes")->capture_default_str();
+    cmd->add_flag("--fix-outside", args->fixOutside,
+                  "Fix the outside corners of interface tets (the thesis's rule, sec. 6.3; pins the object's boundary "
+                  "layer, the step can only grow); default: they stay free control points");
     cmd->add_option("--E", args->material.E, "Young's modulus [Pa]")->capture_default_str();
     cmd->add_option("--nu", args->material.nu, "Poisson's ratio [-]")->capture_default_str();
     cmd->add_option("--rho", args->material.rho, "Density [kg/m^3]")->capture_default_str();

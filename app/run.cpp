@@ -232,10 +232,11 @@ Simulation prepareScene(const SceneDef& sc) {
         MiOptions mo;
         mo.cells = sc.surfaceCells;
         mo.h = sc.surfaceH;
+        mo.fixOutsideNodes = sc.surfaceFixOutside;
         MiResult mi = buildMi(surf, sc.material, mo);
         embedding = {{"h", mi.h}, {"interface_elements", mi.count(ElementClass::Interface)},
                      {"volume_embedded", mi.embeddedVolume()}, {"volume_surface", enclosedVolume(surf)},
-                     {"closed", mi.closed}, {"seconds", since(te)}};
+                     {"closed", mi.closed}, {"fix_outside", sc.surfaceFixOutside}, {"seconds", since(te)}};
         model = std::move(mi.model);
         model.elementModel = sc.element;
         embedded = std::make_unique<EmbeddedSurface>(std::move(mi.surface));

@@ -101,6 +101,7 @@ struct SceneDef {
     std::string surface;          // surface path (resolved) embedded by mesh intersection; empty otherwise
     int surfaceCells = 0;         // MI lattice cells across the surface's longest side (when surfaceH is 0)
     double surfaceH = 0;          // MI lattice cell edge [m] (after scale); > 0 takes precedence
+    bool surfaceFixOutside = false; // MI: fix the outside corners of interface tets (thesis sec. 6.3)
     Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();  // generated box [0,size] (before scale) [m]
     Eigen::Vector3i boxCells = Eigen::Vector3i::Zero(); // cubes along each axis, 6 tets each
     double scale = 1;             // coordinates times scale give meters

@@ -54,8 +54,10 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     const Eigen::Vector3d lo = surfaceIn.V.rowwise().minCoeff(), hi = surfaceIn.V.rowwise().maxCoeff();
     const Eigen::Vector3d ext = hi - lo;
     if (opts.latticeCells.minCoeff() > 0) {
-        if (!(opts.h > 0)) throw InputError(src, 0, "a given lattice needs a cell size h > 0");
-        r.h = opts.h;
+        r.cellSize = opts.latticeCellSize.minCoeff() > 0 ? opts.latticeCellSize : Eigen::Vector3d::Constant(opts.h);
+        if (!(r.cellSize.minCoeff() > 0) || !r.cellSize.allFinite())
+            throw InputError(src, 0, "a given lattice needs a cell size h > 0 (or positive cell edges)");
+        r.h = r.cellSize.maxCoeff();
         r.cells = opts.latticeCells;
         r.origin = opts.latticeOrigin;
     } else {
@@ -69,14 +71,16 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
             r.cells[k] = static_cast<int>(n);
         }
         r.origin = 0.5 * (lo + hi) - 0.5 * r.h * r.cells.cast<double>();
+        r.cellSize.setConstant(r.h);
     }
+    const double hMin = r.cellSize.minCoeff();  // scale of the tolerances below
     const double nTets = 6.0 * r.cells.cast<double>().prod();
     if (nTets > static_cast<double>(opts.maxTets))
         throw InputError(src, 0, "lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
                                      std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
     const int nx = r.cells.x(), ny = r.cells.y(), nz = r.cells.z();
     const int px = nx + 1, py = ny + 1;
-    r.lattice = boxMesh(nx * r.h, ny * r.h, nz * r.h, nx, ny, nz);
+    r.lattice = boxMesh(nx * r.cellSize.x(), ny * r.cellSize.y(), nz * r.cellSize.z(), nx, ny, nz);
     r.lattice.X.colwise() += r.origin;
     r.lattice.source = src + " (lattice)";
     const int nNodes = r.lattice.nodes(), nCubes = nx * ny * nz;
@@ -87,20 +91,20 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     // clipping is transversal. The volume error is the offset times the area, ~1e-10 relative.
     t0 = Clock::now();
     SurfaceMesh s = surfaceIn;
-    const Eigen::Vector3d shift = r.h * 1e-10 * Eigen::Vector3d(0.5773502691896258, 0.3141592653589793, 0.7536347069560302);
+    const Eigen::Vector3d shift = hMin * 1e-10 * Eigen::Vector3d(0.5773502691896258, 0.3141592653589793, 0.7536347069560302);
     s.V.colwise() += shift;
     const SurfaceCheck check = checkSurface(s);
     r.closed = check.closed();
 
     // Spatial hash (thesis Algorithm 1): cube -> triangles whose box overlaps it (CSR).
     auto cubeOf = [&](double x, int axis) {  // clamped before the cast: a given lattice may not hold the surface
-        const double c = std::clamp(std::floor((x - r.origin[axis]) / r.h), 0.0, static_cast<double>(r.cells[axis] - 1));
+        const double c = std::clamp(std::floor((x - r.origin[axis]) / r.cellSize[axis]), 0.0, static_cast<double>(r.cells[axis] - 1));
         return static_cast<int>(c);
     };
     std::vector<int> cubeStart(static_cast<size_t>(nCubes) + 1, 0), cubeTris;
     {
         std::vector<std::array<int, 6>> range(static_cast<size_t>(s.faces()));
-        const double pad = 1e-9 * r.h;
+        const double pad = 1e-9 * hMin;
         for (int f = 0; f < s.faces(); ++f) {
             const Eigen::Vector3d a = s.V.col(s.F(0, f)), b = s.V.col(s.F(1, f)), c = s.V.col(s.F(2, f));
             const Eigen::Vector3d tlo = a.cwiseMin(b).cwiseMin(c), thi = a.cwiseMax(b).cwiseMax(c);
@@ -134,7 +138,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     const WindingTree tree = buildWindingTree(s);
     r.nodeInside.assign(static_cast<size_t>(nNodes), 0);
     r.nodeClass.assign(static_cast<size_t>(nNodes), NodeClass::Outside);
-    const double tol = opts.boundaryTol * r.h;
+    const double tol = opts.boundaryTol * hMin;
 #pragma omp parallel for schedule(dynamic, 256)
     for (int n = 0; n < nNodes; ++n) {
         const Eigen::Vector3d q = r.lattice.X.col(n);
@@ -339,14 +343,17 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     return r;
 }
 
+int miBarCellsAlong(int cellsAcross) { return 10 * cellsAcross + 1; }
+
 std::vector<MiBarRow> miBarRows(const MiBarOptions& o, const std::vector<double>& kept) {
-    if (o.cellsAcross < 1 || !(o.scale > 0)) throw InputError("mi-bar: need cellsAcross >= 1 and scale > 0");
+    if (o.cellsAcross < 1 || o.cellsAlong < 0 || !(o.scale > 0))
+        throw InputError("mi-bar: need cellsAcross >= 1, cellsAlong >= 0 and scale > 0");
+    const int along = o.cellsAlong > 0 ? o.cellsAlong : miBarCellsAlong(o.cellsAcross);
     MiOptions mo;
-    mo.h = o.scale / o.cellsAcross;
-    mo.latticeCells = Eigen::Vector3i(o.cellsAcross, o.cellsAcross, 10 * o.cellsAcross);
+    mo.latticeCells = Eigen::Vector3i(o.cellsAcross, o.cellsAcross, along);
+    mo.latticeCellSize = Eigen::Vector3d(o.scale / o.cellsAcross, o.scale / o.cellsAcross, 10 * o.scale / along);
     mo.latticeOrigin.setZero();
-    const Model lattice = buildModel(boxMesh(o.scale, o.scale, 10 * o.scale, o.cellsAcross, o.cellsAcross, 10 * o.cellsAcross),
-                                     o.material);
+    const Model lattice = buildModel(boxMesh(o.scale, o.scale, 10 * o.scale, o.cellsAcross, o.cellsAcross, along), o.material);
     const double dtLattice = exactCriticalDt(lattice).dt;
     std::vector<MiBarRow> rows;
     for (double k : kept) {
@@ -365,7 +372,9 @@ std::vector<MiBarRow> miBarRows(const MiBarOptions& o, const std::vector<double>
         row.dtLattice = dtLattice;
         MiOptions fixedOpts = mo;
         fixedOpts.fixOutsideNodes = true;
-        row.dtOutsideFixed = exactCriticalDt(buildMi(bar, o.material, fixedOpts).model).dt;
+        const Model fixedModel = buildMi(bar, o.material, fixedOpts).model;
+        row.dtOutsideFixed = exactCriticalDt(fixedModel).dt;
+        row.freeNodesOutsideFixed = fixedModel.freeDofs() / 3;
         rows.push_back(row);
     }
     return rows;

@@ -25,8 +25,11 @@ struct MiOptions {
     int cells = 16;               // lattice cells across the longest side of the surface's box (when h <= 0)
     double h = 0;                 // cell edge [m]; > 0 takes precedence over cells
     Eigen::Vector3i latticeCells = Eigen::Vector3i::Zero(); // > 0: use this lattice (with h and latticeOrigin)
+    Eigen::Vector3d latticeCellSize = Eigen::Vector3d::Zero(); // > 0: the given lattice's cell edges along x, y, z
+                                  // (box cells, each split into 6 Kuhn tets) instead of cubes of edge h [m]
     Eigen::Vector3d latticeOrigin = Eigen::Vector3d::Zero(); // its lowest corner [m]
-    double boundaryTol = 1e-3;    // a node closer than boundaryTol * h to the surface is a boundary node [-]
+    double boundaryTol = 1e-3;    // a node closer than boundaryTol x the shortest cell edge to the surface
+                                  // is a boundary node [-]
     double minFraction = 1e-6;    // inside share below it: outside; above 1 - it: inside (share 1) [-]
     int refineLevels = 0;         // also estimate interface shares by this many refinement levels (0: skip)
     bool fixOutsideNodes = false; // the thesis's literal reading: outside corners of interface tets fixed
@@ -46,7 +49,8 @@ struct MiTimings {
 struct MiResult {
     // Background lattice: cube (i, j, k) = i + nx (j + ny k) holds tets 6c .. 6c + 5 (Kuhn split).
     TetMesh lattice;                     // the whole lattice (rest positions) [m]
-    double h = 0;                        // cell edge [m]
+    double h = 0;                        // cell edge [m]; the longest one when the cells are boxes
+    Eigen::Vector3d cellSize = Eigen::Vector3d::Zero(); // cell edges along x, y, z [m] (all h for cubes)
     Eigen::Vector3d origin = Eigen::Vector3d::Zero(); // lowest lattice corner [m]
     Eigen::Vector3i cells = Eigen::Vector3i::Zero();  // cubes along x, y, z
 
@@ -84,12 +88,18 @@ SurfaceMesh boxSurface(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi);
 // z = 10 (1 - kept) x scale, top part kept, embedded in the uncut bar's lattice.
 struct MiBarOptions {
     double scale = 0.01;     // bar of 1 x 1 x 10 cm by default [m per unit]
-    int cellsAcross = 3;     // lattice cells across the bar (10x as many along it)
+    int cellsAcross = 3;     // lattice cells across the bar
+    int cellsAlong = 0;      // lattice cells along it; 0: miBarCellsAlong(cellsAcross)
     Material material;       // thesis default: E = 30 kPa, nu = 0.3, rho = 1000
 };
+// Cells along the bar for c across: 10c + 1, odd, so the cuts at 1/4, 1/2 and 3/4 of the length
+// fall at 1/4, 1/2 and 3/4 of a cell (every cut crosses cells, as in the thesis's 2 x 2 x 9 bar),
+// and the cells stay near cubes (1/c x 1/c x 10/(10c + 1)).
+int miBarCellsAlong(int cellsAcross);
 struct MiBarRow {
     double kept = 1;          // kept share of the bar [-]
     int nodes = 0;            // model nodes (all free)
+    int freeNodesOutsideFixed = 0; // nodes left free with the outside corners fixed (fixOutsideNodes)
     int elements = 0;         // model elements (inside + interface)
     int interfaceElements = 0;
     double volume = 0;        // embedded volume [m^3]

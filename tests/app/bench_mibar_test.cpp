@@ -1,6 +1,6 @@
 // `cutsim bench mi-bar` (Table 6.1): JSON contract, the uncut bar's step from an independent dense
-// solve, MI's step near the uncut one in every row, and the conforming baselines below it after
-// the 25% cut.
+// solve, MI's step near the uncut one in every row under both rules, and the conforming baselines
+// below it after the 25% cut.
 #include "cut/remesh.hpp"
 #include "test_support.hpp"
 
@@ -17,7 +17,7 @@ namespace {
 using nlohmann::json;
 
 TEST(BenchMiBar, TableContractAndStepOrdering) {
-    // 1 x 1 x 10 cubes: fast; the 75% and 25% cuts fall inside cells, the 50% cut on a lattice plane.
+    // 1 x 1 x 11 cells: fast; every cut falls inside a cell (at 1/4, 1/2, 3/4 of it).
     const int cells = 1;
     if (!haveTetGen()) GTEST_SKIP() << "built without TetGen (the remesh rows)";
     std::string out, err;
@@ -28,16 +28,17 @@ TEST(BenchMiBar, TableContractAndStepOrdering) {
 
     // The uncut bar: same mesh for every method, step checked against a dense eigen-solve.
     const Material mat;  // the command's default material
-    const Model bar = buildModel(test::boxMesh(0.01, 0.01, 0.1, cells, cells, 10 * cells), mat);
+    const Model bar = buildModel(test::boxMesh(0.01, 0.01, 0.1, cells, cells, 10 * cells + 1), mat);
     const double dtUncut = 2 / std::sqrt(test::denseLambdaMax(bar));
 
     std::map<std::pair<double, std::string>, json> byKey;
     for (const json& r : j) {
         ASSERT_TRUE(r.is_object());
         for (const char* k : {"kept", "method", "nodes", "elements", "dt_exact"}) ASSERT_TRUE(r.contains(k)) << k << " in " << r;
-        ASSERT_EQ(r.size(), 5u) << r;
         const double kept = r["kept"].get<double>();
         const std::string method = r["method"].get<std::string>();
+        // mi rows add the thesis's rule (outside corners of interface tets fixed)
+        ASSERT_EQ(r.size(), method == "mi" ? 7u : 5u) << r;
         EXPECT_TRUE(method == "mi" || method == "subdivision" || method == "remesh") << method;
         EXPECT_TRUE(kept == 1 || kept == 0.75 || kept == 0.5 || kept == 0.25) << kept;
         EXPECT_GT(r["nodes"].get<int>(), 0);
@@ -49,27 +50,27 @@ TEST(BenchMiBar, TableContractAndStepOrdering) {
     for (const char* m : {"mi", "subdivision", "remesh"}) {
         const json& u = byKey.at({1.0, m});
         SCOPED_TRACE(m);
-        EXPECT_EQ(u["nodes"].get<int>(), (cells + 1) * (cells + 1) * (10 * cells + 1));
-        EXPECT_EQ(u["elements"].get<int>(), 6 * cells * cells * 10 * cells);
+        EXPECT_EQ(u["nodes"].get<int>(), (cells + 1) * (cells + 1) * (10 * cells + 2));
+        EXPECT_EQ(u["elements"].get<int>(), 6 * cells * cells * (10 * cells + 1));
         EXPECT_NEAR(u["dt_exact"].get<double>(), dtUncut, 1e-7 * dtUncut);
     }
-    // MI keeps the lattice's step up to the free-end effect of a shorter bar: a cut on a lattice
-    // plane leaves a plain shorter bar (below 1 x uncut by 4.7e-4 here), and virtual elements add
-    // little to it (measured lowest 0.9991 here, 0.9967 at 3 cells), so MI does not reach "at least
-    // the uncut step" exactly; within 1% it must, where the conforming cuts lose 45% and more.
+    // Measured at 1 x 1 x 11 (dense-checked in tests/embed): with the outside corners fixed (the
+    // thesis's rule) MI keeps at least the uncut step in every row; with them free (the default)
+    // the 25% row is 6.5e-4 below. Both stay within 1%, where the conforming cuts lose 45% and more.
     for (double k : {1.0, 0.75, 0.5, 0.25}) {
         SCOPED_TRACE(k);
         const json& r = byKey.at({k, "mi"});
         EXPECT_GE(r["dt_exact"].get<double>(), 0.99 * dtUncut);
-        EXPECT_LE(r["nodes"].get<int>(), (cells + 1) * (cells + 1) * (10 * cells + 1));  // MI never adds nodes
+        EXPECT_GE(r["dt_exact_outside_fixed"].get<double>(), dtUncut * (1 - 1e-9));
+        EXPECT_LE(r["nodes"].get<int>(), (cells + 1) * (cells + 1) * (10 * cells + 2));  // MI never adds nodes
+        EXPECT_LE(r["nodes_outside_fixed"].get<int>(), r["nodes"].get<int>());
     }
-    // The 50% cut lies on a lattice plane: MI and subdivision keep the same shorter bar.
+    EXPECT_LT(byKey.at({0.25, "mi"})["dt_exact"].get<double>(), dtUncut * (1 - 1e-9));
+    // The 50% cut halves cell 5: MI keeps cells 5..10 (6 cubes, plane 5 fixed by the thesis's rule).
     const json& mi50 = byKey.at({0.5, "mi"});
-    const json& sub50 = byKey.at({0.5, "subdivision"});
-    EXPECT_EQ(mi50["nodes"], sub50["nodes"]);
-    EXPECT_EQ(mi50["elements"], sub50["elements"]);
-    EXPECT_EQ(mi50["elements"].get<int>(), 6 * cells * cells * 5 * cells);
-    EXPECT_NEAR(mi50["dt_exact"].get<double>(), sub50["dt_exact"].get<double>(), 1e-9 * dtUncut);
+    EXPECT_EQ(mi50["elements"].get<int>(), 6 * 6);
+    EXPECT_EQ(mi50["nodes"].get<int>(), 4 * 7);
+    EXPECT_EQ(mi50["nodes_outside_fixed"].get<int>(), 4 * 6);
     // Thesis Table 6.1: both conforming baselines lose step at 25% kept, far below MI.
     for (const char* m : {"subdivision", "remesh"}) {
         SCOPED_TRACE(m);
@@ -80,30 +81,37 @@ TEST(BenchMiBar, TableContractAndStepOrdering) {
 }
 
 TEST(BenchMiBar, SweepMovesTheCutThroughOneCell) {
-    // 2 x 2 x 20 cubes (h = 5 mm): the 75% plane z = 25 mm lies in cell 5, swept at z = 25, 26.25,
-    // 27.5, 28.75 mm. Each position gives one MI and one subdivision row.
+    // 2 x 2 x 21 cells (h = 100/21 mm along the bar): the 75% plane z = 25 mm lies in cell 5, swept
+    // at z = (5 + i/4) h. Each position gives one MI row (both rules) and one subdivision row.
     std::string out, err;
     ASSERT_EQ(test::runCutsim("bench mi-bar --cells 2 --sweep 4 --json", &out, &err), 0) << err;
     const json j = json::parse(out);
     ASSERT_EQ(j.size(), 8u);
-    const Model bar = buildModel(test::boxMesh(0.01, 0.01, 0.1, 2, 2, 20), Material{});
+    const Model bar = buildModel(test::boxMesh(0.01, 0.01, 0.1, 2, 2, 21), Material{});
     const double dtUncut = 2 / std::sqrt(test::denseLambdaMax(bar));
     std::map<double, std::map<std::string, double>> dt;
-    for (const json& r : j) dt[r["kept"].get<double>()][r["method"].get<std::string>()] = r["dt_exact"].get<double>();
+    for (const json& r : j) {
+        const std::string m = r["method"].get<std::string>();
+        dt[r["kept"].get<double>()][m] = r["dt_exact"].get<double>();
+        if (m == "mi") dt[r["kept"].get<double>()]["mi_fixed"] = r["dt_exact_outside_fixed"].get<double>();
+    }
     ASSERT_EQ(dt.size(), 4u);
-    const double expectKept[4] = {1 - 28.75 / 100, 1 - 27.5 / 100, 1 - 26.25 / 100, 0.75};  // ascending
-    int i = 0;
+    const double h = 100.0 / 21;  // [mm]
+    int i = 3;
     double subLow = 1;
-    for (const auto& [kept, m] : dt) {
-        EXPECT_NEAR(kept, expectKept[i++], 1e-12);
-        ASSERT_EQ(m.size(), 2u);
-        // MI stays within 1% of the lattice's step wherever the cut falls (measured 0.9908 at
-        // worst at 3 cells); a cut on the lattice plane gives the same shorter bar both ways.
+    for (const auto& [kept, m] : dt) {  // ascending kept: descending position in the cell
+        EXPECT_NEAR(kept, 1 - (5 + i-- / 4.0) * h / 100, 1e-12);
+        ASSERT_EQ(m.size(), 3u);
+        // MI stays within 1% of the lattice's step wherever the cut falls, both rules; fixing DOFs
+        // cannot lower it (interlacing).
         EXPECT_GE(m.at("mi"), 0.99 * dtUncut) << kept;
         EXPECT_LE(m.at("mi"), 1.001 * dtUncut) << kept;
+        EXPECT_GE(m.at("mi_fixed"), m.at("mi") * (1 - 1e-9)) << kept;
         subLow = std::min(subLow, m.at("subdivision") / dtUncut);
     }
-    EXPECT_NEAR(dt.at(0.75).at("mi"), dt.at(0.75).at("subdivision"), 1e-9 * dtUncut);
+    // on the lattice plane (i = 0) both give the same shorter bar
+    const auto& onPlane = dt.rbegin()->second;
+    EXPECT_NEAR(onPlane.at("mi"), onPlane.at("subdivision"), 1e-9 * dtUncut);
     EXPECT_LT(subLow, 0.7);  // subdivision's slivers cost far more somewhere in the cell
 }
 

@@ -79,5 +79,44 @@ TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
     EXPECT_FALSE(fs::exists(dir + "/never"));
 }
 
+// The thesis's rule (outside corners of interface tets fixed) from the command line and the scene:
+// a 1 x 1 x 1 m cube in a lattice of h = 0.3 whose cells its faces cross. The lattice nodes
+// outside the cube that interface tets use become fixed, so the DOFs drop and the step cannot.
+TEST(CmdMi, FixOutsideFromFlagAndSceneKey) {
+    const std::string dir = ownDir("fix");
+    const std::string obj = test::writeText(dir + "/cube.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n"
+        "f 1 3 4\nf 1 4 2\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 8 4\nf 3 7 8\nf 1 5 7\nf 1 7 3\nf 2 4 8\nf 2 8 6\n");
+    std::string out, err;
+    ASSERT_EQ(test::runCutsim("mi " + obj + " --h 0.3 --json", &out, &err), 0) << err;
+    const json free = json::parse(out);
+    ASSERT_EQ(test::runCutsim("mi " + obj + " --h 0.3 --fix-outside --json", &out, &err), 0) << err;
+    const json fixed = json::parse(out);
+    EXPECT_FALSE(free["fix_outside"].get<bool>());
+    EXPECT_TRUE(fixed["fix_outside"].get<bool>());
+    EXPECT_EQ(free["nodes"], fixed["nodes"]);
+    EXPECT_EQ(free["dofs"].get<int>(), 3 * free["nodes"].get<int>());
+    EXPECT_LT(fixed["dofs"].get<int>(), free["dofs"].get<int>());
+    EXPECT_GE(fixed["dt_exact"].get<double>(), free["dt_exact"].get<double>() * (1 - 1e-9));
+
+    // scene: object.surface.fix_outside, reported back in report.json's embedding
+    json scene = {{"object", {{"surface", {{"path", "cube.obj"}, {"h", 0.3}, {"fix_outside", true}}}}},
+                  {"material", {{"E", 1e5}}},
+                  {"duration", 0.005}};
+    std::ofstream(dir + "/s.json") << scene.dump(2);
+    ASSERT_EQ(test::runCutsim("run " + dir + "/s.json --out " + dir + "/out --no-render --quiet", nullptr, &err), 0) << err;
+    std::ifstream in(dir + "/out/report.json");
+    const json r = json::parse(in);
+    EXPECT_EQ(r["status"], "ok");
+    EXPECT_TRUE(r["embedding"]["fix_outside"].get<bool>());
+
+    // a bad type is refused, naming the key
+    scene["object"]["surface"]["fix_outside"] = "yes";
+    std::ofstream(dir + "/bad.json") << scene.dump(2);
+    EXPECT_EQ(test::runCutsim("run " + dir + "/bad.json --out " + dir + "/never --no-render --quiet", nullptr, &err), 2);
+    EXPECT_NE(err.find("object.surface.fix_outside"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(dir + "/never"));
+}
+
 } // namespace
 } // namespace cutsim
