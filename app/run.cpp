@@ -541,7 +541,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         json dtAfter = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)},
                         {"certified", dtCertifiedNow}, {"estimate", ta.minDt().r1r}};
         cutsJson.push_back({{"time", state.time}, {"key", key}, {"cut_id", r.cut}, {"crossed", r.crossed}, {"split", r.split},
-                            {"elements_cut", r.split}, {"latency", r.seconds + updateSeconds}, {"pending", r.pending}, {"dropped", r.dropped}, {"new_nodes", r.newNodes.size()},
+                            {"elements_cut", r.split}, {"latency", r.seconds + updateSeconds}, {"pending", r.pending}, {"dropped", r.dropped}, {"merged_pieces", r.merged}, {"new_nodes", r.newNodes.size()},
                             {"new_elements", r.newElements.size()}, {"nodes", model.nodes()},
                             {"elements", model.elements()},
                             {"volume_change", r.volumeBefore > 0 ? (r.volumeAfter - r.volumeBefore) / r.volumeBefore : 0.0},

@@ -1,5 +1,6 @@
 #include "cut/xfem.hpp"
 
+#include "fem/forces.hpp"
 #include "mesh/mesh.hpp"
 
 #include <algorithm>
@@ -315,6 +316,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
         return true;
     };
     auto visit = [&](int e) {
+        if (fusedTo_.count(e)) return;  // follows its sibling (mergeDebris)
         auto it = virt_.find(e);
         if (it != virt_.end())
             for (const Halfspace& h : it->second.hs)
@@ -432,6 +434,8 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     std::sort(parents.begin(), parents.end());
     parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
     if (!parents.empty()) relink(m, s, parents, r, nodeS);
+    if (opts_.mergeDebris && r.crossed > 0) mergeDebris(m, s.x, r);
+    if (opts_.relaxIterations > 0 && r.crossed > 0) relaxCutNodes(m, s, r);
     r.volumeAfter = m.volume.dot(m.fraction);
     r.massAfter = m.mass.sum();
     r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -501,7 +505,8 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
         for (int i = ringStart_[N]; i < ringStart_[N + 1]; ++i) {
             const int p = ring_[static_cast<size_t>(i)];
             const int c = localIndex(tets0_, p, N);
-            for (int e : virtualsOf(p)) slots.push_back({e, c, p});
+            for (int e : virtualsOf(p))
+                if (!fusedTo_.count(e)) slots.push_back({e, c, p});
         }
         uf.reset(slots.size());
         for (size_t i = 0; i < slots.size(); ++i)
@@ -602,6 +607,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     }
 
     for (const auto& [id, fx] : fixedOf) m.fixed[static_cast<size_t>(id)] = fx;
+    followFused(m, r);
 
     // Masses and incidence of the changed elements. An element of an uncut parent can be re-pointed
     // too (its corner's copies were regrouped): its stiffness now couples other nodes, so every row
@@ -616,11 +622,117 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
     for (int e : r.changedElements)
         for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
+    changedNodes.insert(changedNodes.end(), r.changedNodes.begin(), r.changedNodes.end());  // from followFused
     updateMasses(m);
     buildIncidence(m);
     std::sort(changedNodes.begin(), changedNodes.end());
     changedNodes.erase(std::unique(changedNodes.begin(), changedNodes.end()), changedNodes.end());
     r.changedNodes = std::move(changedNodes);
+}
+
+void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
+    // Pieces through the changed elements, explored over shared nodes. An exploration stops at a
+    // prescribed node or past kMaxElems elements (that piece is not debris); marks are per
+    // exploration, so an element reached once is never explored again in this cut.
+    constexpr size_t kMaxElems = 64;
+    std::vector<int>& mark = pieceMark_;
+    mark.assign(static_cast<size_t>(m.elements()), 0);
+    std::vector<int> piece, sibling;
+    int stamp = 0;
+    for (int start : r.changedElements) {
+        if (mark[static_cast<size_t>(start)]) continue;
+        ++stamp;
+        piece.assign(1, start);
+        mark[static_cast<size_t>(start)] = stamp;
+        bool held = false;
+        double vol = 0, vref = 0;  // piece volume; largest parent volume in it [m^3]
+        for (size_t k = 0; k < piece.size() && !held && piece.size() <= kMaxElems; ++k) {
+            const int e = piece[k];
+            vol += m.volume(e) * m.fraction(e);
+            vref = std::max(vref, m.volume(e));
+            for (int a = 0; a < 4 && !held; ++a) {
+                const int node = m.tets(a, e);
+                held = m.fixed[static_cast<size_t>(node)] != 0;
+                for (int sl = m.nodeSlotStart[node]; sl < m.nodeSlotStart[node + 1]; ++sl) {
+                    const int g = m.nodeSlots[static_cast<size_t>(sl)] / 4;
+                    if (!mark[static_cast<size_t>(g)]) {
+                        mark[static_cast<size_t>(g)] = stamp;
+                        piece.push_back(g);
+                    }
+                }
+            }
+        }
+        if (held || piece.size() > kMaxElems || vol >= vref) continue;
+        // Not on an embedded object's interface (parent share < 1): there a piece's volume is the
+        // material it holds, its elements carry the object's surface, and gluing it to its sibling
+        // would move that surface to the other side.
+        bool embedded = false;
+        for (int e : piece) embedded = embedded || fraction0_[parent_[static_cast<size_t>(e)]] < 1;
+        if (embedded) continue;
+        // Each element needs a sibling outside the piece at its place: one that shares its
+        // corners' positions (this cut's other side; a side severed by an earlier cut has moved).
+        // An element fused before follows its sibling already.
+        sibling.assign(piece.size(), -1);
+        bool all = true;
+        for (size_t k = 0; k < piece.size() && all; ++k) {
+            const int e = piece[k];
+            if (fusedTo_.count(e)) continue;
+            const double tol = 1e-9 * std::cbrt(m.volume(e));
+            for (int g : virtualsOf(parent_[static_cast<size_t>(e)])) {
+                if (mark[static_cast<size_t>(g)] == stamp) continue;
+                bool together = true;
+                for (int a = 0; a < 4 && together; ++a)
+                    together = (x.col(m.tets(a, e)) - x.col(m.tets(a, g))).norm() <= tol;
+                if (together && (sibling[k] < 0 || m.fraction(g) > m.fraction(sibling[k]))) sibling[k] = g;
+            }
+            all = sibling[k] >= 0;
+        }
+        if (!all) continue;
+        for (size_t k = 0; k < piece.size(); ++k)
+            if (sibling[k] >= 0) fusedTo_[piece[k]] = sibling[k];
+        ++r.merged;
+    }
+    if (r.merged == 0) return;
+    followFused(m, r);
+    updateMasses(m);
+    buildIncidence(m);
+    std::sort(r.changedElements.begin(), r.changedElements.end());
+    r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
+    std::sort(r.changedNodes.begin(), r.changedNodes.end());
+    r.changedNodes.erase(std::unique(r.changedNodes.begin(), r.changedNodes.end()), r.changedNodes.end());
+}
+
+void CutEngine::relaxCutNodes(const Model& m, State& s, const CutResult& r) const {
+    std::vector<int> nodes;
+    for (int n : r.changedNodes) {
+        if (n >= m.nodes() || m.invMass(n) == 0) continue;
+        bool onlyCut = m.nodeSlotStart[n] < m.nodeSlotStart[n + 1];
+        for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1] && onlyCut; ++sl)
+            onlyCut = virt_.count(m.nodeSlots[static_cast<size_t>(sl)] / 4) > 0;
+        if (onlyCut) nodes.push_back(n);
+    }
+    relaxNodes(m, s, nodes, opts_.relaxIterations);
+}
+
+// Points every fused element at the nodes of the sibling it follows (through chains of fusions);
+// returns whether any element changed. Changed elements and their old and new nodes go into r.
+bool CutEngine::followFused(Model& m, CutResult& r) const {
+    bool any = false;
+    for (const auto& [e, first] : fusedTo_) {
+        int g = first;  // a piece is never fused to itself, so chains end; the cap is a guard
+        for (int hop = 0; hop < 64; ++hop) {
+            const auto it = fusedTo_.find(g);
+            if (it == fusedTo_.end()) break;
+            g = it->second;
+        }
+        if (m.tets.col(e) == m.tets.col(g)) continue;
+        for (int a = 0; a < 4; ++a) r.changedNodes.push_back(m.tets(a, e));
+        m.tets.col(e) = m.tets.col(g);
+        for (int a = 0; a < 4; ++a) r.changedNodes.push_back(m.tets(a, e));
+        r.changedElements.push_back(e);
+        any = true;
+    }
+    return any;
 }
 
 EmbeddedSurface CutEngine::surface(const Model& m) const {

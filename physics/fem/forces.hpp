@@ -33,6 +33,13 @@ void computeForces(const Model& model, State& state, const double* alpha = nullp
 // may be below its watch stretch.
 int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch);
 
+// Quasi-static relaxation of `nodes` with the other nodes held: `iterations` Gauss-Seidel sweeps,
+// each node moved by K_aa^-1 f_a (its corotated diagonal stiffness block from its elements against
+// their corotational force; thesis eq. 2.14 restricted to one node), at most a quarter of its
+// smallest incident element's size per move. Velocities are kept. Used on the fresh control points
+// of a cut, which inherit the stress of the element they came from.
+void relaxNodes(const Model& model, State& state, const std::vector<int>& nodes, int iterations);
+
 // Rotation of the polar decomposition F = R S. Newton's iteration X <- (X + X^-T) / 2 (Higham
 // 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the SVD of
 // invertible FEM (Irving, Teran, Fedkiw 2004): the proper rotation maximising tr(R^T F), with

@@ -196,6 +196,7 @@ TEST(Xfem, BladeSweepSeparatesOnlyWhenThrough) {
     State s = makeState(m);
     CutOptions co;
     co.minFraction = 0;   // exact geometry: x = 0.43 leaves sides below the default 5% in some tets
+    co.mergeDebris = false;  // and slivers that touch no neighbour's side: free pieces below one tet
     CutEngine eng(co);
     // A vertical edge at x = 0.43 moving along +y.
     auto edgeAt = [](double y) { return BladeEdge{{0.43, y, -0.2}, {0.43, y, 1.2}}; };
@@ -257,6 +258,44 @@ TEST(Xfem, EnrichmentLumpingKeepsTimeStepOnSlivers) {
     // Enrichment: every virtual element keeps its parent's eigenvalues; the others collapse.
     EXPECT_GE(dt[MassLumping::Enrichment], 0.9 * uncut);
     EXPECT_LT(dt[MassLumping::RowSum], 0.1 * uncut);
+}
+
+// A plane cutting off the corner x + y + z > 2.2 of a unit cube of 6 Kuhn tets (all six hold that
+// corner) leaves a free piece of 0.8^3 / 6 = 0.0853 m^3, half of one tet (1/6): debris, fused back
+// to the sides it was cut from. The fused pairs act as their parents, so the exact step is the
+// uncut cube's and the model is one piece; mass and volume are kept. Without fusing it falls off.
+TEST(Xfem, PieceBelowOneElementIsFusedBack) {
+    for (const bool fuse : {true, false}) {
+        Model m = unitBox(1);
+        test::fixBelow(m, 0, 1e-9);
+        const double uncut = 2.0 / std::sqrt(test::denseLambdaMax(m));
+        State s = makeState(m);
+        CutOptions co;
+        co.mergeDebris = fuse;
+        CutEngine eng(co);
+        const CutResult r = eng.cut(m, s, plane({2.2 / 3, 2.2 / 3, 2.2 / 3}, {1, 1, 1}));
+        EXPECT_EQ(r.split, 6);
+        EXPECT_EQ(r.merged, fuse ? 1 : 0);
+        EXPECT_NEAR(r.volumeAfter, 1.0, 1e-12);
+        EXPECT_NEAR(m.mass.sum(), 1000.0, 1e-9);
+        const auto pieces = pieceVolumes(m);
+        if (fuse) {
+            ASSERT_EQ(pieces.size(), 1u);
+            EXPECT_NEAR(2.0 / std::sqrt(test::denseLambdaMax(m)), uncut, 1e-9 * uncut);
+        } else {
+            ASSERT_EQ(pieces.size(), 2u);
+            EXPECT_NEAR(pieces[0], 0.8 * 0.8 * 0.8 / 6, 1e-12);
+        }
+        // A second cut, x > 0.9, through the fused elements: they are not cut again, and its
+        // slab (0.1 m^3, below one tet too) is fused back in turn.
+        const CutResult r2 = eng.cut(m, s, plane({0.9, 0.5, 0.5}, {1, 0, 0}));
+        EXPECT_GT(r2.crossed, 0);
+        EXPECT_NEAR(r2.volumeAfter, 1.0, 1e-12);
+        if (fuse) {
+            EXPECT_EQ(r2.merged, 1);
+            EXPECT_EQ(pieceVolumes(m).size(), 1u);
+        }
+    }
 }
 
 TEST(Xfem, CutPieceFallsFreely) {
