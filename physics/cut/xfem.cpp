@@ -118,6 +118,7 @@ void CutEngine::prepare(const Model& m) {
     const int ne = m.elements(), nn = m.nodes();
     fraction0_ = m.fraction;
     fixed0_ = m.fixed;
+    mass0_ = m.mass;
 
     // Face adjacency: sort (face key, element, corner) and pair equal keys.
     std::vector<std::tuple<std::array<int, 3>, int, int>> faces;
@@ -436,6 +437,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     if (!parents.empty()) relink(m, s, parents, r, nodeS);
     if (opts_.mergeDebris && r.crossed > 0) mergeDebris(m, s.x, r);
     if (opts_.relaxIterations > 0 && r.crossed > 0) relaxCutNodes(m, s, r);
+    if (r.crossed > 0) markLightNodes(m);
     r.volumeAfter = m.volume.dot(m.fraction);
     r.massAfter = m.mass.sum();
     r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -712,6 +714,13 @@ void CutEngine::relaxCutNodes(const Model& m, State& s, const CutResult& r) cons
         if (onlyCut) nodes.push_back(n);
     }
     relaxNodes(m, s, nodes, opts_.relaxIterations);
+}
+
+void CutEngine::markLightNodes(Model& m) const {
+    m.lightNodes.clear();
+    for (int n = 0; n < m.nodes(); ++n)
+        if (m.invMass(n) > 0 && m.mass(n) < opts_.lightShare * mass0_[origNode_[static_cast<size_t>(n)]])
+            m.lightNodes.push_back(n);
 }
 
 // Points every fused element at the nodes of the sibling it follows (through chains of fusions);

@@ -68,6 +68,10 @@ struct CutOptions {
     // tangent stiffness outgrows the step (random-cut stress, bar run 136). Relaxed, the cut
     // gapes as prestressed tissue does. 0: off.
     int relaxIterations = 4;
+    // A free control point with less than this share of its node's uncut mass is light
+    // (Model::lightNodes): its motion relative to its neighbours is damped every step (see
+    // Stepper::dampLight in fem/integrate.cpp). 0: none.
+    double lightShare = 0.05;  // [-]
 };
 
 // A cutting surface in world space: the plane through `point` with unit `normal`, restricted to
@@ -171,6 +175,7 @@ private:
     void mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r);
     bool followFused(Model& m, CutResult& r) const;
     void relaxCutNodes(const Model& m, State& s, const CutResult& r) const;
+    void markLightNodes(Model& m) const;
     void setMassShare(Model& m, int e) const;
     const std::vector<int>& virtualsOf(int parent) const;
 
@@ -179,6 +184,7 @@ private:
     int nextCut_ = 0;
     Eigen::Matrix4Xi tets0_;               // original elements (4 x nParents)
     std::vector<std::uint8_t> fixed0_;     // prescribed original nodes (nNodes0)
+    Eigen::VectorXd mass0_;                // lumped mass of each original node before any cut (nNodes0) [kg]
     Eigen::VectorXd fraction0_;            // fraction of each parent before any cut (nParents) [-]
     Eigen::Matrix4Xi adj_;                 // parent across the face opposite each corner, or -1 (4 x nParents)
     std::vector<int> ringStart_, ring_;    // original node -> parents (CSR)

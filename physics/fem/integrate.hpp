@@ -64,6 +64,9 @@ private:
     std::unique_ptr<ImplicitWorkspace> implicit_;
     double forceSeconds_ = 0;
     std::vector<int> limitScratch_;   // elements below the smallest stretch (reused)
+    Eigen::Matrix3Xd lightMean_;      // mean velocity around each of Model::lightNodes at the step's start [m/s]
+    void lightMeans(const Model& m, const State& s);
+    void dampLight(const Model& m, State& s, double dt) const;
 };
 
 // Checks positions and velocities for non-finite values (state.flags.nonFinite).

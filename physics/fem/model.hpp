@@ -38,6 +38,12 @@ struct Model {
     Eigen::Vector3d gravity = Eigen::Vector3d::Zero(); // [m/s^2]
     double massDamping = 0;                            // mass-proportional damping coefficient [1/s]
 
+    // Free nodes with a few percent of their node's mass, whose velocity relative to the nodes
+    // they share elements with is damped implicitly (c = 0.5/dt) by the symplectic Euler and
+    // central difference steps: control points a cut left light (CutOptions::lightShare).
+    // Empty for an uncut model.
+    std::vector<int> lightNodes;
+
     // Node -> incident element slots (CSR): slot s = 4*e + a means local node a of element e.
     std::vector<int> nodeSlotStart;  // (nNodes + 1)
     std::vector<int> nodeSlots;      // (4 * nElems)

@@ -304,7 +304,9 @@ TEST(Xfem, CutPieceFallsFreely) {
     test::fixBelow(m, 0, 1e-9);
     m.gravity = Eigen::Vector3d(0, 0, -9.81);
     State s = makeState(m);
-    CutEngine eng;
+    CutOptions co;
+    co.lightShare = 0;  // their damping is not momentum-conserving (measured: 3.5e-5 of the mean velocity here)
+    CutEngine eng(co);
     eng.cut(m, s, plane({0.55, 0, 0}, {1, 0, 0}));
     Stepper st;
     StepOptions opt;

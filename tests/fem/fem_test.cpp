@@ -298,6 +298,30 @@ TEST(Forces, RelaxNodesReturnsAFreeNodeToRest) {
     EXPECT_NEAR(s.x(2, 3), m.X(2, 3) - 0.0099 + 0.25 * std::cbrt(m.volume(0)), 1e-12);
 }
 
+// A light node (Model::lightNodes) moving alone from rest positions: the force is zero, its
+// neighbours are at rest, so one symplectic Euler step keeps 1 / (1 + c dt) = 2/3 of its velocity
+// and moves it by dt times that; an ordinary node keeps all of it.
+TEST(Integrate, LightNodeVelocityIsDampedImplicitly) {
+    TetMesh t = unitTet();
+    t.X *= 0.01;
+    for (const bool light : {true, false}) {
+        Model m = buildModel(t, Material{});
+        buildIncidence(m);
+        if (light) m.lightNodes = {3};
+        State s = makeState(m);
+        const Eigen::Vector3d v0(0.3, -0.2, 0.1);
+        s.v.col(3) = v0;
+        Stepper st;
+        StepOptions opt;
+        opt.dt = 1e-6;
+        st.step(m, s, opt);
+        const double keep = light ? 2.0 / 3.0 : 1.0;
+        EXPECT_LT((s.v.col(3) - keep * v0).norm(), 1e-12);
+        EXPECT_LT((s.x.col(3) - m.X.col(3) - opt.dt * keep * v0).norm(), 1e-15);
+        for (int i = 0; i < 3; ++i) EXPECT_LT(s.v.col(i).norm(), 1e-9);  // only elastic forces of the 1e-7 m move
+    }
+}
+
 // On a free tet with equal node masses the correction keeps momentum and the centre of mass, and
 // leaves the smallest stretch at the limit (a little above: the singular vectors turn).
 TEST(Forces, StretchLimitKeepsMomentum) {
