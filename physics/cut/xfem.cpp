@@ -718,6 +718,7 @@ void CutEngine::relaxCutNodes(const Model& m, State& s, const CutResult& r) cons
 
 void CutEngine::markLightNodes(Model& m) const {
     m.lightNodes.clear();
+    if (opts_.lightShare <= 0) return;  // off: no pass over the nodes at every blade step
     for (int n = 0; n < m.nodes(); ++n)
         if (m.invMass(n) > 0 && m.mass(n) < opts_.lightShare * mass0_[origNode_[static_cast<size_t>(n)]])
             m.lightNodes.push_back(n);

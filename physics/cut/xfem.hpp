@@ -71,7 +71,7 @@ struct CutOptions {
     // A free control point with less than this share of its node's uncut mass is light
     // (Model::lightNodes): its motion relative to its neighbours is damped every step (see
     // Stepper::dampLight in fem/integrate.cpp). Off by default: at 0.05 it removes the last
-    // random-cut blow-up (bench stability, bar run 57) and lowers the largest speeds from 14-23 to
+    // random-cut blow-up (bench stability, bar run 57) and lowers the largest speeds from 13-14 to
     // 5-9 m/s, but a blade stroke through the sagging liver (blade.json) then failed to finish
     // its cut in some builds, for a reason not yet found. 0: off.
     double lightShare = 0;  // [-]

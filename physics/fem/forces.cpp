@@ -384,19 +384,20 @@ int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratc
 
 void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int iterations) {
     const double mu = m.material.mu(), lambda = m.material.lambda();
+    std::vector<double> floorDet;  // per incident element: half its det F before the move (at most 1/2)
     for (int it = 0; it < iterations; ++it)
         for (int n : nodes) {
             Eigen::Vector3d f = Eigen::Vector3d::Zero();
             Eigen::Matrix3d K = Eigen::Matrix3d::Zero();
             double size = 1e300;
+            floorDet.clear();
             for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1]; ++sl) {
                 const int e = m.nodeSlots[static_cast<size_t>(sl)] / 4, a = m.nodeSlots[static_cast<size_t>(sl)] % 4;
+                const Eigen::Matrix3d F = deformationGradient(m, s, e);
+                floorDet.push_back(0.5 * std::min(F.determinant(), 1.0));
                 const double vf = m.volume(e) * m.fraction(e);
                 if (vf <= 0) continue;
                 const Eigen::Matrix3d Di = m.dmInv(e);
-                Eigen::Matrix3d Ds;
-                for (int c = 0; c < 3; ++c) Ds.col(c) = s.x.col(m.tets(c + 1, e)) - s.x.col(m.tets(0, e));
-                const Eigen::Matrix3d F = Ds * Di;
                 const Eigen::Matrix3d R = extractRotation(F, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()));
                 // Linear stress of the corotated strain; forces H = -V P Dm^-T (corners 1..3).
                 const Eigen::Matrix3d eps = 0.5 * (R.transpose() * F + F.transpose() * R) - Eigen::Matrix3d::Identity();
@@ -415,23 +416,15 @@ void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int ite
             if (!(len < 1e300)) continue;
             if (len > cap) dx *= cap / len;
             // Backtrack so that no element around the node flattens below half its det F.
-            auto detOf = [&](int e) {
-                Eigen::Matrix3d Ds;
-                for (int c = 0; c < 3; ++c) Ds.col(c) = s.x.col(m.tets(c + 1, e)) - s.x.col(m.tets(0, e));
-                return (Ds * m.dmInv(e)).determinant();
-            };
             const Eigen::Vector3d x0 = s.x.col(n);
             for (int tries = 0; tries < 6; ++tries, dx *= 0.5) {
+                s.x.col(n) = x0 + dx;
                 bool ok = true;
-                for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1] && ok; ++sl) {
-                    const int e = m.nodeSlots[static_cast<size_t>(sl)] / 4;
-                    s.x.col(n) = x0;
-                    const double before = detOf(e);
-                    s.x.col(n) = x0 + dx;
-                    ok = detOf(e) >= 0.5 * std::min(before, 1.0);
-                }
-                s.x.col(n) = ok ? Eigen::Vector3d(x0 + dx) : x0;
+                for (int sl = m.nodeSlotStart[n], k = 0; sl < m.nodeSlotStart[n + 1] && ok; ++sl, ++k)
+                    ok = deformationGradient(m, s, m.nodeSlots[static_cast<size_t>(sl)] / 4).determinant() >=
+                         floorDet[static_cast<size_t>(k)];
                 if (ok) break;
+                s.x.col(n) = x0;
             }
         }
 }
