@@ -15,11 +15,13 @@
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <numeric>
 #include <unistd.h>
 
@@ -42,24 +44,29 @@ struct Stages {
     }
 };
 
-// Connected components of elements joined through shared nodes.
-int countPieces(const Model& m) {
+// Connected components of elements joined through shared nodes: their volumes, largest first [m^3].
+std::vector<double> pieceVolumes(const Model& m) {
     std::vector<int> parent(m.nodes());
     std::iota(parent.begin(), parent.end(), 0);
     auto find = [&](int i) {
         while (parent[i] != i) i = parent[i] = parent[parent[i]];
         return i;
     };
-    std::vector<char> used(m.nodes(), 0);
     for (int e = 0; e < m.elements(); ++e)
-        for (int a = 0; a < 4; ++a) {
-            used[m.tets(a, e)] = 1;
-            parent[find(m.tets(a, e))] = find(m.tets(0, e));
-        }
-    int pieces = 0;
-    for (int i = 0; i < m.nodes(); ++i) pieces += used[i] && find(i) == i;
-    return pieces;
+        for (int a = 1; a < 4; ++a) parent[find(m.tets(a, e))] = find(m.tets(0, e));
+    std::vector<double> byRoot(m.nodes(), -1.0);
+    for (int e = 0; e < m.elements(); ++e) {
+        double& v = byRoot[find(m.tets(0, e))];
+        v = std::max(v, 0.0) + m.volume(e) * m.fraction(e);
+    }
+    std::vector<double> volumes;
+    for (double v : byRoot)
+        if (v >= 0) volumes.push_back(v);
+    std::sort(volumes.begin(), volumes.end(), std::greater<>());
+    return volumes;
 }
+
+int countPieces(const Model& m) { return static_cast<int>(pieceVolumes(m).size()); }
 
 class Progress {
 public:
@@ -580,7 +587,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // covered. Both the edge (toolPose is in world space) and the coverage test (State::x) are in
     // the current deformed configuration, so the broad phase is refitted on state.x, not model.X.
     // The engine keeps one stroke at a time: a stroke ends when its blade leaves the tissue (no
-    // candidate element, nothing pending) or another blade starts cutting.
+    // element's box meets its swept box) or another blade starts cutting.
     auto applyBlades = [&]() {
         if (!broadphase) return true;
         auto tc = Clock::now();
@@ -701,7 +708,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                            {"cut_seconds_per_step", state.steps > 0 ? stages.cut / state.steps : 0.0}};
     report["dt_final"] = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)}, {"certified", dtCertifiedNow}};
     if (!sc.cutting.compare.empty() && exitCode == 0) report["compare"] = compareCutMethods(sc, rest);
-    report["pieces"] = countPieces(model);
+    const std::vector<double> pieces = pieceVolumes(model);
+    report["pieces"] = pieces.size();
+    report["piece_volumes"] = pieces;
     report["mass"] = {{"initial", mass0}, {"final", model.mass.sum()}};
     report["energy"] = energy;
     report["inverted"] = {{"steps", invertedSteps}, {"max_elements", maxInverted},

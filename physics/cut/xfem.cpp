@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <numeric>
 #include <tuple>
+#include <unordered_set>
 
 namespace cutsim {
 
@@ -179,10 +180,7 @@ void CutEngine::setMassShare(Model& m, int e) const {
 
 CutResult CutEngine::cut(Model& m, State& s, const CutSurface& surface) {
     std::unordered_map<int, double> nodeS;
-    std::vector<int> pending;
-    CutResult r = apply(m, s, surface, nextCut_++, nullptr, &pending, nodeS);
-    r.pending = static_cast<int>(pending.size());
-    return r;
+    return apply(m, s, surface, nextCut_++, nullptr, nullptr, nodeS);
 }
 
 void CutEngine::endStroke() { stroke_ = Stroke{}; }
@@ -191,6 +189,8 @@ CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const Blad
                            const std::vector<int>* candidates) {
     const Eigen::Vector3d motion = 0.5 * (to.a + to.b) - 0.5 * (from.a + from.b);
     const Eigen::Vector3d edge = from.b - from.a;
+    // A blade at rest sweeps nothing new (keyframe interpolation leaves rounding-level motion).
+    if (std::max((to.a - from.a).norm(), (to.b - from.b).norm()) <= 1e-12 * edge.norm()) return {};
     if (!stroke_.active) {
         const Eigen::Vector3d n = edge.cross(motion);
         if (!(n.norm() > 1e-12 * std::max(1e-300, edge.norm() * motion.norm())) || n.norm() == 0) return {};
@@ -230,25 +230,25 @@ CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const Blad
     stroke_.lastMotion = motion;
     stroke_.lastTranslation = translation;
 
-    // Elements to test: the candidates and the elements still pending from earlier sweeps.
+    // Elements to test: the candidates and the stroke's watch list from earlier sweeps.
     std::vector<int> cand;
     const std::vector<int>* candPtr = nullptr;
     if (candidates) {
         cand = *candidates;
-        cand.insert(cand.end(), stroke_.pending.begin(), stroke_.pending.end());
+        cand.insert(cand.end(), stroke_.watch.begin(), stroke_.watch.end());
         std::sort(cand.begin(), cand.end());
         cand.erase(std::unique(cand.begin(), cand.end()), cand.end());
         candPtr = &cand;
     }
-    std::vector<int> pending;
-    CutResult r = apply(m, s, stroke_.surface, stroke_.cut, candPtr, &pending, stroke_.nodeS);
-    stroke_.pending = std::move(pending);
-    r.pending = static_cast<int>(stroke_.pending.size());
+    std::vector<int> watch;
+    CutResult r = apply(m, s, stroke_.surface, stroke_.cut, candPtr, &watch, stroke_.nodeS);
+    stroke_.watch = std::move(watch);
+    stroke_.pending = r.pending;
     return r;
 }
 
 CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId,
-                           const std::vector<int>* candidates, std::vector<int>* pendingOut,
+                           const std::vector<int>* candidates, std::vector<int>* watchOut,
                            std::unordered_map<int, double>& nodeS) {
     const auto t0 = Clock::now();
     prepare(m);
@@ -280,7 +280,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
         Virtual virt;
     };
     std::vector<NewElem> fresh;
-    std::vector<int> parents;
+    std::vector<int> parents, splitNow;
     const int E0 = m.elements();
     const double tol = 1e-9;
 
@@ -330,7 +330,10 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
             (h.s[a] >= 0 ? anyPos : anyNeg) = true;  // ties go to the positive side
         }
         if (!(anyPos && anyNeg)) return;
-        if (!surface.regions.empty() && outsideRegions(e)) return;  // the coverage test below would find nothing
+        if (!surface.regions.empty() && outsideRegions(e)) {  // the coverage test below would find nothing
+            if (watchOut) watchOut->push_back(e);
+            return;
+        }
         const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
         Halfspace hn = h, hp = h;
         hn.positive = false;
@@ -358,9 +361,9 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
                         }
                 }
             }
-            if (total == 0 || inside == 0) return;
-            if (inside < total) {
-                if (pendingOut) pendingOut->push_back(e);
+            if (inside < total || total == 0) {
+                if (watchOut) watchOut->push_back(e);
+                r.pending += inside > 0;
                 return;
             }
         }
@@ -396,10 +399,39 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
         mine.share = keepNeg ? sneg : spos;
         m.fraction(e) = f0 * mine.share;
         parents.push_back(p);
+        splitNow.push_back(e);
     };
     if (candidates) {
-        for (int e : *candidates)
-            if (e >= 0 && e < E0) visit(e);
+        // Each split element's face neighbours are tested too, until no more split: the cut spreads
+        // over the covered part of the plane however the body has moved away from the blade.
+        // A neighbour counts when it shares the face's three nodes (still one body there).
+        std::vector<int> queue;
+        std::unordered_set<int> queued;
+        auto enqueue = [&](int e) {
+            if (e >= 0 && e < E0 && queued.insert(e).second) queue.push_back(e);
+        };
+        for (int e : *candidates) enqueue(e);
+        size_t done = 0;
+        for (size_t head = 0; head < queue.size(); ++head) {
+            visit(queue[head]);
+            for (; done < splitNow.size(); ++done) {
+                const int e = splitNow[done], p = parent_[static_cast<size_t>(e)];
+                for (int k = 0; k < 4; ++k) {
+                    const int q = adj_(k, p);
+                    if (q < 0) continue;
+                    for (int g : virtualsOf(q)) {
+                        int shared = 0;
+                        for (int a = 0; a < 4; ++a)
+                            for (int b = 0; b < 4; ++b) shared += m.tets(a, e) == m.tets(b, g);
+                        if (shared >= 3) enqueue(g);
+                    }
+                }
+            }
+        }
+        if (watchOut) {
+            std::sort(watchOut->begin(), watchOut->end());
+            watchOut->erase(std::unique(watchOut->begin(), watchOut->end()), watchOut->end());
+        }
     } else {
         for (int e = 0; e < E0; ++e) visit(e);
     }
@@ -671,21 +703,26 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
         bool embedded = false;
         for (int e : piece) embedded = embedded || fraction0_[parent_[static_cast<size_t>(e)]] < 1;
         if (embedded) continue;
-        // Each element needs a sibling outside the piece at its place: one that shares its
-        // corners' positions (this cut's other side; a side severed by an earlier cut has moved).
-        // An element fused before follows its sibling already.
+        // Each element needs a sibling outside the piece near its place: the other side of this
+        // cut shares its corners' positions; a side severed by an earlier sweep of a blade stroke
+        // may have moved apart since, by up to about an element. The nearest within one element
+        // size (cbrt V) is taken, the larger on ties; an element fused before follows its sibling.
         sibling.assign(piece.size(), -1);
         bool all = true;
         for (size_t k = 0; k < piece.size() && all; ++k) {
             const int e = piece[k];
             if (fusedTo_.count(e)) continue;
-            const double tol = 1e-9 * std::cbrt(m.volume(e));
+            const double h = std::cbrt(m.volume(e)), tie = 1e-9 * h;
+            double best = h;
             for (int g : virtualsOf(parent_[static_cast<size_t>(e)])) {
                 if (mark[static_cast<size_t>(g)] == stamp) continue;
-                bool together = true;
-                for (int a = 0; a < 4 && together; ++a)
-                    together = (x.col(m.tets(a, e)) - x.col(m.tets(a, g))).norm() <= tol;
-                if (together && (sibling[k] < 0 || m.fraction(g) > m.fraction(sibling[k]))) sibling[k] = g;
+                double apart = 0;
+                for (int a = 0; a < 4; ++a) apart = std::max(apart, (x.col(m.tets(a, e)) - x.col(m.tets(a, g))).norm());
+                const bool nearer = apart < best - tie, equal = std::abs(apart - best) <= tie;
+                if (nearer || (equal && sibling[k] >= 0 && m.fraction(g) > m.fraction(sibling[k])) || (equal && sibling[k] < 0)) {
+                    sibling[k] = g;
+                    best = std::min(best, apart);
+                }
             }
             all = sibling[k] >= 0;
         }

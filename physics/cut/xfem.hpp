@@ -52,7 +52,8 @@ struct CutOptions {
     double minFraction = 5e-2;   // [-]
     // A piece a cut severs with less volume than one of its elements and no prescribed node is
     // fused back: each of its virtual elements takes, for good, the nodes of a sibling (another
-    // side of the same parent, at the same place) outside the piece, so the pair acts as the
+    // side of the same parent at the same place, or the nearest within one element size when a
+    // blade stroke severed it from a side that has moved since) outside the piece, so the pair acts as the
     // uncut parent (K and M add by share; mass and volume are kept exactly). A mesh cannot
     // resolve the motion of a piece smaller than its elements, and such a piece, hanging on a few
     // control points with the stress of the element it came from, is what blew up in the
@@ -70,11 +71,10 @@ struct CutOptions {
     int relaxIterations = 4;
     // A free control point with less than this share of its node's uncut mass is light
     // (Model::lightNodes): its motion relative to its neighbours is damped every step (see
-    // Stepper::dampLight in fem/integrate.cpp). Off by default: at 0.05 it removes the last
-    // random-cut blow-up (bench stability, bar run 57) and lowers the largest speeds from 13-14 to
-    // 5-9 m/s, but a blade stroke through the sagging liver (blade.json) then failed to finish
-    // its cut in some builds, for a reason not yet found. 0: off.
-    double lightShare = 0;  // [-]
+    // Stepper::dampLight in fem/integrate.cpp). It removes the last random-cut blow-up (bench
+    // stability, bar run 57: a 2.3e-6 kg node ringing at stretches up to 4.5) and lowers the
+    // largest speeds of the stress runs from 13-14 to 5-9 m/s. 0: off.
+    double lightShare = 0.05;  // [-]
 };
 
 // A cutting surface in world space: the plane through `point` with unit `normal`, restricted to
@@ -128,6 +128,10 @@ public:
     // projected). An element is split once the swept area covers its whole cross-section, so an
     // element the blade entered stays pending until a later sweep completes it.
     // candidates: elements that may meet the swept area (e.g. from a broad phase); null: all.
+    // Besides the candidates, every sweep retests the stroke's watch list (elements its plane
+    // crosses, met so far and not yet split) and the face neighbours of each element it splits:
+    // tissue that sags or swings out of the blade's plane while it is cut is still cut where the
+    // swept area covers it, so a stroke through a moving body separates it.
     CutResult sweep(Model& m, State& s, const BladeEdge& from, const BladeEdge& to,
                     const std::vector<int>* candidates = nullptr);
     void endStroke();  // the next sweep starts a new stroke (new plane, new cut id)
@@ -146,7 +150,7 @@ public:
     EmbeddedSurface surface(const Model& m, const EmbeddedSurface& original, int capLevels = 3) const;
 
     int cuts() const { return nextCut_; }
-    int pendingElements() const { return static_cast<int>(stroke_.pending.size()); }
+    int pendingElements() const { return stroke_.pending; }
     // Convex polygons of the open stroke's swept area (straight stretches are merged into one).
     int strokeRegions() const { return static_cast<int>(stroke_.surface.regions.size()); }
     int parentOf(int e) const { return prepared_ ? parent_[static_cast<size_t>(e)] : e; }
@@ -164,7 +168,8 @@ private:
         bool active = false;
         int cut = -1;
         CutSurface surface;
-        std::vector<int> pending;    // elements entered, not yet crossed
+        std::vector<int> watch;      // elements the plane crosses, met so far, not yet split
+        int pending = 0;             // of those, the ones the swept area covers in part
         std::unordered_map<int, double> nodeS; // signed distance of each node met so far [m]
         BladeEdge last;              // edge at the end of the previous sweep [m]
         Eigen::Vector3d lastMotion = Eigen::Vector3d::Zero(); // midpoint motion of the previous sweep [m]
@@ -172,7 +177,7 @@ private:
     };
 
     CutResult apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
-                    std::vector<int>* pendingOut, std::unordered_map<int, double>& nodeS);
+                    std::vector<int>* watchOut, std::unordered_map<int, double>& nodeS);
     void relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
                 std::unordered_map<int, double>& nodeS);
     void mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r);

@@ -213,6 +213,53 @@ TEST(Xfem, BladeSweepSeparatesOnlyWhenThrough) {
     EXPECT_EQ(eng.strokeRegions(), 1);  // a straight translation is one parallelogram
 }
 
+// The broad phase only offers the elements near the blade; tissue that has moved out of its reach
+// (here: every element above z = 0.25, never offered) is still cut where the swept area covers it,
+// through the face neighbours of the elements split. Offered only the low layer, the engine used to
+// leave the body one piece.
+TEST(Xfem, BladeSweepReachesTissueAwayFromTheBlade) {
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutOptions co;
+    co.minFraction = 0;
+    co.mergeDebris = false;
+    CutEngine eng(co);
+    std::vector<int> low;
+    for (int e = 0; e < m.elements(); ++e) {
+        double zmin = 1;
+        for (int a = 0; a < 4; ++a) zmin = std::min(zmin, m.X(2, m.tets(a, e)));
+        if (zmin < 0.25 - 1e-9) low.push_back(e);
+    }
+    ASSERT_LT(low.size(), static_cast<size_t>(m.elements()) / 3);
+    auto edgeAt = [](double y) { return BladeEdge{{0.43, y, -0.2}, {0.43, y, 1.2}}; };
+    for (double y = -0.1; y < 1.1; y += 0.05) eng.sweep(m, s, edgeAt(y), edgeAt(y + 0.05), &low);
+    const auto pieces = pieceVolumes(m);
+    ASSERT_EQ(pieces.size(), 2u);
+    EXPECT_NEAR(pieces[0], 0.43, 1e-12);
+    EXPECT_EQ(eng.pendingElements(), 0);
+}
+
+// A blade at rest sweeps no new area: it splits nothing, even where the tissue it entered has
+// moved under the area swept before (rounding-level motion from keyframe interpolation included).
+TEST(Xfem, BladeAtRestCutsNothing) {
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutEngine eng;
+    auto edgeAt = [](double y) { return BladeEdge{{0.43, y, -0.2}, {0.43, y, 1.2}}; };
+    for (double y = -0.1; y < 0.5; y += 0.05) eng.sweep(m, s, edgeAt(y), edgeAt(y + 0.05));
+    ASSERT_GT(eng.pendingElements(), 0);
+    const int E = m.elements();
+    s.x.row(1).array() -= 0.3;  // the body slides along -y, under the swept area
+    const BladeEdge still = edgeAt(0.5);
+    BladeEdge noisy = still;
+    noisy.a.y() = std::nextafter(noisy.a.y(), 1.0);
+    EXPECT_EQ(eng.sweep(m, s, still, still).crossed, 0);
+    EXPECT_EQ(eng.sweep(m, s, still, noisy).crossed, 0);
+    EXPECT_EQ(m.elements(), E);
+    // moving on, it splits what the swept area now covers
+    EXPECT_GT(eng.sweep(m, s, still, edgeAt(0.55)).crossed, 0);
+}
+
 TEST(Xfem, BladeSweepMergesOnlyStraightStretches) {
     // An edge along z in the plane x = 0.43: down along -y, then diagonally along (-y, +z), then
     // back up the diagonal. The union of the first two is not convex, so each stretch is its own
