@@ -150,7 +150,7 @@ int runView(const ViewArgs& a) {
         nextCut = 0;
         cutsDone = 0;
         if (sc.cutting.cuts.empty()) return;
-        cutter = std::make_unique<CutEngine>(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
+        cutter = std::make_unique<CutEngine>(cutOptions(sc.cutting));
         cutter->prepare(sim.model);
     };
     makeCutter();

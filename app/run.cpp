@@ -168,7 +168,7 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
         Model m = buildModel(rest, sc.material);
         updateMasses(m);
         State s = makeState(m);
-        CutEngine eng(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
+        CutEngine eng(cutOptions(sc.cutting));
         std::vector<double> dts;
         for (const CutPlane& p : planes) {
             CutSurface cs;
@@ -469,7 +469,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     long bladeCutSteps = 0;   // steps in which a blade split elements
     if (!sc.cutting.cuts.empty() || !bladeTools.empty()) {
         const auto tc = Clock::now();
-        cutter = std::make_unique<CutEngine>(CutOptions{parseLumping(sc.cutting.lumping), sc.cutting.minFraction});
+        cutter = std::make_unique<CutEngine>(cutOptions(sc.cutting));
         cutter->prepare(model);
         // boxes fattened by the blade thickness: a node moving less than that per step needs no tree update
         if (!bladeTools.empty()) broadphase = std::make_unique<ElementBroadphase>(bladeMargin);

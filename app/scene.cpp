@@ -306,6 +306,10 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.cutting.lumping = c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"});
         s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
         s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+        const CutOptions dflt;
+        s.cutting.mergeDebris = c.boolean("merge_debris", dflt.mergeDebris);
+        s.cutting.relaxIterations = c.integer("relax_iterations", dflt.relaxIterations, 0, 100);
+        s.cutting.lightShare = c.number("light_share", dflt.lightShare, 0, 0.5);
         if (c.has("compare")) {
             const json& cmp = c.raw("compare");
             c.touch("compare");
@@ -415,6 +419,16 @@ SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets
     }
     for (const auto& a : sets) setPath(j, a);
     return parseScene(j, path);
+}
+
+CutOptions cutOptions(const Cutting& c) {
+    CutOptions o;
+    o.lumping = parseLumping(c.lumping);
+    o.minFraction = c.minFraction;
+    o.mergeDebris = c.mergeDebris;
+    o.relaxIterations = c.relaxIterations;
+    o.lightShare = c.lightShare;
+    return o;
 }
 
 } // namespace cutsim::app

@@ -13,6 +13,10 @@
 #include <string>
 #include <vector>
 
+namespace cutsim {
+struct CutOptions;
+}
+
 namespace cutsim::app {
 
 // A set of nodes: inside a box, near a plane, inside a sphere, or listed.
@@ -86,10 +90,15 @@ struct Cutting {
     std::string lumping = "enrichment";     // row_sum | weighted_diagonal | enrichment
     double minFraction = 5e-2;              // sides below this share of their element merge into the other [-]
     bool exactAfterCut = true;              // exact dt (global eigen-solve) after every cut, for the report
+    bool mergeDebris = true;                // CutOptions::mergeDebris
+    int relaxIterations = 4;                // CutOptions::relaxIterations
+    double lightShare = 0.05;               // CutOptions::lightShare [-]
     std::vector<std::string> compare;       // baselines run on the rest mesh with the same planes:
                                             // subdivision | remesh
     std::vector<CutDef> cuts;               // in time order
 };
+
+CutOptions cutOptions(const Cutting& c);  // the engine's options as the scene sets them
 
 struct SceneDef {
     std::string file;             // scene file path

@@ -371,7 +371,9 @@ TEST(Run, LiverCutsReportEachCut) {
     }
     EXPECT_EQ(r["mesh"]["nodes_final"].get<int>(), prevNodes);
     EXPECT_GE(cuts.back()["pieces"].get<int>(), 3);
+    EXPECT_EQ(cuts.back()["merged_pieces"].get<int>(), 2);  // two slivers of the fourth plane fused back
     EXPECT_EQ(r["pieces"].get<int>(), cuts.back()["pieces"].get<int>());
+    EXPECT_EQ(r["piece_volumes"].size(), r["pieces"].get<size_t>());
     EXPECT_NEAR(r["mass"]["final"].get<double>(), r["mass"]["initial"].get<double>(),
                 1e-12 * r["mass"]["initial"].get<double>());
 
@@ -386,6 +388,26 @@ TEST(Run, LiverCutsReportEachCut) {
     EXPECT_NEAR(cmp["xfem"]["dt_ratio"][0].get<double>(), 1.0, 1e-6);  // cut 1 crosses no sliver in this mesh
     EXPECT_GT(cmp["xfem"]["dt_ratio"][3].get<double>(), 2 * cmp["subdivision"]["dt_ratio"][3].get<double>());
     EXPECT_GT(cmp["xfem"]["dt_ratio"][3].get<double>(), 2 * cmp["remesh"]["dt_ratio"][3].get<double>());
+}
+
+// The scene's cutting options reach the engine: without fusing, the fourth plane's two slivers
+// stay loose pieces; out-of-range values are refused with their key.
+TEST(Run, CuttingOptionsReachTheEngine) {
+    std::string err;
+    json r;
+    ASSERT_EQ(runShipped("liver_cuts.json", " --set duration=0.81 --set cutting.merge_debris=false", &r, &err), 0) << err;
+    ASSERT_EQ(r["cuts"].size(), 4u);
+    for (const json& c : r["cuts"]) EXPECT_EQ(c["merged_pieces"].get<int>(), 0);
+    EXPECT_EQ(r["pieces"].get<int>(), 6);
+    std::ifstream in(test::source("assets/scenes/liver_cuts.json"));
+    const json j0 = json::parse(in);
+    for (const auto& [key, bad] : std::vector<std::pair<std::string, json>>{
+             {"light_share", 0.6}, {"relax_iterations", -1}, {"merge_debris", "yes"}}) {
+        json j = j0;
+        j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+        j["cutting"][key] = bad;
+        expectRefused(writeScene(workDir(), "opt_" + key + ".json", j), "", "cutting." + key);
+    }
 }
 
 TEST(Run, RefusesCompareWithABoundedCut) {
