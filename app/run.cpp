@@ -477,13 +477,14 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     }
     size_t nextCut = 0;
     json cutsJson = json::array();
+    int cutsMade = 0, lastCutId = -1;  // cuts that split elements (a blade stroke counts once)
     double dtExactNow = exact.dt, dtCertifiedNow = certified;
 
     auto recordFrame = [&]() {
         const double ek = kineticEnergy(model, state), ee = elasticEnergy(model, state), eg = gravityEnergy(model, state);
         energy.push_back({{"time", state.time}, {"kinetic", ek}, {"elastic", ee}, {"gravity", eg}, {"total", ek + ee + eg}});
         if (sink) {
-            FrameInfo fi{state.time,       dt,  dtCertifiedNow, dtExactNow,   criticalElements, cutter ? cutter->cuts() : 0,
+            FrameInfo fi{state.time,       dt,  dtCertifiedNow, dtExactNow,   criticalElements, cutsMade,
                          since(loopStart), {},  tools.force,    tools.history};
             for (const auto& t : sc.tools) appendToolShapes(t, state.time, fi.tools);
             const auto tr = Clock::now();
@@ -547,6 +548,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         }
         json dtAfter = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)},
                         {"certified", dtCertifiedNow}, {"estimate", ta.minDt().r1r}};
+        if (r.cut != lastCutId) ++cutsMade, lastCutId = r.cut;
         cutsJson.push_back({{"time", state.time}, {"key", key}, {"cut_id", r.cut}, {"crossed", r.crossed}, {"split", r.split},
                             {"elements_cut", r.split}, {"latency", r.seconds + updateSeconds}, {"pending", r.pending}, {"dropped", r.dropped}, {"merged_pieces", r.merged}, {"new_nodes", r.newNodes.size()},
                             {"new_elements", r.newElements.size()}, {"nodes", model.nodes()},
