@@ -615,6 +615,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             bladeEdge(tool, t0, from.a, from.b);
             bladeEdge(tool, t1, to.a, to.b);
             const CutResult r = cutter->sweep(model, state, from, to, &bladeCandidates);
+            if (tools.world && r.cut >= 0) tools.world->ignoreCut(i, r.cut);  // the blade slides in its own cut
             stages.cut += since(tc);
             if (r.changed()) {
                 ++bladeCutSteps;

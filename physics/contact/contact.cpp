@@ -112,6 +112,7 @@ ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& te
     out.count.resize(acc.size());
     out.scale = Eigen::VectorXd::Ones(static_cast<Eigen::Index>(acc.size()));
     out.triangles = s.triangles;
+    if (s.cutId.size() == static_cast<size_t>(s.faces())) out.triCut = s.cutId;
     out.triStart = std::move(triStart);
     out.triPoints = std::move(triPoints);
     for (size_t p = 0; p < acc.size(); ++p) {
@@ -231,6 +232,7 @@ struct ContactWorld::Impl {
     std::vector<double> partRadius;   // radius of a sphere about the part origin holding the part [m]
 
     ContactPoints pts;
+    std::vector<int> ignoredCut;      // per tool: the cut whose faces it does not touch, or -1
     btDbvt tree;                      // triangle boxes, fattened by `fat`
     std::vector<btDbvtNode*> leaves;  // (nTris)
     double fat = 1e-3;                // [m]
@@ -294,6 +296,12 @@ std::vector<ToolDef>& ContactWorld::tools() { return impl_->tools; }
 const std::vector<ToolDef>& ContactWorld::tools() const { return impl_->tools; }
 const ContactPoints& ContactWorld::points() const { return impl_->pts; }
 const ContactStep& ContactWorld::last() const { return impl_->last; }
+
+void ContactWorld::ignoreCut(int tool, int cut) {
+    Impl& m = *impl_;
+    m.ignoredCut.resize(m.tools.size(), -1);
+    m.ignoredCut.at(static_cast<size_t>(tool)) = cut;
+}
 
 void ContactWorld::setSurface(ContactPoints pts) {
     Impl& m = *impl_;
@@ -369,6 +377,13 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
         m.candidates.clear();
         if (m.tree.m_root) m.tree.collideTVNoStackAlloc(m.tree.m_root, box, m.stack, collect);
         // the candidate triangles' points, each once; edge and face points interpolated now
+        // faces of a cut this tool does not touch: dropped here, their points reached through
+        // other candidate faces only
+        const int ignored = m.ignoredCut.empty() || P.triCut.empty() ? -1 : m.ignoredCut[static_cast<size_t>(m.partTool[o])];
+        if (ignored >= 0)
+            m.candidates.erase(std::remove_if(m.candidates.begin(), m.candidates.end(),
+                                              [&](int t) { return P.triCut[static_cast<size_t>(t)] == ignored; }),
+                               m.candidates.end());
         const size_t ntri = m.candidates.size();
         if (++m.query == std::numeric_limits<int>::max()) {
             std::fill(m.stamp.begin(), m.stamp.end(), -1);

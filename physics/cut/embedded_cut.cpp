@@ -82,6 +82,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     std::vector<Eigen::Vector4d> weights;
     std::vector<Eigen::Vector3i> tris;
     std::vector<std::uint8_t> cutFace;
+    std::vector<int> cutId;
     std::vector<int> kept(static_cast<size_t>(nv), -1);  // output index of an original vertex kept as is
     auto keepOriginal = [&](int v) {
         int& k = kept[static_cast<size_t>(v)];
@@ -105,14 +106,15 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
         return it->second;
     };
-    auto emit = [&](int p, int e, const Poly& poly, std::uint8_t cap) {
+    auto emit = [&](int p, int e, const Poly& poly, int cut) {  // cut: the cut making it, or -1
         if (poly.size() < 3 || area(p, poly) <= tinyArea) return;
         const int v0 = vertex(e, poly[0]);
         for (size_t k = 1; k + 1 < poly.size(); ++k) {
             const int v1 = vertex(e, poly[k]), v2 = vertex(e, poly[k + 1]);
             if (v0 == v1 || v1 == v2 || v0 == v2) continue;
             tris.emplace_back(v0, v1, v2);
-            cutFace.push_back(cap);
+            cutFace.push_back(cut >= 0 ? 1 : 0);
+            cutId.push_back(cut);
         }
     };
     // A polygon in cut parent p: split by each cut of p, each cell to the virtual element whose
@@ -148,7 +150,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                     best = e;
                 }
             }
-            emit(p, best, c, 0);
+            emit(p, best, c, -1);
         }
     };
 
@@ -166,6 +168,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         if (!touchesCut && p[0] == p[1] && p[1] == p[2]) {
             tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
             cutFace.push_back(0);
+            cutId.push_back(-1);
             continue;
         }
         parts.clear();
@@ -200,11 +203,12 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         if (!touchesCut) {
             tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
             cutFace.push_back(0);
+            cutId.push_back(-1);
             continue;
         }
         for (const auto& [q, poly] : parts) {
             if (isCut(q)) emitInCutParent(q, poly);
-            else emit(q, q, poly, 0);
+            else emit(q, q, poly, -1);
         }
     }
 
@@ -232,7 +236,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                 Poly poly;
                 for (int vi : f.v) poly.push_back(weightsOf(piece.xi[static_cast<size_t>(vi)]));
                 if (inside) {
-                    emit(p, e, poly, 1);
+                    emit(p, e, poly, f.tag - 4);
                     continue;
                 }
                 for (size_t k = 1; k + 1 < poly.size(); ++k) {
@@ -248,7 +252,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                     auto sub = [&](size_t a, size_t b, size_t c) {
                         const double fa = wind[a], fb = wind[b], fc = wind[c];
                         if (fa < 0 && fb < 0 && fc < 0) return;
-                        emit(p, e, clipPoly({grid[a], grid[b], grid[c]}, {fa, fb, fc}), 1);
+                        emit(p, e, clipPoly({grid[a], grid[b], grid[c]}, {fa, fb, fc}), f.tag - 4);
                     };
                     for (int i = 0; i < n; ++i)
                         for (int j = 0; i + j < n; ++j) {
@@ -268,6 +272,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     out.triangles = Eigen::Map<const Eigen::Matrix3Xi>(tris.empty() ? nullptr : tris[0].data(), 3,
                                                        static_cast<Eigen::Index>(tris.size()));
     out.cutFace = std::move(cutFace);
+    out.cutId = std::move(cutId);
     return out;
 }
 

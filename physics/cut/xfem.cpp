@@ -828,6 +828,7 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
     };
 
     std::vector<std::uint8_t> cutFace;
+    std::vector<int> cutId;
     const int nParents = static_cast<int>(tets0_.cols());
     for (int p = 0; p < nParents; ++p) {
         const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
@@ -842,6 +843,7 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
                 for (size_t k = 1; k + 1 < vs.size(); ++k) {
                     tris.emplace_back(vs[0], vs[k], vs[k + 1]);
                     cutFace.push_back(cap ? 1 : 0);
+                    cutId.push_back(cap ? f.tag - 4 : -1);
                 }
             }
         }
@@ -852,6 +854,7 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
     out.triangles.resize(3, static_cast<int>(tris.size()));
     for (size_t i = 0; i < tris.size(); ++i) out.triangles.col(static_cast<int>(i)) = tris[i];
     out.cutFace = std::move(cutFace);
+    out.cutId = std::move(cutId);
     return out;
 }
 

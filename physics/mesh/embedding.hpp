@@ -16,6 +16,8 @@ struct EmbeddedSurface {
     std::vector<int> element;            // element holding each vertex (nVerts)
     Eigen::Matrix4Xd weights;            // barycentric weights in that element's rest shape (4 x nVerts) [-]
     std::vector<std::uint8_t> cutFace;   // 1 = triangle made by a cut (nTris)
+    std::vector<int> cutId;              // the cut that made each triangle, -1 for none (nTris; may be
+                                         // empty: no triangle made by a cut)
 
     int vertices() const { return static_cast<int>(element.size()); }
     int faces() const { return static_cast<int>(triangles.cols()); }

@@ -459,6 +459,9 @@ TEST(Run, BladeSeparatesTheLiverIntoTwoPieces) {
     // all of one stroke: one cut id
     for (const json& c : cuts) EXPECT_EQ(c["cut_id"].get<int>(), cuts.front()["cut_id"].get<int>());
     EXPECT_EQ(r["blade"]["cut_steps"].get<size_t>(), cuts.size());
+    // the blade slides in its own cut: no penalty spikes from pressing its cut faces apart (they
+    // reached 344 N on this 0.6 kg liver; now about 10 N, as the edge enters the tissue)
+    EXPECT_LT(r["tool"]["max_force"].get<double>(), 30.0);
     EXPECT_GT(r["stages"]["cut"].get<double>(), 0.0);
     EXPECT_NEAR(r["mass"]["final"].get<double>(), r["mass"]["initial"].get<double>(),
                 1e-9 * r["mass"]["initial"].get<double>());

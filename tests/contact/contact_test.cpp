@@ -92,6 +92,43 @@ TEST(Contact, SphereOverFiveVerticesSumsPenaltyForces) {
     EXPECT_LT((s.f.rowwise().sum() + st.reaction[0]).norm(), 1e-12);  // action = -reaction
 }
 
+// A blade does not touch the faces of its own cut (ContactWorld::ignoreCut): the five vertices of
+// the test above, with every face around the middle one made by cut 2. Ignoring cut 2, the middle
+// vertex (on cut faces only) is not touched and its four neighbours (also on other faces) are;
+// ignoring another cut, or none, all five are.
+TEST(Contact, ToolIgnoresTheFacesOfItsCut) {
+    Slab s;
+    const double k = 500, r = 0.015, h = 0.011;
+    const Eigen::Vector3d mid(0.05, 0.05, 0.02);
+    Eigen::Matrix3Xd rest;
+    embeddedPositions(s.surf, s.mesh.tets, s.mesh.X, rest);
+    int centre = -1;
+    for (int i = 0; i < rest.cols(); ++i)
+        if ((rest.col(i) - mid).norm() < 1e-9) centre = i;
+    ASSERT_GE(centre, 0);
+    int node = -1;  // the mesh node under it
+    for (int i = 0; i < s.mesh.X.cols(); ++i)
+        if ((s.mesh.X.col(i) - mid).norm() < 1e-9) node = i;
+    ASSERT_GE(node, 0);
+    s.surf.cutId.assign(static_cast<size_t>(s.surf.faces()), -1);
+    int tagged = 0;
+    for (int t = 0; t < s.surf.faces(); ++t)
+        if ((s.surf.triangles.col(t).array() == centre).any()) s.surf.cutId[static_cast<size_t>(t)] = 2, ++tagged;
+    ASSERT_GE(tagged, 4);
+    const double l = std::sqrt(0.01 * 0.01 + h * h);
+    const double ring = 4 * k * (r - l) * h / l;
+    for (const int ignored : {-1, 5, 2}) {
+        ContactWorld w({sphereAt(mid + Eigen::Vector3d(0, 0, h), r, k)});
+        w.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0));
+        w.ignoreCut(0, ignored);
+        s.f.setZero();
+        w.addForces(s.mesh.X, s.v, 0, 1e-4, s.f);
+        EXPECT_EQ(w.last().contacts, ignored == 2 ? 4 : 5) << ignored;
+        EXPECT_NEAR(w.last().reaction[0].z(), ring + (ignored == 2 ? 0 : k * (r - h)), 1e-9) << ignored;
+        EXPECT_NEAR(s.f.col(node).norm(), ignored == 2 ? 0 : k * (r - h), 1e-9) << ignored;
+    }
+}
+
 TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
     Slab s;
     const double k = 2000, d = 4e-4;
