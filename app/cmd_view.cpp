@@ -4,6 +4,8 @@
 #include "frames.hpp"
 #include "run.hpp"
 
+#include "contact/broadphase.hpp"
+#include "cut/xfem.hpp"
 #include "fem/forces.hpp"
 #include "mesh/mesh.hpp"
 
@@ -141,17 +143,29 @@ int runView(const ViewArgs& a) {
                                                  [&](const char* c) { return scene.colormap() == c; }) -
                                     std::begin(kColormaps));
 
-    // Scripted cuts (cutting.cuts): applied at their times, or the next one at once with x.
+    // Scripted cuts (cutting.cuts): applied at their times, or the next one at once with x. Blade
+    // tools cut as they move, on their keyframes or dragged, as in `cutsim run`.
+    double bladeMargin = 0;
+    const std::vector<int> bladeTools = bladeToolsOf(sc, bladeMargin);
     std::unique_ptr<CutEngine> cutter;
+    std::unique_ptr<ElementBroadphase> broadphase;
+    std::vector<int> bladeCandidates;
+    std::vector<BladeEdge> lastEdge;  // each blade's edge after the previous step (a drag moves it between steps)
+    int strokeTool = -1;
     size_t nextCut = 0;
-    int cutsDone = 0;
+    int cutsDone = 0, bladeCuts = 0, lastCutId = -1;
     auto makeCutter = [&] {
         cutter.reset();
+        broadphase.reset();
+        lastEdge.clear();
+        strokeTool = -1;
         nextCut = 0;
-        cutsDone = 0;
-        if (sc.cutting.cuts.empty()) return;
+        cutsDone = bladeCuts = 0;
+        lastCutId = -1;
+        if (sc.cutting.cuts.empty() && bladeTools.empty()) return;
         cutter = std::make_unique<CutEngine>(cutOptions(sc.cutting));
         cutter->prepare(sim.model);
+        if (!bladeTools.empty()) broadphase = std::make_unique<ElementBroadphase>(bladeMargin);
     };
     makeCutter();
     // Tools: Bullet contact as in `cutsim run`; shift-drag moves the first tool in the view plane,
@@ -178,20 +192,18 @@ int runView(const ViewArgs& a) {
         so.alphaElem = sim.alphaElem.size() ? &sim.alphaElem : nullptr;
         stepper.reset();
     };
-    auto cutNext = [&] {
-        if (!cutter || nextCut >= sc.cutting.cuts.size()) return;
-        const CutDef& cd = sc.cutting.cuts[nextCut++];
+    // After a cut changed the model: the step, the contact points and the drawn surface follow.
+    auto afterCut = [&](const std::string& what, const CutResult& r, bool update) {
         try {
-            const CutResult r = cutScene(sc, sim, state, *cutter, cutSurfaceOf(cd));
+            if (update) updateAfterCut(sc, sim, r);
             char msg[160];
-            std::snprintf(msg, sizeof msg, "%s: %d elements split, dt exact %.3e s (%.3f of uncut)", cd.path.c_str(),
+            std::snprintf(msg, sizeof msg, "%s: %d elements split, dt exact %.3e s (%.3f of uncut)", what.c_str(),
                           r.split, sim.exact.dt, sim.exact.dt / exact0);
             message = msg;
         } catch (const InputError& e) {
             message = e.what();
             status = "stopped: the step is above the limit after the cut (r resets)";
         }
-        ++cutsDone;
         stepChanged();
         EmbeddedSurface cutSurface = sim.surface ? cutter->surface(sim.model, *sim.surface) : cutter->surface(sim.model);
         if (contact.world) {
@@ -201,8 +213,56 @@ int runView(const ViewArgs& a) {
         }
         scene.topologyChanged(sim.model, std::move(cutSurface), sim.ta.estimates().r1r, sim.dt);
     };
+    auto cutNext = [&] {
+        if (!cutter || nextCut >= sc.cutting.cuts.size()) return;
+        const CutDef& cd = sc.cutting.cuts[nextCut++];
+        CutResult r;
+        try {
+            r = cutScene(sc, sim, state, *cutter, cutSurfaceOf(cd));
+        } catch (const InputError& e) {
+            message = e.what();
+            status = "stopped: the step is above the limit after the cut (r resets)";
+        }
+        ++cutsDone;
+        afterCut(cd.path, r, false);
+    };
+    // Blade sweeps of the step [t, t + dt], as in `cutsim run`; the edge moves from where the
+    // previous step left it, so a dragged blade cuts along the path it was dragged.
+    auto applyBlades = [&] {
+        if (!broadphase || !contact.world) return;
+        broadphase->refit(sim.model.tets, state.x);
+        const double t0 = state.time, t1 = state.time + sim.dt;
+        lastEdge.resize(bladeTools.size());
+        for (size_t b = 0; b < bladeTools.size(); ++b) {
+            const int i = bladeTools[b];
+            const ToolDef& tool = contact.world->tools()[static_cast<size_t>(i)];
+            BladeEdge from = lastEdge[b], to;
+            if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
+            bladeEdge(tool, t1, to.a, to.b);
+            lastEdge[b] = to;
+            Eigen::Vector3d lo, hi;
+            sweptAabb(tool, t0, t1, lo, hi);
+            for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+            broadphase->query(lo, hi, bladeCandidates);
+            if (bladeCandidates.empty()) {
+                if (strokeTool == i) cutter->endStroke(), strokeTool = -1;
+                continue;
+            }
+            if (strokeTool != i) {
+                if (strokeTool >= 0) cutter->endStroke();
+                strokeTool = i;
+            }
+            const CutResult r = cutter->sweep(sim.model, state, from, to, &bladeCandidates);
+            if (r.cut >= 0) contact.world->ignoreCut(i, r.cut);  // the blade slides in its own cut
+            if (!r.changed()) continue;
+            if (r.cut != lastCutId) ++bladeCuts, lastCutId = r.cut;
+            afterCut(tool.name.empty() ? "blade" : tool.name, r, true);
+            broadphase->refit(sim.model.tets, state.x);
+            if (status != "running") return;
+        }
+    };
     auto reset = [&] {
-        if (cutsDone > 0) {  // the cuts changed the model: build it again
+        if (cutsDone > 0 || bladeCuts > 0) {  // the cuts changed the model: build it again
             sim = prepareScene(sc);
             stepChanged();
             scene.topologyChanged(sim.model, sim.surface ? *sim.surface : boundarySurface(sim.model.tets, sim.model.X),
@@ -210,6 +270,9 @@ int runView(const ViewArgs& a) {
             makeCutter();
         }
         contact = makeContact(sc, sim);  // tools back on their keyframes
+        lastEdge.clear();
+        if (cutter) cutter->endStroke();
+        strokeTool = -1;
         state = makeState(sim.model);
         stepper.reset();
         status = "running";
@@ -282,6 +345,10 @@ int runView(const ViewArgs& a) {
                     cutNext();
                     if (status != "running") break;
                 }
+                if (broadphase) {
+                    applyBlades();
+                    if (status != "running") break;
+                }
                 applyLoads(sc, sim, state);
                 if (contact.world) {
                     contact.world->addForces(state.x, state.v, state.time, sim.dt, state.fExt);
@@ -339,6 +406,7 @@ int runView(const ViewArgs& a) {
             ImGui::SameLine();
             if (ImGui::Button("cut next (x)")) cutNext();
         }
+        if (!bladeTools.empty()) ImGui::Text("blade cuts %d (strokes that split elements)", bladeCuts);
         ImGui::Separator();
         const char* integNames[] = {integratorName(kIntegrators[0]), integratorName(kIntegrators[1]),
                                     integratorName(kIntegrators[2]), integratorName(kIntegrators[3])};
@@ -368,7 +436,7 @@ int runView(const ViewArgs& a) {
         fi.dtCertified = sim.certified;
         fi.dtExact = sim.exact.dt;
         fi.criticalElements = sim.criticalElements;
-        fi.cuts = cutsDone;
+        fi.cuts = cutsDone + bladeCuts;
         fi.wall = since(start);
         RenderSnapshot& snap = scene.update(sim.model, state, fi);
         snap.camera = orbit.camera();
@@ -390,7 +458,7 @@ int runView(const ViewArgs& a) {
         if (lastFrame) break;
     }
     if (headless) {
-        std::printf("view: t = %.4f s, %ld steps, %d cuts", state.time, state.steps, cutsDone);
+        std::printf("view: t = %.4f s, %ld steps, %d cuts", state.time, state.steps, cutsDone + bladeCuts);
         if (contact.world) std::printf(", tool force %.4g N (max %.4g N)", toolForce.norm(), maxToolForce);
         std::printf("\n");
     }

@@ -210,13 +210,28 @@ CutSurface cutSurfaceOf(const CutDef& cd) {
 
 CutResult cutScene(const SceneDef& sc, Simulation& sim, State& state, CutEngine& eng, const CutSurface& surf) {
     const CutResult r = eng.cut(sim.model, state, surf);
-    if (!r.changed()) return r;
+    updateAfterCut(sc, sim, r);
+    return r;
+}
+
+void updateAfterCut(const SceneDef& sc, Simulation& sim, const CutResult& r) {
+    if (!r.changed()) return;
     sim.ta.update(sim.model, r.changedElements, r.changedNodes);
     sim.certified = sim.ta.certifiedDt();
     sim.estimate = sim.ta.minDt().r1r;
     sim.exact = sim.ta.exact(sim.model);
     chooseStep(sc, sim);
-    return r;
+}
+
+std::vector<int> bladeToolsOf(const SceneDef& sc, double& margin) {
+    std::vector<int> blades;
+    margin = 1e300;
+    for (size_t i = 0; i < sc.tools.size(); ++i)
+        if (sc.tools[i].kind == ToolDef::Kind::Blade) {
+            blades.push_back(static_cast<int>(i));
+            margin = std::min(margin, sc.tools[i].size.z());
+        }
+    return blades;
 }
 
 Simulation prepareScene(const SceneDef& sc) {
@@ -455,13 +470,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
 
     // Cutting: the engine's bookkeeping exists only in scenes that cut (DESIGN.md: pay for what you use).
     // Blade tools cut as well as touch (CutEngine::sweep); only they need the element broad phase.
-    std::vector<int> bladeTools;
-    double bladeMargin = 1e300;
-    for (size_t i = 0; i < sc.tools.size(); ++i)
-        if (sc.tools[i].kind == ToolDef::Kind::Blade) {
-            bladeTools.push_back(static_cast<int>(i));
-            bladeMargin = std::min(bladeMargin, sc.tools[i].size.z());
-        }
+    double bladeMargin = 0;
+    const std::vector<int> bladeTools = bladeToolsOf(sc, bladeMargin);
     std::unique_ptr<CutEngine> cutter;
     std::unique_ptr<ElementBroadphase> broadphase;
     std::vector<int> bladeCandidates;

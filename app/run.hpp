@@ -58,6 +58,8 @@ CutSurface cutSurfaceOf(const CutDef& cd);
 // one, and the step chosen again by the scene's policy (chooseStep: a fraction of the new limit).
 // Throws InputError when the policy refuses; sim's step is then unchanged and above the limit.
 CutResult cutScene(const SceneDef& sc, Simulation& sim, State& state, CutEngine& eng, const CutSurface& surf);
+// The same after a cut already made (e.g. a blade sweep, CutEngine::sweep): limits, exact, step.
+void updateAfterCut(const SceneDef& sc, Simulation& sim, const CutResult& r);
 
 // Tool contact of a scene: a Bullet world on sim's surface (the embedded one for MI objects), with
 // each tool's penalty stiffness below the limit that keeps sim.dt stable (contact/contact.hpp).
@@ -69,6 +71,9 @@ struct ContactSetup {
     std::vector<std::string> clamped;    // tools whose stiffness was lowered to the limit
 };
 ContactSetup makeContact(const SceneDef& sc, const Simulation& sim);
+// Indices of the scene's blade tools; margin: the thinnest blade's thickness (the element broad
+// phase's fattening: a node moving less per step needs no tree update) [m], 1e300 without blades.
+std::vector<int> bladeToolsOf(const SceneDef& sc, double& margin);
 
 // Runs a scene; returns the process exit code (0 ok, 3 numerical failure). Throws InputError for
 // bad input before anything is written.

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <sys/wait.h>
@@ -84,6 +85,36 @@ TEST(View, ScriptedCutsShowTheirFaces) {
     EXPECT_EQ(redPixels(3), 0);      // t = 0.1 s: no cut yet
     EXPECT_GT(redPixels(26), 100);   // t = 0.87 s: four cuts made (measured 165: the last cut's two
                                      // free pieces below one element are fused back, not falling)
+}
+
+// A blade cuts in the live view as in `cutsim run`: blade.json's stroke has not reached the liver at
+// t = 0.17 s and has severed its front lobe by t = 0.47 s (0.374 s in `cutsim run`), one stroke,
+// whose faces show red.
+TEST(View, BladeCutsAsItMoves) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    auto run = [&](int frames, int* red) {
+        const std::string png = dir + "/blade_" + std::to_string(frames) + ".png";
+        std::string err;
+        const int code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") +
+                                   " --frames " + std::to_string(frames) + " --width 960 --height 540 --screenshot " + png,
+                               dir, &err);
+        EXPECT_EQ(code, 0) << err;
+        const render::Image img = render::readPng(png);
+        *red = 0;
+        for (int y = 0; y < img.height; ++y)
+            for (int x = 0; x < img.width; ++x) {
+                const auto p = img.pixel(x, y);
+                *red += p[0] > 80 && p[0] > 1.6 * p[1] && p[0] > 1.4 * p[2];
+            }
+        return test::readText(dir + "/stdout.txt");
+    };
+    int red = 0;
+    EXPECT_NE(run(5, &red).find(", 0 cuts,"), std::string::npos);
+    EXPECT_LT(red, 20) << "before the cut";  // a few edge pixels of the shading (measured 2)
+    EXPECT_NE(run(14, &red).find(", 1 cuts,"), std::string::npos);
+    EXPECT_GT(red, 1000) << "after the cut";
+    std::printf("red pixels after the stroke: %d\n", red);
 }
 
 // Tools act in the live view through Bullet as in `cutsim run`. A tool the mouse has moved holds
