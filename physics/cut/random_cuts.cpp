@@ -80,6 +80,7 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
     TimestepAnalyzer ta(m);
     CutOptions co;
     co.lumping = ro.lumping;
+    co.fuseReach = ro.fuseReach;
     CutEngine eng(co);
     Stepper stepper;
     StepOptions opt;

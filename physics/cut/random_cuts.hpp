@@ -70,6 +70,7 @@ struct RandomCutOptions {
     MassLumping lumping = MassLumping::Enrichment;
     double dtFactor = 0.9;                          // step / exact dt of the current model [-]
     double minStretch = 0;                      // StepOptions::minStretch, 0: off [-]
+    double fuseReach = CutOptions{}.fuseReach;  // CutOptions::fuseReach [-]
 };
 
 // One sequence of 1-4 random planes through the model's box, the generator seeded with

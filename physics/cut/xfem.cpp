@@ -704,16 +704,16 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
         for (int e : piece) embedded = embedded || fraction0_[parent_[static_cast<size_t>(e)]] < 1;
         if (embedded) continue;
         // Each element needs a sibling outside the piece near its place: the other side of this
-        // cut shares its corners' positions; a side severed by an earlier sweep of a blade stroke
-        // may have moved apart since, by up to about an element. The nearest within one element
-        // size (cbrt V) is taken, the larger on ties; an element fused before follows its sibling.
+        // cut shares its corners' positions; a side split off by an earlier cut or sweep may have
+        // moved apart since. The nearest within fuseReach element sizes (cbrt V) is taken, the
+        // larger on ties; an element fused before follows its sibling.
         sibling.assign(piece.size(), -1);
         bool all = true;
         for (size_t k = 0; k < piece.size() && all; ++k) {
             const int e = piece[k];
             if (fusedTo_.count(e)) continue;
             const double h = std::cbrt(m.volume(e)), tie = 1e-9 * h;
-            double best = h;
+            double best = std::max(opts_.fuseReach * h, tie);
             for (int g : virtualsOf(parent_[static_cast<size_t>(e)])) {
                 if (mark[static_cast<size_t>(g)] == stamp) continue;
                 double apart = 0;

@@ -49,6 +49,24 @@ TEST(RandomCuts, LimitedBarSequencesThatBlewUp) {
     }
 }
 
+// Debris fused to a side that moved since it was split (CutOptions::fuseReach): bar run 18 of the
+// stress (seed 12, four cuts). With only a sibling at the same place, a piece stays loose and its
+// free virtual element sets the exact step at 0.737 of the uncut bar's; reaching one element size,
+// it is fused and the step stays at 0.949.
+TEST(RandomCuts, DebrisIsFusedToASideThatMoved) {
+    const Model bar = test::randomCutModel(false);
+    const double dt0 = TimestepAnalyzer(bar).exact(bar).dt;
+    RandomCutOptions sameplace, reach;
+    sameplace.fuseReach = 0;
+    reach.fuseReach = 1;
+    const test::RandomCutRun a = test::runRandomCutSequence(bar, dt0, 12, 18, 300, sameplace);
+    const test::RandomCutRun b = test::runRandomCutSequence(bar, dt0, 12, 18, 300, reach);
+    EXPECT_EQ(a.cuts, 4);
+    EXPECT_FALSE(a.failed || b.failed);
+    EXPECT_LT(a.minDtRatio, 0.74);
+    EXPECT_GT(b.minDtRatio, 0.94);
+}
+
 // The same sequences at 1.2 x the exact step of the cut mesh blow up: the detector works and the
 // limit the analyser gives after each cut is the real one.
 TEST(RandomCuts, AboveTheLimitBlowsUp) {
