@@ -4,8 +4,6 @@
 #include "frames.hpp"
 #include "run.hpp"
 
-#include "contact/broadphase.hpp"
-#include "cut/xfem.hpp"
 #include "fem/forces.hpp"
 #include "mesh/mesh.hpp"
 
@@ -148,24 +146,21 @@ int runView(const ViewArgs& a) {
     double bladeMargin = 0;
     const std::vector<int> bladeTools = bladeToolsOf(sc, bladeMargin);
     std::unique_ptr<CutEngine> cutter;
-    std::unique_ptr<ElementBroadphase> broadphase;
-    std::vector<int> bladeCandidates;
+    std::unique_ptr<BladeStrokes> blades;
     std::vector<BladeEdge> lastEdge;  // each blade's edge after the previous step (a drag moves it between steps)
-    int strokeTool = -1;
     size_t nextCut = 0;
     int cutsDone = 0, bladeCuts = 0, lastCutId = -1;
     auto makeCutter = [&] {
         cutter.reset();
-        broadphase.reset();
+        blades.reset();
         lastEdge.clear();
-        strokeTool = -1;
         nextCut = 0;
         cutsDone = bladeCuts = 0;
         lastCutId = -1;
         if (sc.cutting.cuts.empty() && bladeTools.empty()) return;
         cutter = std::make_unique<CutEngine>(cutOptions(sc.cutting));
         cutter->prepare(sim.model);
-        if (!bladeTools.empty()) broadphase = std::make_unique<ElementBroadphase>(bladeMargin);
+        if (!bladeTools.empty()) blades = std::make_unique<BladeStrokes>(bladeMargin);
     };
     makeCutter();
     // Tools: Bullet contact as in `cutsim run`; shift-drag moves the first tool in the view plane,
@@ -229,8 +224,8 @@ int runView(const ViewArgs& a) {
     // Blade sweeps of the step [t, t + dt], as in `cutsim run`; the edge moves from where the
     // previous step left it, so a dragged blade cuts along the path it was dragged.
     auto applyBlades = [&] {
-        if (!broadphase || !contact.world) return;
-        broadphase->refit(sim.model.tets, state.x);
+        if (!blades || !contact.world) return;
+        blades->refit(sim.model, state);
         const double t0 = state.time, t1 = state.time + sim.dt;
         lastEdge.resize(bladeTools.size());
         for (size_t b = 0; b < bladeTools.size(); ++b) {
@@ -240,24 +235,10 @@ int runView(const ViewArgs& a) {
             if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
             bladeEdge(tool, t1, to.a, to.b);
             lastEdge[b] = to;
-            Eigen::Vector3d lo, hi;
-            sweptAabb(tool, t0, t1, lo, hi);
-            for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-            broadphase->query(lo, hi, bladeCandidates);
-            if (bladeCandidates.empty()) {
-                if (strokeTool == i) cutter->endStroke(), strokeTool = -1;
-                continue;
-            }
-            if (strokeTool != i) {
-                if (strokeTool >= 0) cutter->endStroke();
-                strokeTool = i;
-            }
-            const CutResult r = cutter->sweep(sim.model, state, from, to, &bladeCandidates);
-            if (r.cut >= 0) contact.world->ignoreCut(i, r.cut);  // the blade slides in its own cut
+            const CutResult r = blades->sweep(*cutter, sim.model, state, contact.world.get(), i, tool, from, to, t0, t1);
             if (!r.changed()) continue;
             if (r.cut != lastCutId) ++bladeCuts, lastCutId = r.cut;
             afterCut(tool.name.empty() ? "blade" : tool.name, r, true);
-            broadphase->refit(sim.model.tets, state.x);
             if (status != "running") return;
         }
     };
@@ -271,8 +252,7 @@ int runView(const ViewArgs& a) {
         }
         contact = makeContact(sc, sim);  // tools back on their keyframes
         lastEdge.clear();
-        if (cutter) cutter->endStroke();
-        strokeTool = -1;
+        if (blades) blades->endStroke(*cutter);
         state = makeState(sim.model);
         stepper.reset();
         status = "running";
@@ -345,7 +325,7 @@ int runView(const ViewArgs& a) {
                     cutNext();
                     if (status != "running") break;
                 }
-                if (broadphase) {
+                if (blades) {
                     applyBlades();
                     if (status != "running") break;
                 }

@@ -2,7 +2,6 @@
 
 #include "cut/baselines.hpp"
 #include "cut/xfem.hpp"
-#include "contact/broadphase.hpp"
 #include "contact/contact.hpp"
 #include "fem/forces.hpp"
 #include "embed/mi.hpp"
@@ -232,6 +231,26 @@ std::vector<int> bladeToolsOf(const SceneDef& sc, double& margin) {
             margin = std::min(margin, sc.tools[i].size.z());
         }
     return blades;
+}
+
+CutResult BladeStrokes::sweep(CutEngine& eng, Model& m, State& s, ContactWorld* contact, int i, const ToolDef& tool,
+                              const BladeEdge& from, const BladeEdge& to, double t0, double t1) {
+    Eigen::Vector3d lo, hi;
+    sweptAabb(tool, t0, t1, lo, hi);
+    for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);  // a dragged edge
+    broadphase_.query(lo, hi, candidates_);
+    if (candidates_.empty()) {
+        if (stroke_ == i) endStroke(eng);
+        return {};
+    }
+    if (stroke_ != i) {
+        if (stroke_ >= 0) eng.endStroke();
+        stroke_ = i;
+    }
+    const CutResult r = eng.sweep(m, s, from, to, &candidates_);
+    if (contact && r.cut >= 0) contact->ignoreCut(i, r.cut);  // the blade slides in its own cut
+    if (r.changed()) broadphase_.refit(m.tets, s.x);          // the new elements, for the next blade
+    return r;
 }
 
 Simulation prepareScene(const SceneDef& sc) {
@@ -473,16 +492,14 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     double bladeMargin = 0;
     const std::vector<int> bladeTools = bladeToolsOf(sc, bladeMargin);
     std::unique_ptr<CutEngine> cutter;
-    std::unique_ptr<ElementBroadphase> broadphase;
-    std::vector<int> bladeCandidates;
-    int strokeTool = -1;      // blade whose stroke the engine holds, or -1
+    std::unique_ptr<BladeStrokes> blades;
     long bladeCutSteps = 0;   // steps in which a blade split elements
     if (!sc.cutting.cuts.empty() || !bladeTools.empty()) {
         const auto tc = Clock::now();
         cutter = std::make_unique<CutEngine>(cutOptions(sc.cutting));
         cutter->prepare(model);
         // boxes fattened by the blade thickness: a node moving less than that per step needs no tree update
-        if (!bladeTools.empty()) broadphase = std::make_unique<ElementBroadphase>(bladeMargin);
+        if (!bladeTools.empty()) blades = std::make_unique<BladeStrokes>(bladeMargin);
         stages.cut += since(tc);
     }
     size_t nextCut = 0;
@@ -601,38 +618,22 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // The engine keeps one stroke at a time: a stroke ends when its blade leaves the tissue (no
     // element's box meets its swept box) or another blade starts cutting.
     auto applyBlades = [&]() {
-        if (!broadphase) return true;
+        if (!blades) return true;
         auto tc = Clock::now();
-        broadphase->refit(model.tets, state.x);
+        blades->refit(model, state);
         for (int i : bladeTools) {
             const ToolDef& tool = sc.tools[static_cast<size_t>(i)];
             const double t0 = state.time, t1 = state.time + dt;
-            Eigen::Vector3d lo, hi;
-            sweptAabb(tool, t0, t1, lo, hi);
-            broadphase->query(lo, hi, bladeCandidates);
-            if (bladeCandidates.empty()) {
-                if (strokeTool == i) {
-                    cutter->endStroke();
-                    strokeTool = -1;
-                }
-                continue;
-            }
-            if (strokeTool != i) {
-                if (strokeTool >= 0) cutter->endStroke();
-                strokeTool = i;
-            }
             BladeEdge from, to;
             bladeEdge(tool, t0, from.a, from.b);
             bladeEdge(tool, t1, to.a, to.b);
-            const CutResult r = cutter->sweep(model, state, from, to, &bladeCandidates);
-            if (tools.world && r.cut >= 0) tools.world->ignoreCut(i, r.cut);  // the blade slides in its own cut
+            const CutResult r = blades->sweep(*cutter, model, state, tools.world.get(), i, tool, from, to, t0, t1);
             stages.cut += since(tc);
             if (r.changed()) {
                 ++bladeCutSteps;
                 if (!afterCut(r, "tools[" + std::to_string(i) + "]")) return false;
             }
             tc = Clock::now();
-            if (r.changed()) broadphase->refit(model.tets, state.x);  // the new elements, for the next blade
         }
         stages.cut += since(tc);
         return true;
@@ -716,7 +717,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                       {"nodes_final", model.nodes()}, {"elements_final", model.elements()}};
     if (!sim.embedding.is_null()) report["embedding"] = sim.embedding;
     report["cuts"] = cutsJson;
-    if (broadphase)
+    if (blades)
         report["blade"] = {{"tools", bladeTools}, {"cut_steps", bladeCutSteps}, {"pending", cutter->pendingElements()},
                            {"cut_seconds_per_step", state.steps > 0 ? stages.cut / state.steps : 0.0}};
     report["dt_final"] = {{"exact", std::isnan(dtExactNow) ? json(nullptr) : json(dtExactNow)}, {"certified", dtCertifiedNow}};

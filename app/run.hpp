@@ -2,6 +2,7 @@
 #pragma once
 
 #include "scene.hpp"
+#include "contact/broadphase.hpp"
 #include "contact/contact.hpp"
 #include "cut/xfem.hpp"
 #include "mesh/embedding.hpp"
@@ -74,6 +75,31 @@ ContactSetup makeContact(const SceneDef& sc, const Simulation& sim);
 // Indices of the scene's blade tools; margin: the thinnest blade's thickness (the element broad
 // phase's fattening: a node moving less per step needs no tree update) [m], 1e300 without blades.
 std::vector<int> bladeToolsOf(const SceneDef& sc, double& margin);
+
+// Blade tools cutting as they move (CutEngine::sweep), for `cutsim run` and `cutsim view`: the
+// element broad phase over the deformed mesh, and which blade holds the engine's one stroke.
+class BladeStrokes {
+public:
+    explicit BladeStrokes(double margin) : broadphase_(margin) {}
+    // The broad phase on the current positions, once per step before the sweeps.
+    void refit(const Model& m, const State& s) { broadphase_.refit(m.tets, s.x); }
+    // Blade `tool` (scene tool i) moved its edge from `from` to `to` over [t0, t1]. Its candidates
+    // are the elements whose boxes meet its swept box; with none its stroke ends, and another
+    // blade's first sweep ends the previous blade's stroke. The blade no longer touches its own
+    // cut's faces (ContactWorld::ignoreCut; contact may be null), and the broad phase takes the
+    // new elements when the sweep changed the mesh. Nothing swept: r.cut < 0.
+    CutResult sweep(CutEngine& eng, Model& m, State& s, ContactWorld* contact, int i, const ToolDef& tool,
+                    const BladeEdge& from, const BladeEdge& to, double t0, double t1);
+    void endStroke(CutEngine& eng) {
+        eng.endStroke();
+        stroke_ = -1;
+    }
+
+private:
+    ElementBroadphase broadphase_;
+    std::vector<int> candidates_;
+    int stroke_ = -1;  // blade whose stroke the engine holds, or -1
+};
 
 // Runs a scene; returns the process exit code (0 ok, 3 numerical failure). Throws InputError for
 // bad input before anything is written.

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "contact/tool.hpp"
+#include "cut/xfem.hpp"
 #include "fem/integrate.hpp"
 #include "fem/material.hpp"
 #include "fem/model.hpp"
@@ -12,10 +13,6 @@
 
 #include <string>
 #include <vector>
-
-namespace cutsim {
-struct CutOptions;
-}
 
 namespace cutsim::app {
 
@@ -88,11 +85,11 @@ struct CutDef {
 // How the object is cut (physics/cut/xfem.hpp).
 struct Cutting {
     std::string lumping = "enrichment";     // row_sum | weighted_diagonal | enrichment
-    double minFraction = 5e-2;              // sides below this share of their element merge into the other [-]
+    double minFraction = CutOptions{}.minFraction; // sides below this share of their element merge into the other [-]
     bool exactAfterCut = true;              // exact dt (global eigen-solve) after every cut, for the report
-    bool mergeDebris = true;                // CutOptions::mergeDebris
-    int relaxIterations = 4;                // CutOptions::relaxIterations
-    double lightShare = 0.05;               // CutOptions::lightShare [-]
+    bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
+    int relaxIterations = CutOptions{}.relaxIterations;  // CutOptions::relaxIterations
+    double lightShare = CutOptions{}.lightShare;         // CutOptions::lightShare [-]
     std::vector<std::string> compare;       // baselines run on the rest mesh with the same planes:
                                             // subdivision | remesh
     std::vector<CutDef> cuts;               // in time order

@@ -81,7 +81,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     std::vector<int> elem;
     std::vector<Eigen::Vector4d> weights;
     std::vector<Eigen::Vector3i> tris;
-    std::vector<std::uint8_t> cutFace;
     std::vector<int> cutId;
     std::vector<int> kept(static_cast<size_t>(nv), -1);  // output index of an original vertex kept as is
     auto keepOriginal = [&](int v) {
@@ -113,7 +112,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             const int v1 = vertex(e, poly[k]), v2 = vertex(e, poly[k + 1]);
             if (v0 == v1 || v1 == v2 || v0 == v2) continue;
             tris.emplace_back(v0, v1, v2);
-            cutFace.push_back(cut >= 0 ? 1 : 0);
             cutId.push_back(cut);
         }
     };
@@ -167,7 +165,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         bool touchesCut = isCut(p[0]) || isCut(p[1]) || isCut(p[2]);
         if (!touchesCut && p[0] == p[1] && p[1] == p[2]) {
             tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
-            cutFace.push_back(0);
             cutId.push_back(-1);
             continue;
         }
@@ -202,7 +199,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
         if (!touchesCut) {
             tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
-            cutFace.push_back(0);
             cutId.push_back(-1);
             continue;
         }
@@ -271,7 +267,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                                                      static_cast<Eigen::Index>(weights.size()));
     out.triangles = Eigen::Map<const Eigen::Matrix3Xi>(tris.empty() ? nullptr : tris[0].data(), 3,
                                                        static_cast<Eigen::Index>(tris.size()));
-    out.cutFace = std::move(cutFace);
     out.cutId = std::move(cutId);
     return out;
 }

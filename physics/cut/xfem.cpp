@@ -827,7 +827,6 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
         return true;
     };
 
-    std::vector<std::uint8_t> cutFace;
     std::vector<int> cutId;
     const int nParents = static_cast<int>(tets0_.cols());
     for (int p = 0; p < nParents; ++p) {
@@ -842,7 +841,6 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
                 for (int vi : f.v) vs.push_back(vertex(e, piece, vi));
                 for (size_t k = 1; k + 1 < vs.size(); ++k) {
                     tris.emplace_back(vs[0], vs[k], vs[k + 1]);
-                    cutFace.push_back(cap ? 1 : 0);
                     cutId.push_back(cap ? f.tag - 4 : -1);
                 }
             }
@@ -853,7 +851,6 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
     for (size_t i = 0; i < weights.size(); ++i) out.weights.col(static_cast<int>(i)) = weights[i];
     out.triangles.resize(3, static_cast<int>(tris.size()));
     for (size_t i = 0; i < tris.size(); ++i) out.triangles.col(static_cast<int>(i)) = tris[i];
-    out.cutFace = std::move(cutFace);
     out.cutId = std::move(cutId);
     return out;
 }

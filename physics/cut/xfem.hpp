@@ -143,7 +143,7 @@ public:
     void endStroke();  // the next sweep starts a new stroke (new plane, new cut id)
 
     // The surface to draw and collide with: the original boundary clipped to each virtual
-    // element, plus the cut faces (cutFace = 1), all riding their elements.
+    // element, plus the cut faces (EmbeddedSurface::cutFace), all riding their elements.
     EmbeddedSurface surface(const Model& m) const;
 
     // The same for an object given by its surface (mesh intersection, thesis ch. 6): `original` is

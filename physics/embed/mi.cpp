@@ -289,7 +289,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     for (size_t e = 0; e < r.latticeElement.size(); ++e) modelElem[r.latticeElement[e]] = static_cast<int>(e);
     const int nv = surfaceIn.vertices();
     r.surface.triangles = surfaceIn.F;
-    r.surface.cutFace.assign(static_cast<size_t>(surfaceIn.faces()), 0);
+    r.surface.cutId.assign(static_cast<size_t>(surfaceIn.faces()), -1);
     r.surface.element.assign(static_cast<size_t>(nv), -1);
     r.surface.weights = Eigen::Matrix4Xd::Zero(4, nv);
     auto weightsIn = [&](int t, const Eigen::Vector3d& v) {

@@ -60,7 +60,7 @@ EmbeddedSurface boundarySurface(const Eigen::Matrix4Xi& tets, const Eigen::Matri
     s.weights = Eigen::Matrix4Xd::Zero(4, s.vertices());
     for (size_t n = 0; n < vertexOf.size(); ++n)
         if (vertexOf[n] >= 0) s.weights(nodeCorner[n], vertexOf[n]) = 1.0;
-    s.cutFace.assign(static_cast<size_t>(bf.cols()), 0);
+    s.cutId.assign(static_cast<size_t>(bf.cols()), -1);
     return s;
 }
 

@@ -15,12 +15,11 @@ struct EmbeddedSurface {
     Eigen::Matrix3Xi triangles;          // vertex indices, counter-clockwise seen from outside (3 x nTris)
     std::vector<int> element;            // element holding each vertex (nVerts)
     Eigen::Matrix4Xd weights;            // barycentric weights in that element's rest shape (4 x nVerts) [-]
-    std::vector<std::uint8_t> cutFace;   // 1 = triangle made by a cut (nTris)
-    std::vector<int> cutId;              // the cut that made each triangle, -1 for none (nTris; may be
-                                         // empty: no triangle made by a cut)
+    std::vector<int> cutId;              // the cut that made each triangle, -1 for none (nTris)
 
     int vertices() const { return static_cast<int>(element.size()); }
     int faces() const { return static_cast<int>(triangles.cols()); }
+    bool cutFace(int t) const { return cutId[static_cast<size_t>(t)] >= 0; }  // made by a cut
 };
 
 // Vertex positions (3 x nVerts) [m] for node positions x (3 x nNodes) [m].

@@ -104,8 +104,8 @@ MeshSnapshot snapshotFromSurface(const TetMesh& mesh, const Eigen::Matrix3Xd& x,
     RenderSnapshot& s = ms.snap;
     ms.surface = std::move(surface);
     s.triangles = ms.surface.triangles;
-    s.cutFace = ms.surface.cutFace;
-    s.cutFace.resize(static_cast<size_t>(s.triangles.cols()), 0);
+    s.cutFace.assign(static_cast<size_t>(s.triangles.cols()), 0);
+    for (size_t t = 0; t < std::min(s.cutFace.size(), ms.surface.cutId.size()); ++t) s.cutFace[t] = ms.surface.cutId[t] >= 0;
 
     setElementValues(ms, mesh, opts);
 

@@ -57,7 +57,7 @@ Areas areasOf(const EmbeddedSurface& es, const Model& m) {
     for (int f = 0; f < es.faces(); ++f) {
         const Eigen::Vector3d x0 = p.col(es.triangles(0, f)), x1 = p.col(es.triangles(1, f)), x2 = p.col(es.triangles(2, f));
         const Eigen::Vector3d n = 0.5 * (x1 - x0).cross(x2 - x0);
-        if (es.cutFace[static_cast<size_t>(f)]) {
+        if (es.cutFace(f)) {
             (n.x() > 0 ? a.capPlus : a.capMinus) += n.norm();
             for (const Eigen::Vector3d& x : {x0, x1, x2}) {
                 a.capOffPlane = std::max(a.capOffPlane, std::abs(x.x() - kC));
@@ -122,7 +122,7 @@ TEST(EmbeddedCut, EveryTriangleRidesTheElementOfItsSide) {
         const Eigen::Vector3d n = (rest.col(es.triangles(1, f)) - rest.col(es.triangles(0, f)))
                                       .cross(rest.col(es.triangles(2, f)) - rest.col(es.triangles(0, f)));
         // a cut face lies on the plane: its side is the one it faces away from
-        const bool left = es.cutFace[static_cast<size_t>(f)] ? n.x() > 0 : mid.x() < kC;
+        const bool left = es.cutFace(f) ? n.x() > 0 : mid.x() < kC;
         const double want = left ? -d : d;
         for (int i = 0; i < 3; ++i) {
             const int v = es.triangles(i, f);
@@ -201,9 +201,9 @@ TEST(EmbeddedCut, LiverCutFacesCoverItsSectionOnly) {
     for (int f = 0; f < es.faces(); ++f) {
         const Eigen::Vector3d n = 0.5 * (x.col(es.triangles(1, f)) - x.col(es.triangles(0, f)))
                                             .cross(x.col(es.triangles(2, f)) - x.col(es.triangles(0, f)));
-        if (es.cutFace[static_cast<size_t>(f)]) cap[n.dot(c.normal) > 0] += n.norm();
+        if (es.cutFace(f)) cap[n.dot(c.normal) > 0] += n.norm();
         else surface += n.norm();
-        if (es.cutFace[static_cast<size_t>(f)]) {
+        if (es.cutFace(f)) {
             for (int i = 0; i < 3; ++i)  // cut faces lie on the plane
                 ASSERT_NEAR(c.normal.dot(x.col(es.triangles(i, f)) - c.point), 0.0, 1e-9);
         }
@@ -214,7 +214,7 @@ TEST(EmbeddedCut, LiverCutFacesCoverItsSectionOnly) {
     const EmbeddedSurface old = eng.surface(mi.model);
     embeddedPositions(old, mi.model.tets, mi.model.X, x);
     for (int f = 0; f < old.faces(); ++f)
-        if (old.cutFace[static_cast<size_t>(f)])
+        if (old.cutFace(f))
             lattice += 0.5 * (x.col(old.triangles(1, f)) - x.col(old.triangles(0, f)))
                                  .cross(x.col(old.triangles(2, f)) - x.col(old.triangles(0, f))).norm();
     // the liver's own triangles, split but whole (up to the bits in lattice tets of inside share
@@ -236,7 +236,7 @@ TEST(EmbeddedCut, LiverCutFacesCoverItsSectionOnly) {
             if (windingNumberExact(liver, q) < 0.5) continue;
             ++inside;
             for (int f = 0; f < es.faces(); ++f) {
-                if (!es.cutFace[static_cast<size_t>(f)]) continue;
+                if (!es.cutFace(f)) continue;
                 const Eigen::Vector3d a = x.col(es.triangles(0, f)), b = x.col(es.triangles(1, f)), d = x.col(es.triangles(2, f));
                 const Eigen::Vector3d n = (b - a).cross(d - a);
                 if ((b - a).cross(q - a).dot(n) >= 0 && (d - b).cross(q - b).dot(n) >= 0 && (a - d).cross(q - d).dot(n) >= 0) {

@@ -59,7 +59,7 @@ double surfaceVolume(const EmbeddedSurface& s, const Model& m, double* cutArea =
     for (int f = 0; f < s.faces(); ++f) {
         const Eigen::Vector3d a = p.col(s.triangles(0, f)), b = p.col(s.triangles(1, f)), c = p.col(s.triangles(2, f));
         v += a.dot(b.cross(c)) / 6.0;
-        if (s.cutFace[f]) area += 0.5 * (b - a).cross(c - a).norm();
+        if (s.cutFace(f)) area += 0.5 * (b - a).cross(c - a).norm();
     }
     if (cutArea) *cutArea = area;
     return v;
