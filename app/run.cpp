@@ -274,10 +274,17 @@ Simulation prepareScene(const SceneDef& sc) {
         mo.cells = sc.surfaceCells;
         mo.h = sc.surfaceH;
         mo.fixOutsideNodes = sc.surfaceFixOutside;
+        mo.keepLatticeStep = sc.surfaceKeepStep;
         MiResult mi = buildMi(surf, sc.material, mo);
         embedding = {{"h", mi.h}, {"interface_elements", mi.count(ElementClass::Interface)},
                      {"volume_embedded", mi.embeddedVolume()}, {"volume_surface", enclosedVolume(surf)},
                      {"closed", mi.closed}, {"fix_outside", sc.surfaceFixOutside}, {"seconds", since(te)}};
+        if (sc.surfaceKeepStep) {
+            const KeepStepResult& ks = mi.massScaling;
+            embedding["keep_step"] = {{"dt_lattice", mi.dtLattice}, {"dt_before", ks.dtBefore}, {"dt_after", ks.dtAfter},
+                                      {"added_mass", ks.addedMass}, {"mass_fraction", ks.massFraction},
+                                      {"rounds", ks.rounds}, {"seconds", mi.seconds.keepStep}};
+        }
         model = std::move(mi.model);
         model.elementModel = sc.element;
         embedded = std::make_unique<EmbeddedSurface>(std::move(mi.surface));

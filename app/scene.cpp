@@ -226,6 +226,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
             s.surfaceCells = su.has("cells") ? su.integer("cells", 16, 1, 1000) : 0;
             s.surfaceH = su.has("h") ? su.number("h", 0, 0, 1e300, true) : 0;
             s.surfaceFixOutside = su.boolean("fix_outside", false);
+            s.surfaceKeepStep = su.boolean("keep_step", true);
             su.finish();
         } else {
             ObjectReader b = o.object("box");

@@ -108,6 +108,7 @@ struct SceneDef {
     int surfaceCells = 0;         // MI lattice cells across the surface's longest side (when surfaceH is 0)
     double surfaceH = 0;          // MI lattice cell edge [m] (after scale); > 0 takes precedence
     bool surfaceFixOutside = false; // MI: fix the outside corners of interface tets (thesis sec. 6.3)
+    bool surfaceKeepStep = true;    // MI: add mass where needed so the step is at least the lattice's
     Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();  // generated box [0,size] (before scale) [m]
     Eigen::Vector3i boxCells = Eigen::Vector3i::Zero(); // cubes along each axis, 6 tets each
     double scale = 1;             // coordinates times scale give meters

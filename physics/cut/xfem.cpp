@@ -628,6 +628,11 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
         m.X.conservativeResize(3, N1);
         for (auto* mat : {&s.x, &s.v, &s.f, &s.a, &s.fExt}) mat->conservativeResize(3, N1);
         m.fixed.resize(static_cast<size_t>(N1), 0);
+        // Added mass stays with the node it was put on; a copy starts without.
+        if (m.addedMass.size() == N0) {
+            m.addedMass.conservativeResize(N1);
+            m.addedMass.tail(N1 - N0).setZero();
+        }
         for (int k = 0; k < N1 - N0; ++k) {
             const int id = N0 + k, src = copies[static_cast<size_t>(k)].src;
             m.X.col(id) = m.X.col(src);

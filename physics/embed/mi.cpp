@@ -340,6 +340,14 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
         r.surface.weights.col(v) = bestW;
     }
     r.seconds.embed = since(t0);
+
+    // 8. Keep the lattice's step (thesis sec. 6.3 expects it; not every cut gives it exactly).
+    if (opts.keepLatticeStep) {
+        t0 = Clock::now();
+        r.dtLattice = exactCriticalDt(buildModel(r.lattice, material)).dt;
+        r.massScaling = keepStep(r.model, r.dtLattice);
+        r.seconds.keepStep = since(t0);
+    }
     return r;
 }
 
@@ -375,6 +383,9 @@ std::vector<MiBarRow> miBarRows(const MiBarOptions& o, const std::vector<double>
         const Model fixedModel = buildMi(bar, o.material, fixedOpts).model;
         row.dtOutsideFixed = exactCriticalDt(fixedModel).dt;
         row.freeNodesOutsideFixed = fixedModel.freeDofs() / 3;
+        Model keptModel = r.model;  // as MiOptions::keepLatticeStep, with the lattice's step known
+        row.addedMassFraction = keepStep(keptModel, dtLattice).massFraction;
+        row.dtKept = exactCriticalDt(keptModel).dt;
         rows.push_back(row);
     }
     return rows;

@@ -13,6 +13,7 @@
 #include "fem/model.hpp"
 #include "mesh/embedding.hpp"
 #include "mesh/mesh.hpp"
+#include "timestep/timestep.hpp"
 
 #include <Eigen/Core>
 
@@ -34,6 +35,8 @@ struct MiOptions {
     int refineLevels = 0;         // also estimate interface shares by this many refinement levels (0: skip)
     bool fixOutsideNodes = false; // the thesis's literal reading: outside corners of interface tets fixed
                                   // (removes DOFs, so the step can only grow; pins the boundary layer)
+    bool keepLatticeStep = false; // add mass where needed (timestep.hpp keepStep) so the embedded model's
+                                  // exact step is at least the whole lattice's; costs eigen-solves of both
     long maxTets = 20'000'000;    // refuse larger lattices (InputError)
 };
 
@@ -43,7 +46,8 @@ enum class ElementClass : std::uint8_t { Outside = 0, Interface = 1, Inside = 2 
 // Seconds per stage of buildMi [s].
 struct MiTimings {
     double lattice = 0, hash = 0, nodes = 0, volumes = 0, refine = 0, model = 0, embed = 0;
-    double total() const { return lattice + hash + nodes + volumes + refine + model + embed; }
+    double keepStep = 0;  // MiOptions::keepLatticeStep: the lattice's exact step and the mass scaling
+    double total() const { return lattice + hash + nodes + volumes + refine + model + embed + keepStep; }
 };
 
 struct MiResult {
@@ -69,6 +73,9 @@ struct MiResult {
     std::vector<int> latticeElement;        // lattice tet of each model element (nElems)
     std::vector<int> latticeNode;           // lattice node of each model node (nNodes)
     EmbeddedSurface surface;                // the input surface riding the model's elements
+    double dtLattice = 0;                   // exact step of the whole lattice, all nodes free; set when
+                                            // keepLatticeStep [s]
+    KeepStepResult massScaling;             // what keepLatticeStep added (model.addedMass)
 
     MiTimings seconds;
 
@@ -107,6 +114,8 @@ struct MiBarRow {
     double dtCertified = 0;   // certified lower bound [s]
     double dtLattice = 0;     // exact step of the uncut lattice [s]
     double dtOutsideFixed = 0; // exact step with the outside corners fixed (MiOptions::fixOutsideNodes) [s]
+    double dtKept = 0;        // exact step with the lattice's step kept (MiOptions::keepLatticeStep) [s]
+    double addedMassFraction = 0; // the mass that took, over the model's mass [-]
 };
 std::vector<MiBarRow> miBarRows(const MiBarOptions& opts = {}, const std::vector<double>& kept = {1.0, 0.75, 0.5, 0.25});
 

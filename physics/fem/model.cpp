@@ -57,6 +57,7 @@ void updateMasses(Model& m) {
         const double me = rho * m.volume(e) * m.fraction(e) / 4.0;
         for (int a = 0; a < 4; ++a) m.mass(m.tets(a, e)) += shares ? rho * m.volume(e) * m.massShare(a, e) : me;
     }
+    if (m.addedMass.size() == m.nodes()) m.mass += m.addedMass;
     m.invMass.resize(m.nodes());
     for (int i = 0; i < m.nodes(); ++i)
         m.invMass(i) = (m.fixed[i] || m.mass(i) <= 0) ? 0.0 : 1.0 / m.mass(i);

@@ -22,6 +22,8 @@ struct Model {
     // Nodes
     Eigen::Matrix3Xd X;              // rest positions (3 x nNodes) [m]
     Eigen::VectorXd mass;            // lumped nodal mass, row-sum lumping (nNodes) [kg]
+    Eigen::VectorXd addedMass;       // mass added to keep a target step, included in mass
+                                     // (timestep/timestep.hpp keepStep; nNodes, or empty) [kg]
     Eigen::VectorXd invMass;         // 1/mass; 0 for fixed or massless nodes (nNodes) [1/kg]
     std::vector<std::uint8_t> fixed; // 1 = position prescribed (nNodes)
 
@@ -58,8 +60,8 @@ struct Model {
 Model buildModel(const TetMesh& mesh, const Material& material,
                  ElementModel elementModel = ElementModel::Corotational);
 
-// Recomputes lumped masses (rho V fraction / 4 per node, or rho V massShare) and inverse masses;
-// call after changing fixed nodes, fractions or the material.
+// Recomputes lumped masses (rho V fraction / 4 per node, or rho V massShare, plus addedMass) and
+// inverse masses; call after changing fixed nodes, fractions or the material.
 void updateMasses(Model& model);
 
 // Marks nodes as fixed (their inverse mass becomes 0).

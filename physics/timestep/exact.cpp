@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -36,25 +37,17 @@ struct ScaledStiffnessOp {
     }
 };
 
-} // namespace
-
-ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts) {
+// The operator over the free nodes (invMass > 0) of m, listed in freeNodes.
+void buildScaledOp(const Model& m, const StiffnessRows& rows, ScaledStiffnessOp& op, std::vector<int>& freeNodes) {
     // Free nodes get compact indices; fixed DOFs are removed from the eigenproblem.
     std::vector<int> compact(m.nodes(), -1);
-    std::vector<int> freeNodes;
+    freeNodes.clear();
     for (int i = 0; i < m.nodes(); ++i)
         if (m.invMass(i) > 0) {
             compact[i] = static_cast<int>(freeNodes.size());
             freeNodes.push_back(i);
         }
-    ExactResult res;
     const int nf = static_cast<int>(freeNodes.size());
-    res.freeDofs = 3 * nf;
-    if (nf == 0) {
-        res.dt = dtFromLambda(0);
-        return res;
-    }
-    ScaledStiffnessOp op;
     op.n = 3 * nf;
     op.rowStart.assign(nf + 1, 0);
     for (int r = 0; r < nf; ++r) {
@@ -77,6 +70,20 @@ ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const Exa
             ++k;
         }
     }
+}
+
+} // namespace
+
+ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts) {
+    ScaledStiffnessOp op;
+    std::vector<int> freeNodes;
+    buildScaledOp(m, rows, op, freeNodes);
+    ExactResult res;
+    res.freeDofs = static_cast<int>(op.n);
+    if (op.n == 0) {
+        res.dt = dtFromLambda(0);
+        return res;
+    }
     // Largest algebraic eigenvalue (eq. 3.10). Spectra needs nev < ncv <= n.
     const int ncv = std::min<int>(std::max(opts.ncv, 3), op.n);
     Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, 1, ncv);
@@ -94,6 +101,63 @@ ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const Exa
 
 ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts) {
     return exactCriticalDt(m, assembleStiffnessRows(m), opts);
+}
+
+KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) {
+    if (!(dtTarget > 0) || !std::isfinite(dtTarget)) throw std::invalid_argument("keepStep: target step must be positive and finite");
+    KeepStepResult res;
+    res.dtTarget = dtTarget;
+    const StiffnessRows rows = assembleStiffnessRows(m);  // K does not change, only M
+    const double lamTarget = 4 / (dtTarget * dtTarget), lamAim = lamTarget * (1 - opts.margin);
+    if (m.addedMass.size() != m.nodes()) m.addedMass = Eigen::VectorXd::Zero(m.nodes());
+    const Eigen::VectorXd addedBefore = m.addedMass;
+    double freeMass = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.invMass(i) > 0) freeMass += m.mass(i);
+    double lamTop = 0;
+    for (int round = 0;; ++round) {
+        ScaledStiffnessOp op;
+        std::vector<int> freeNodes;
+        buildScaledOp(m, rows, op, freeNodes);
+        if (op.n == 0) break;
+        const int n = static_cast<int>(op.n);  // >= 3: one free node
+        const int nev = std::clamp(opts.modes, 1, n - 1), ncv = std::min(std::max(2 * nev + 1, opts.exact.ncv), n);
+        Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, nev, ncv);
+        eigs.init();
+        eigs.compute(Spectra::SortRule::LargestAlge, opts.exact.maxIterations, opts.exact.tol);
+        if (eigs.info() != Spectra::CompInfo::Successful)
+            throw EigenSolveError("keep step: Lanczos did not converge (" + std::to_string(op.n) + " free DOFs)");
+        ++res.rounds;
+        const Eigen::VectorXd lam = eigs.eigenvalues();  // descending
+        lamTop = lam(0);
+        if (round == 0) res.dtBefore = dtFromLambda(lamTop);
+        // At the target to the solver's tolerance: rounding must not add mass to the lattice itself.
+        if (lamTop <= lamTarget * (1 + opts.exact.tol) || round >= opts.maxRounds) break;
+        // Each mode above the target is slowed to the aim (its Rayleigh quotient, see the header).
+        // A node takes the most any of them asks, not the sum: enough for each, and modes
+        // sharing nodes are not paid for twice.
+        const Eigen::MatrixXd Y = eigs.eigenvectors();
+        const int nf = static_cast<int>(freeNodes.size());
+        Eigen::VectorXd dm = Eigen::VectorXd::Zero(nf);
+        for (int j = 0; j < lam.size(); ++j) {
+            if (lam(j) <= lamTarget * (1 + opts.exact.tol)) continue;
+            Eigen::VectorXd w(nf);
+            for (int r = 0; r < nf; ++r) w(r) = Y.col(j).segment<3>(3 * r).squaredNorm();
+            const double beta = (lam(j) / lamAim - 1) / w.squaredNorm();
+            for (int r = 0; r < nf; ++r) dm(r) = std::max(dm(r), beta * m.mass(freeNodes[r]) * w(r));
+        }
+        for (int r = 0; r < nf; ++r) m.addedMass(freeNodes[r]) += dm(r);
+        updateMasses(m);
+    }
+    res.dtAfter = dtFromLambda(lamTop);
+    res.reached = lamTop <= lamTarget * (1 + opts.exact.tol);
+    for (int i = 0; i < m.nodes(); ++i) {
+        const double d = m.addedMass(i) - addedBefore(i);
+        res.addedMass += d;
+        res.nodes += d > 0;
+    }
+    res.massFraction = freeMass > 0 ? res.addedMass / freeMass : 0;
+    return res;
 }
 
 } // namespace cutsim

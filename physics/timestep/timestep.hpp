@@ -53,6 +53,34 @@ struct ExactResult {
 ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts = {});
 ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts = {});
 
+// Selective mass scaling to a target step, as explicit codes hold their step: mass is added to the
+// nodes of every mode above lambda_target = (2 / dtTarget)^2 until the exact step reaches dtTarget
+// (model.addedMass). Per round, mode y_j (unit, of M^-1/2 K M^-1/2) gets dm_i = beta_j m_i w_i,
+// w_i = |y_j at node i|^2, which brings its Rayleigh quotient lambda_j / (1 + beta_j sum w_i^2)
+// exactly to the target; the modes' shapes shift a little, so rounds repeat until none is above.
+// Used to make a cut model or an MI embedding keep the step of its uncut mesh or lattice.
+struct KeepStepOptions {
+    int modes = 8;           // top eigenpairs handled per round
+    int maxRounds = 60;      // eigen-solves at most
+    double margin = 1e-7;    // once scaling, aim at lambda_target (1 - margin), clear of the solver's
+                             // tolerance; nothing is added when the step already reaches the target
+                             // to that tolerance (exact.tol, relative in lambda) [-]
+    ExactOptions exact;
+};
+struct KeepStepResult {
+    double dtTarget = 0;     // [s]
+    double dtBefore = 0;     // exact step before [s]
+    double dtAfter = 0;      // exact step after [s]
+    double addedMass = 0;    // mass added this call [kg]
+    double massFraction = 0; // addedMass over the free nodes' mass before [-]
+    int nodes = 0;           // nodes that were given mass
+    int rounds = 0;          // eigen-solves
+    bool reached = false;    // dtAfter >= dtTarget, to the eigen-solver's tolerance (exact.tol in lambda)
+};
+// Throws EigenSolveError when an eigen-solve fails; leaves the model scaled as far as it got
+// (reached = false) when maxRounds is not enough.
+KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts = {});
+
 // Gershgorin bound on row i of M^-1/2 K M^-1/2 (max over its 3 free DOFs; 0 for a fixed node):
 // sum_j |K_ij| / sqrt(m_i m_j), free j only. max_i of it bounds lambda_max from above.
 double gershgorinNodeBound(const Model& m, const StiffnessRows& rows, int i);

@@ -41,6 +41,32 @@ TEST(CmdMi, JsonHoldsTheContractAndTheLiverVolume) {
     EXPECT_GT(j["seconds"]["volumes"].get<double>(), 0);
 }
 
+// --keep-step: the liver at 8 cells is 3.2% below its lattice's step (measured); with the step
+// kept its exact step is the lattice's, and the JSON says what mass that took.
+TEST(CmdMi, KeepStepReachesTheLatticeStep) {
+    std::string out, err;
+    const std::string liver = test::data("surface/sofa_liver.obj");
+    ASSERT_EQ(test::runCutsim("mi " + liver + " --cells 8 --json", &out, &err), 0) << err;
+    const json plain = json::parse(out);
+    EXPECT_FALSE(plain.contains("keep_step"));
+    const double dtBg = plain["dt_background_exact"].get<double>();
+    EXPECT_LT(plain["dt_exact"].get<double>(), 0.99 * dtBg);
+    ASSERT_EQ(test::runCutsim("mi " + liver + " --cells 8 --keep-step --json", &out, &err), 0) << err;
+    const json j = json::parse(out);
+    ASSERT_TRUE(j.contains("keep_step"));
+    const json& ks = j["keep_step"];
+    EXPECT_NEAR(j["dt_background_exact"].get<double>(), dtBg, 1e-9 * dtBg);
+    EXPECT_GE(j["dt_exact"].get<double>(), dtBg * (1 - 1e-9));
+    EXPECT_LE(j["dt_exact"].get<double>(), dtBg * (1 + 1e-6));
+    EXPECT_NEAR(ks["dt_before"].get<double>(), plain["dt_exact"].get<double>(), 1e-9 * dtBg);
+    EXPECT_TRUE(ks["reached"].get<bool>());
+    EXPECT_GT(ks["mass_fraction"].get<double>(), 0.0);
+    EXPECT_LT(ks["mass_fraction"].get<double>(), 0.01);
+    EXPECT_NEAR(ks["added_mass"].get<double>() / ks["mass_fraction"].get<double>(), 1000 * j["volume_embedded"].get<double>(),
+                1e-6 * 1000 * j["volume_embedded"].get<double>());  // the fraction is of rho V, rho = 1000
+    EXPECT_GT(j["seconds"]["keep_step"].get<double>(), 0.0);
+}
+
 TEST(CmdMi, RefusesAMissingAndABrokenFile) {
     std::string err;
     EXPECT_EQ(test::runCutsim("mi /nonexistent/x.obj", nullptr, &err), 2);
@@ -70,6 +96,22 @@ TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
     EXPECT_NEAR(r["embedding"]["volume_surface"].get<double>(), 0.04, 1e-12);
     EXPECT_NEAR(r["embedding"]["volume_embedded"].get<double>(), 0.04, 1e-8);
     EXPECT_GT(r["embedding"]["interface_elements"].get<int>(), 0);
+    // keep_step (default on): the run starts at no less than the lattice's step, fixed nodes only
+    // raise it (interlacing), and the mass the report states includes what was added.
+    ASSERT_TRUE(r["embedding"]["keep_step"].is_object());
+    const json& ks = r["embedding"]["keep_step"];
+    const double dtLattice = ks["dt_lattice"].get<double>();
+    EXPECT_GE(ks["dt_after"].get<double>(), dtLattice * (1 - 1e-9));
+    EXPECT_GE(r["dt_initial"]["exact"].get<double>(), dtLattice * (1 - 1e-9));
+    EXPECT_NEAR(r["mass"]["initial"].get<double>(), 1000 * 0.04 + ks["added_mass"].get<double>(), 1e-9);
+    scene["object"]["surface"]["keep_step"] = false;
+    std::ofstream(dir + "/nokeep.json") << scene.dump(2);
+    ASSERT_EQ(test::runCutsim("run " + dir + "/nokeep.json --out " + dir + "/nokeep --no-render --quiet", nullptr, &err), 0) << err;
+    std::ifstream in2(dir + "/nokeep/report.json");
+    const json r2 = json::parse(in2);
+    EXPECT_FALSE(r2["embedding"].contains("keep_step"));
+    EXPECT_NEAR(r2["mass"]["initial"].get<double>(), 1000 * 0.04, 1e-9);
+    scene["object"]["surface"].erase("keep_step");
 
     // cells and h together are refused, naming the key
     scene["object"]["surface"]["cells"] = 8;

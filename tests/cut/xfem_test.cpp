@@ -124,6 +124,26 @@ TEST(Xfem, PlaneCutSplitsBoxExactly) {
     EXPECT_EQ(s.rot.cols(), m.elements());
 }
 
+// Mass added to keep a step (model.addedMass) stays on its node through a cut; the copies a cut
+// makes start without, so the total mass is unchanged.
+TEST(Xfem, AddedMassStaysOnItsNodeThroughACut) {
+    Model m = unitBox(4);
+    const int n0 = m.nodes();
+    m.addedMass = Eigen::VectorXd::LinSpaced(n0, 1.0, 2.0);
+    updateMasses(m);
+    const double mass0 = m.mass.sum();
+    const Eigen::VectorXd added0 = m.addedMass;
+    State s = makeState(m);
+    CutEngine eng;
+    const CutResult r = eng.cut(m, s, plane({0.37, 0, 0}, {1, 0, 0}));
+    ASSERT_GT(m.nodes(), n0);
+    ASSERT_EQ(m.addedMass.size(), m.nodes());
+    EXPECT_EQ(m.addedMass.head(n0), added0);
+    EXPECT_EQ(m.addedMass.tail(m.nodes() - n0).cwiseAbs().maxCoeff(), 0.0);
+    EXPECT_NEAR(m.mass.sum(), mass0, 1e-12 * mass0);
+    EXPECT_NEAR(r.volumeAfter, 1.0, 1e-12);
+}
+
 TEST(Xfem, CutsThroughNodesAndFacesSeparateWithoutSlivers) {
     // x = 0.5 passes through a layer of nodes; x = y holds faces of the Kuhn tets.
     for (const CutSurface& c : {plane({0.5, 0, 0}, {1, 0, 0}), plane({0, 0, 0}, {1, -1, 0})}) {

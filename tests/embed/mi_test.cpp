@@ -333,6 +333,14 @@ TEST(Mi, BarRowsKeepTheLatticeStep) {
         EXPECT_GE(row.dtExact, row.dtLattice * 0.99);
         // removing DOFs cannot lower the step (eigenvalue interlacing)
         EXPECT_GE(row.dtOutsideFixed, row.dtExact * (1 - 1e-7));
+        // the default keeps the lattice's step, with a few parts per million of mass at most
+        RecordProperty("added_mass_" + std::to_string(row.kept), std::to_string(row.addedMassFraction));
+        EXPECT_GE(row.dtKept, row.dtLattice * (1 - 1e-9));
+        EXPECT_LE(row.dtKept, row.dtLattice * (1 + 1e-6));
+        EXPECT_LT(row.addedMassFraction, 1e-6);
+        if (row.dtExact >= row.dtLattice * (1 - 1e-9)) {
+            EXPECT_EQ(row.addedMassFraction, 0.0);
+        }
         if (row.kept < 1) {
             EXPECT_GT(row.interfaceElements, 0);
             EXPECT_LT(row.freeNodesOutsideFixed, row.nodes);  // the outside corners are fixed
@@ -348,6 +356,48 @@ TEST(Mi, BarRowsKeepTheLatticeStep) {
     EXPECT_EQ(rows[2].elements, 6 * 3 * 3 * 16);
     EXPECT_EQ(rows[2].nodes, 4 * 4 * 17);
     EXPECT_EQ(rows[2].freeNodesOutsideFixed, 4 * 4 * 16);
+    // The 25% row is the one below the lattice's step without added mass (2.4e-6, measured).
+    EXPECT_LT(rows[3].dtExact, rows[3].dtLattice * (1 - 1e-6));
+    EXPECT_GT(rows[3].addedMassFraction, 0.0);
+}
+
+// MiOptions::keepLatticeStep on the 2 x 2 x 21 bar, 25% kept, where both rules fall below the
+// lattice's step (free corners 1.1e-5, fixed 3.3e-6): checked by a dense eigen-solve, and the
+// added mass is reported as it is in the model.
+TEST(Mi, KeepLatticeStepMeetsTheLatticeStepByDenseSolve) {
+    const Material mat;
+    const int c = 2, along = miBarCellsAlong(c);
+    const double dtLattice = 2 / std::sqrt(test::denseLambdaMax(buildModel(test::boxMesh(0.01, 0.01, 0.1, c, c, along), mat)));
+    for (bool fixOutside : {false, true}) {
+        SCOPED_TRACE(fixOutside);
+        MiOptions mo;
+        mo.latticeCells = Eigen::Vector3i(c, c, along);
+        mo.latticeCellSize = Eigen::Vector3d(0.01 / c, 0.01 / c, 0.1 / along);
+        mo.fixOutsideNodes = fixOutside;
+        const SurfaceMesh bar = boxSurface(Eigen::Vector3d(0, 0, 0.075), Eigen::Vector3d(0.01, 0.01, 0.1));
+        const MiResult plain = buildMi(bar, mat, mo);
+        EXPECT_LT(2 / std::sqrt(test::denseLambdaMax(plain.model)), dtLattice * (1 - 1e-6));
+        EXPECT_EQ(plain.model.addedMass.size(), 0);
+        mo.keepLatticeStep = true;
+        const MiResult kept = buildMi(bar, mat, mo);
+        EXPECT_NEAR(kept.dtLattice, dtLattice, 1e-9 * dtLattice);
+        const double dt = 2 / std::sqrt(test::denseLambdaMax(kept.model));
+        EXPECT_GE(dt, dtLattice * (1 - 1e-9));
+        EXPECT_LE(dt, dtLattice * (1 + 1e-6));
+        const KeepStepResult& ks = kept.massScaling;
+        EXPECT_TRUE(ks.reached);
+        EXPECT_GT(ks.rounds, 1);
+        EXPECT_NEAR(ks.dtBefore, 2 / std::sqrt(test::denseLambdaMax(plain.model)), 1e-9 * dt);
+        EXPECT_NEAR(ks.addedMass, kept.model.addedMass.sum(), 1e-15);
+        EXPECT_NEAR(kept.model.mass.sum() - plain.model.mass.sum(), ks.addedMass, 1e-12 * plain.model.mass.sum());
+        EXPECT_GT(ks.massFraction, 0.0);
+        EXPECT_LT(ks.massFraction, 1e-5);
+        EXPECT_GT(kept.seconds.keepStep, 0.0);
+        for (int i = 0; i < kept.model.nodes(); ++i)
+            if (kept.model.fixed[i]) {
+                EXPECT_EQ(kept.model.addedMass(i), 0.0);
+            }
+    }
 }
 
 // The thesis's rule (outside corners of interface tets fixed, sec. 6.3) against the free-corner

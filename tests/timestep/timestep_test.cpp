@@ -209,6 +209,74 @@ TEST(ExactDt, FixedNodesRaiseDt) {
     EXPECT_TRUE(std::isinf(certifiedDt(m)));
 }
 
+// Two free regular tets, edges 2a and a, not connected: lambda scales as 1 / edge^2, so the small
+// one's spectrum is 4x the large one's. Keeping the large one's step needs the small one's masses
+// x4 (its top mode is the breathing mode, which moves the four corners alike, so the mass asked
+// for is the same at each): 3 m_small added, nothing on the large tet.
+TEST(KeepStep, SlowsOnlyTheModesAboveTheTargetByHand) {
+    const TetMesh big = regularTet(0.02), small = regularTet(0.01);
+    TetMesh t;
+    t.X.resize(3, 8);
+    t.X.leftCols(4) = big.X;
+    t.X.rightCols(4) = small.X.colwise() + Eigen::Vector3d(0.1, 0, 0);
+    t.tets.resize(4, 2);
+    t.tets.col(0) << 0, 1, 2, 3;
+    t.tets.col(1) << 4, 5, 6, 7;
+    Model m = buildModel(t, Material{});
+    const Eigen::VectorXd mass0 = m.mass;
+    const double dtBig = 2 / std::sqrt(denseLambdaMax(buildModel(big, Material{})));
+    EXPECT_NEAR(2 / std::sqrt(denseLambdaMax(m)), dtBig / 2, 1e-9 * dtBig);
+
+    const KeepStepResult r = keepStep(m, dtBig);
+    EXPECT_TRUE(r.reached);
+    EXPECT_NEAR(r.dtBefore, dtBig / 2, 1e-8 * dtBig);
+    const double dtAfter = 2 / std::sqrt(denseLambdaMax(m));  // independent of the Lanczos path
+    EXPECT_GE(dtAfter, dtBig * (1 - 1e-9));
+    EXPECT_LE(dtAfter, dtBig * (1 + 1e-6));
+    EXPECT_NEAR(r.dtAfter, dtAfter, 1e-8 * dtAfter);
+    const double mSmall = mass0.tail(4).sum();
+    EXPECT_NEAR(r.addedMass, 3 * mSmall, 1e-5 * mSmall);
+    EXPECT_NEAR(r.massFraction, 3 * mSmall / mass0.sum(), 1e-5);
+    for (int i = 0; i < 4; ++i) {
+        EXPECT_LT(m.addedMass(i), 1e-12 * mass0(i)) << "node " << i << " of the large tet";
+        EXPECT_NEAR(m.addedMass(4 + i), 3 * mass0(4 + i), 1e-5 * mass0(4 + i));
+    }
+    // The added mass is part of the lumped mass, and survives a recomputation.
+    updateMasses(m);
+    EXPECT_NEAR(m.mass.sum(), mass0.sum() + r.addedMass, 1e-12 * m.mass.sum());
+
+    // Already there: nothing added, one eigen-solve.
+    const Eigen::VectorXd added = m.addedMass;
+    const KeepStepResult again = keepStep(m, dtBig);
+    EXPECT_TRUE(again.reached);
+    EXPECT_EQ(again.addedMass, 0.0);
+    EXPECT_EQ(again.nodes, 0);
+    EXPECT_EQ(again.rounds, 1);
+    EXPECT_EQ(m.addedMass, added);
+}
+
+// Fixed nodes take no mass, and a bad target is refused.
+TEST(KeepStep, FixedNodesTakeNoMass) {
+    Model m = buildModel(test::boxMesh(0.03, 0.02, 0.02, 3, 2, 2), Material{});
+    test::fixBelow(m, 0, 1e-9);
+    const double dt0 = exactCriticalDt(m).dt;
+    const KeepStepResult r = keepStep(m, 1.5 * dt0);
+    EXPECT_TRUE(r.reached);
+    EXPECT_GE(2 / std::sqrt(denseLambdaMax(m)), 1.5 * dt0 * (1 - 1e-9));
+    for (int i = 0; i < m.nodes(); ++i)
+        if (m.fixed[i]) {
+            EXPECT_EQ(m.addedMass(i), 0.0) << "fixed node " << i;
+        }
+    // At most the uniform scaling (x 2.25) that reaches the target exactly, and more than nothing.
+    double freeMass = 0;
+    for (int i = 0; i < m.nodes(); ++i)
+        if (!m.fixed[i]) freeMass += m.mass(i) - m.addedMass(i);
+    EXPECT_GT(r.addedMass, 0.1 * freeMass);
+    EXPECT_LE(r.addedMass, 1.25 * freeMass * (1 + 1e-6));
+    EXPECT_THROW(keepStep(m, 0.0), std::invalid_argument);
+    EXPECT_THROW(keepStep(m, std::nan("")), std::invalid_argument);
+}
+
 TEST(Estimators, HsUsesTheDiagonalOfTheAssembledStiffness) {
     Model m = buildModel(test::boxMesh(0.1, 0.07, 0.05, 3, 2, 2), Material{});
     m.fraction(3) = 0.4;  // a virtual element: its stiffness is scaled too
