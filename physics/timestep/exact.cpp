@@ -103,54 +103,92 @@ ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts) {
     return exactCriticalDt(m, assembleStiffnessRows(m), opts);
 }
 
+namespace {
+
+// The k largest eigenpairs of M^-1/2 K M^-1/2 (descending), to relative tolerance tol.
+struct TopModes {
+    Eigen::VectorXd lambda;
+    Eigen::MatrixXd y;          // unit eigenvectors over the free DOFs
+    std::vector<int> freeNodes; // node of each block of 3 DOFs
+};
+TopModes topModes(const Model& m, const StiffnessRows& rows, int k, int ncvMin, double tol, int maxIterations) {
+    ScaledStiffnessOp op;
+    TopModes t;
+    buildScaledOp(m, rows, op, t.freeNodes);
+    const int n = static_cast<int>(op.n);
+    if (n == 0) return t;
+    k = std::clamp(k, 1, n - 1);  // n >= 3: one free node
+    const int ncv = std::min(std::max(2 * k + 8, ncvMin), n);
+    Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, k, ncv);
+    eigs.init();
+    eigs.compute(Spectra::SortRule::LargestAlge, maxIterations, tol);
+    if (eigs.info() != Spectra::CompInfo::Successful)
+        throw EigenSolveError("keep step: Lanczos did not converge for the " + std::to_string(k) + " largest modes (" +
+                              std::to_string(n) + " free DOFs)");
+    t.lambda = eigs.eigenvalues();
+    t.y = eigs.eigenvectors();
+    return t;
+}
+
+} // namespace
+
 KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) {
     if (!(dtTarget > 0) || !std::isfinite(dtTarget)) throw std::invalid_argument("keepStep: target step must be positive and finite");
     KeepStepResult res;
     res.dtTarget = dtTarget;
     const StiffnessRows rows = assembleStiffnessRows(m);  // K does not change, only M
     const double lamTarget = 4 / (dtTarget * dtTarget), lamAim = lamTarget * (1 - opts.margin);
+    // At the target to the solver's tolerance: rounding must not add mass to the lattice itself.
+    const double lamAbove = lamTarget * (1 + opts.exact.tol);
     if (m.addedMass.size() != m.nodes()) m.addedMass = Eigen::VectorXd::Zero(m.nodes());
     const Eigen::VectorXd addedBefore = m.addedMass;
     double freeMass = 0;
     for (int i = 0; i < m.nodes(); ++i)
         if (m.invMass(i) > 0) freeMass += m.mass(i);
-    double lamTop = 0;
-    for (int round = 0;; ++round) {
-        ScaledStiffnessOp op;
-        std::vector<int> freeNodes;
-        buildScaledOp(m, rows, op, freeNodes);
-        if (op.n == 0) break;
-        const int n = static_cast<int>(op.n);  // >= 3: one free node
-        const int nev = std::clamp(opts.modes, 1, n - 1), ncv = std::min(std::max(2 * nev + 1, opts.exact.ncv), n);
-        Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, nev, ncv);
-        eigs.init();
-        eigs.compute(Spectra::SortRule::LargestAlge, opts.exact.maxIterations, opts.exact.tol);
-        if (eigs.info() != Spectra::CompInfo::Successful)
-            throw EigenSolveError("keep step: Lanczos did not converge (" + std::to_string(op.n) + " free DOFs)");
+
+    // The exact step before, to full tolerance; most models (the lattice itself) stop here.
+    auto exactTop = [&] {
         ++res.rounds;
-        const Eigen::VectorXd lam = eigs.eigenvalues();  // descending
-        lamTop = lam(0);
-        if (round == 0) res.dtBefore = dtFromLambda(lamTop);
-        // At the target to the solver's tolerance: rounding must not add mass to the lattice itself.
-        if (lamTop <= lamTarget * (1 + opts.exact.tol) || round >= opts.maxRounds) break;
+        return exactCriticalDt(m, rows, opts.exact).lambdaMax;
+    };
+    double lamTop = exactTop();
+    res.dtBefore = dtFromLambda(lamTop);
+    // Rounds find the modes above loosely (a Ritz value never exceeds the true one, so a loose
+    // solve can only miss a mode just above); once none shows, a full-tolerance solve decides,
+    // and if it still finds the step short, the rounds go on at full tolerance.
+    double roundTol = std::max(opts.roundTol, opts.exact.tol);
+    int k = std::max(opts.modes, 1);
+    while (lamTop > lamAbove && res.rounds < opts.maxRounds) {
+        const TopModes t = topModes(m, rows, k, opts.exact.ncv, roundTol, opts.exact.maxIterations);
+        ++res.rounds;
+        if (t.lambda.size() == 0) break;
+        int above = 0;
+        for (int j = 0; j < t.lambda.size(); ++j) above += t.lambda(j) > lamAbove;
+        if (above == 0) {
+            lamTop = exactTop();
+            roundTol = opts.exact.tol;
+            continue;
+        }
+        // More modes per round while all of those found are above (a cluster at the boundary).
+        if (above == t.lambda.size()) k = std::min(2 * k, opts.maxModes);
         // Each mode above the target is slowed to the aim (its Rayleigh quotient, see the header).
         // A node takes the most any of them asks, not the sum: enough for each, and modes
         // sharing nodes are not paid for twice.
-        const Eigen::MatrixXd Y = eigs.eigenvectors();
-        const int nf = static_cast<int>(freeNodes.size());
-        Eigen::VectorXd dm = Eigen::VectorXd::Zero(nf);
-        for (int j = 0; j < lam.size(); ++j) {
-            if (lam(j) <= lamTarget * (1 + opts.exact.tol)) continue;
-            Eigen::VectorXd w(nf);
-            for (int r = 0; r < nf; ++r) w(r) = Y.col(j).segment<3>(3 * r).squaredNorm();
-            const double beta = (lam(j) / lamAim - 1) / w.squaredNorm();
-            for (int r = 0; r < nf; ++r) dm(r) = std::max(dm(r), beta * m.mass(freeNodes[r]) * w(r));
+        const int nf = static_cast<int>(t.freeNodes.size());
+        Eigen::VectorXd dm = Eigen::VectorXd::Zero(nf), w(nf);
+        for (int j = 0; j < t.lambda.size(); ++j) {
+            if (t.lambda(j) <= lamAbove) continue;
+            for (int r = 0; r < nf; ++r) w(r) = t.y.col(j).segment<3>(3 * r).squaredNorm();
+            const double beta = (t.lambda(j) / lamAim - 1) / w.squaredNorm();
+            for (int r = 0; r < nf; ++r) dm(r) = std::max(dm(r), beta * m.mass(t.freeNodes[r]) * w(r));
         }
-        for (int r = 0; r < nf; ++r) m.addedMass(freeNodes[r]) += dm(r);
+        for (int r = 0; r < nf; ++r) m.addedMass(t.freeNodes[r]) += dm(r);
         updateMasses(m);
+        lamTop = t.lambda(0);  // a lower bound of the new top until the full-tolerance check
+        if (res.rounds >= opts.maxRounds) lamTop = exactTop();
     }
     res.dtAfter = dtFromLambda(lamTop);
-    res.reached = lamTop <= lamTarget * (1 + opts.exact.tol);
+    res.reached = lamTop <= lamAbove;
     for (int i = 0; i < m.nodes(); ++i) {
         const double d = m.addedMass(i) - addedBefore(i);
         res.addedMass += d;
