@@ -34,6 +34,8 @@ namespace {
 
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+constexpr double kKeepStepWarnFraction = 0.01;  // keep_step adding more of the mass than this is reported
+
 // Seconds spent in each stage of the run (DESIGN.md data flow); stages a scene does not use stay 0.
 struct Stages {
     double contact = 0, forces = 0, integrate = 0, cut = 0, timestep = 0, render = 0, encode = 0;
@@ -284,6 +286,13 @@ Simulation prepareScene(const SceneDef& sc) {
             embedding["keep_step"] = {{"dt_lattice", mi.dtLattice}, {"dt_before", ks.dtBefore}, {"dt_after", ks.dtAfter},
                                       {"added_mass", ks.addedMass}, {"mass_fraction", ks.massFraction},
                                       {"rounds", ks.rounds}, {"seconds", mi.seconds.keepStep}};
+            // More than a percent changes the dynamics visibly: say so (thin parts on a coarse lattice).
+            if (ks.massFraction > kKeepStepWarnFraction || !ks.reached)
+                std::fprintf(stderr,
+                             "warning: %s: object.surface.keep_step %s the lattice's step %.4g s by adding %.2f%% of the "
+                             "mass (step without it %.4g s); a finer lattice needs less, keep_step false adds none\n",
+                             sc.file.c_str(), ks.reached ? "kept" : "did not reach", mi.dtLattice, 100 * ks.massFraction,
+                             ks.dtBefore);
         }
         model = std::move(mi.model);
         model.elementModel = sc.element;
