@@ -2,7 +2,8 @@
 // its closed surface is simulated on a regular background tet lattice, whose time step is the best
 // a mesh of that resolution can have. Lattice tets cut by the surface become virtual elements
 // (XFEM, thesis 2.3) with stiffness and mass scaled by their inside volume share, so an isolated one
-// keeps the parent's eigenvalues and the embedded model keeps the lattice's step.
+// keeps the parent's eigenvalues; the assembled model can still fall a little below the lattice's
+// step, which keepLatticeStep restores by adding mass (timestep.hpp keepStep).
 //
 // Lattice: cubes split into 6 Kuhn tets (mesh/generate.hpp boxMesh). Measured at equal cell size
 // (E = 30 kPa, h = 1 cm, 6^3 and 10^3 cubes): exact dt 1.055 ms against 0.884 ms for the 5-tet
