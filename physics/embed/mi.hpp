@@ -116,7 +116,7 @@ struct MiBarRow {
     double dtLattice = 0;     // exact step of the uncut lattice [s]
     double dtOutsideFixed = 0; // exact step with the outside corners fixed (MiOptions::fixOutsideNodes) [s]
     double dtKept = 0;        // exact step with the lattice's step kept (MiOptions::keepLatticeStep) [s]
-    double addedMassFraction = 0; // the mass that took, over the model's mass [-]
+    double addedMassFraction = 0; // the mass that took, over the model's (all nodes free) [-]
 };
 std::vector<MiBarRow> miBarRows(const MiBarOptions& opts = {}, const std::vector<double>& kept = {1.0, 0.75, 0.5, 0.25});
 

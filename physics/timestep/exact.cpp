@@ -158,6 +158,7 @@ KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) 
     // and if it still finds the step short, the rounds go on at full tolerance.
     double roundTol = std::max(opts.roundTol, opts.exact.tol);
     int k = std::max(opts.modes, 1);
+    bool stale = false;  // masses changed since lamTop was solved for
     while (lamTop > lamAbove && res.rounds < opts.maxRounds) {
         const TopModes t = topModes(m, rows, k, opts.exact.ncv, roundTol, opts.exact.maxIterations);
         ++res.rounds;
@@ -166,6 +167,7 @@ KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) 
         for (int j = 0; j < t.lambda.size(); ++j) above += t.lambda(j) > lamAbove;
         if (above == 0) {
             lamTop = exactTop();
+            stale = false;
             roundTol = opts.exact.tol;
             continue;
         }
@@ -184,9 +186,9 @@ KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) 
         }
         for (int r = 0; r < nf; ++r) m.addedMass(t.freeNodes[r]) += dm(r);
         updateMasses(m);
-        lamTop = t.lambda(0);  // a lower bound of the new top until the full-tolerance check
-        if (res.rounds >= opts.maxRounds) lamTop = exactTop();
+        stale = true;
     }
+    if (stale) lamTop = exactTop();  // out of rounds right after scaling: what the step is now
     res.dtAfter = dtFromLambda(lamTop);
     res.reached = lamTop <= lamAbove;
     for (int i = 0; i < m.nodes(); ++i) {

@@ -55,9 +55,10 @@ ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts = {});
 
 // Selective mass scaling to a target step, as explicit codes hold their step: mass is added to the
 // nodes of every mode above lambda_target = (2 / dtTarget)^2 until the exact step reaches dtTarget
-// (model.addedMass). Per round, mode y_j (unit, of M^-1/2 K M^-1/2) gets dm_i = beta_j m_i w_i,
-// w_i = |y_j at node i|^2, which brings its Rayleigh quotient lambda_j / (1 + beta_j sum w_i^2)
-// exactly to the target; the modes' shapes shift a little, so rounds repeat until none is above.
+// (model.addedMass). Per round, mode y_j (unit, of M^-1/2 K M^-1/2) asks node i for
+// beta_j m_i w_i, w_i = |y_j at node i|^2, which brings its Rayleigh quotient
+// lambda_j / (1 + beta_j sum w_i^2) exactly to the aim just under the target; a node takes the
+// most any mode asks. The modes' shapes shift a little, so rounds repeat until none is above.
 // Used to make an MI embedding keep the step of its lattice.
 struct KeepStepOptions {
     int modes = 8;           // top eigenpairs handled per round, doubled while all are above
