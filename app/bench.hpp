@@ -6,10 +6,13 @@
 
 #include "fem/integrate.hpp"
 #include "fem/model.hpp"
+#include "fem/oscillation.hpp"
 #include "fem/state.hpp"
+#include "mesh/generate.hpp"
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <cmath>
 #include <functional>
 #include <string>
 #include <vector>
@@ -27,6 +30,11 @@ struct BenchPoint {
     double dt = 0;                  // time step used [s]
     bool explicitScheme = true;     // false for the implicit reference
     bool pareto = false;            // on the error-cost Pareto front of its problem
+    // Frequency problems: the two parts of the error (NaN elsewhere), and the error the integrator's
+    // mode formula predicts from the mesh's own first frequency (NaN where no formula applies).
+    double frequencyError = NAN;    // (f - f_ref) / f_ref, signed [-]
+    double dampingRatio = NAN;      // decay rate of the tip's oscillation / omega_ref [-]
+    double predictedError = NAN;    // [-]
 };
 
 // Marks, per problem, the points no other point beats in both error and cost (ties: not beaten).
@@ -44,7 +52,9 @@ struct Cantilever {
     double staticTime = 0.6;            // simulated time of a static run [s]
     double frequencyTime = 1.0;         // simulated time of an undamped frequency run [s]
 };
-Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational);
+// The bar meshed as 10 nyz x nyz x nyz cubes, clamped at x = 0, gravity along -z. The accuracy
+// bench meshes it Mirrored (no skew bending axes); elsewhere it is the plain Kuhn split.
+Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational, BoxSplit split = BoxSplit::Kuhn);
 // Mean z displacement of the nodes at x = L [m].
 double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x);
 
@@ -55,6 +65,8 @@ struct AccuracyContext {
     double frequencyReference = 0;  // converged first bending frequency (z) [Hz]
     bool tiny = false;              // test size: small meshes, short runs
     int maxRes = 4;                 // finest explicit cantilever: 10N x N x N cubes
+    std::vector<int> res;           // the cantilever resolutions N to run (ascending; maxRes is the last)
+    int implicitMaxRes = 4;         // backward Euler runs in full up to this N; beyond, its step is timed
     bool quiet = false;             // no progress lines on stderr
     nlohmann::json* references = nullptr; // configurations add their problems' references here
 };
@@ -72,8 +84,10 @@ struct TipProbe {
 // point (error of the final tip deflection against the reference).
 BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config,
                           const TipProbe& probe = {});
-// Runs model from rest under gravity without damping for bar.frequencyTime and returns the point
-// (error of the tip's oscillation frequency, from its zero crossings, against the reference).
+// Runs model from rest under gravity without damping for bar.frequencyTime and returns the point.
+// Its error is that of the tip's first mode as a complex frequency s = -decay + i omega (both
+// measured by fitOscillation) against i omega_ref: |s - i omega_ref| / omega_ref. A frequency alone would
+// let an integrator's damping go unseen, and its period error cancel the mesh's stiffness.
 BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config,
                              const TipProbe& probe = {});
 // Linear static tip deflection, K u = M g over the free DOFs (small-displacement limit of the
@@ -84,19 +98,20 @@ double linearStaticTip(const Model& m, const TipFn& tip = {});
 double firstBendingFrequency(const Model& m);
 // Lowest frequency of a model with fixed nodes [Hz] (shift-invert Lanczos).
 double lowestFrequency(const Model& m);
-// Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
-double richardson(double coarse, double fine);
+// Richardson extrapolation of values on meshes h and h / ratio for an O(h^2) method.
+double richardson(double coarse, double fine, double ratio = 2);
+// The convergence order p that the last three of values on meshes of `levels` elements across
+// show, from (v1 - v2) / (v2 - v3) = (n1^-p - n2^-p) / (n2^-p - n3^-p); NaN with fewer than three
+// levels or when they do not converge monotonically at an order between 0.1 and 8.
+double observedOrder(const std::vector<int>& levels, const std::vector<double>& values);
 // Converged references of a bar family: the linear static tip and the first bending frequency on
-// the model of each level (levels doubling), extrapolated from the two finest.
+// the model of each level (ascending), extrapolated (h^2) from the two finest.
 struct BarReferences {
-    std::vector<double> tips, freqs;   // per level [m], [Hz]
-    double tip = 0, frequency = 0;     // Richardson from the two finest [m], [Hz]
+    std::vector<double> tips, freqs;      // per level [m], [Hz]
+    double tip = 0, frequency = 0;        // Richardson from the two finest [m], [Hz]
+    double tipOrder = NAN, frequencyOrder = NAN;  // observedOrder of the last three levels
 };
 BarReferences barReferences(const std::vector<int>& levels, const std::function<Model(int)>& model);
-// Frequency [Hz] of a sampled signal from its upward crossings of its mean (linear
-// interpolation between samples); 0 with fewer than two crossings.
-double crossingFrequency(const std::vector<double>& t, const std::vector<double>& y);
-
 using AccuracyConfig = std::function<std::vector<BenchPoint>(const AccuracyContext&)>;
 // Adds a configuration to `bench accuracy` (its points join the table, CSV, plot and summary).
 void addAccuracyConfig(const std::string& name, AccuracyConfig fn);

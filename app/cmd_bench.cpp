@@ -31,6 +31,7 @@
 #include <memory>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <unistd.h>
 
 namespace cutsim::app {
@@ -111,8 +112,8 @@ double costAtError(const std::vector<BenchPoint>& pts, const std::string& proble
 
 // ---- the cantilever ----
 
-Model cantileverModel(const Cantilever& c, int nyz, ElementModel em) {
-    Model m = buildModel(boxMesh(c.L, c.h, c.h, 10 * nyz, nyz, nyz), c.material, em);
+Model cantileverModel(const Cantilever& c, int nyz, ElementModel em, BoxSplit split) {
+    Model m = buildModel(boxMesh(c.L, c.h, c.h, 10 * nyz, nyz, nyz, split), c.material, em);
     std::vector<int> clamp;
     for (int i = 0; i < m.nodes(); ++i)
         if (m.X(0, i) < 1e-9 * c.L) clamp.push_back(i);
@@ -128,29 +129,6 @@ double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x) {
     for (int i = 0; i < m.nodes(); ++i)
         if (m.X(0, i) > L * (1 - 1e-9)) { sum += x(2, i) - m.X(2, i); ++n; }
     return n ? sum / n : 0.0;
-}
-
-double crossingFrequency(const std::vector<double>& t, const std::vector<double>& y) {
-    if (y.size() < 3) return 0;
-    double mean = 0;
-    for (double v : y) mean += v;
-    mean /= static_cast<double>(y.size());
-    std::vector<double> up;
-    for (size_t k = 1; k < y.size(); ++k)
-        if (y[k - 1] < mean && y[k] >= mean) up.push_back(t[k - 1] + (mean - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]));
-    // The mean of a window that is not a whole number of periods is off; re-centre on the mean
-    // between the first and the last crossing, then count again.
-    if (up.size() >= 2) {
-        double s = 0, w = 0;
-        for (size_t k = 1; k < y.size(); ++k)
-            if (t[k] > up.front() && t[k] <= up.back()) { s += y[k] * (t[k] - t[k - 1]); w += t[k] - t[k - 1]; }
-        if (w > 0) mean = s / w;
-        up.clear();
-        for (size_t k = 1; k < y.size(); ++k)
-            if (y[k - 1] < mean && y[k] >= mean) up.push_back(t[k - 1] + (mean - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]));
-    }
-    if (up.size() < 2) return 0;
-    return static_cast<double>(up.size() - 1) / (up.back() - up.front());
 }
 
 BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
@@ -207,8 +185,15 @@ BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const 
     p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
     p.wallPerSimSecond = wall / s.time;
     const double ref = probe.problem.empty() ? ctx.frequencyReference : probe.reference;
-    const double f = crossingFrequency(t, y);
-    p.error = diverged || f <= 0 ? INFINITY : std::abs(f - ref) / ref;
+    const Oscillation mode = fitOscillation(t, y);
+    if (diverged || mode.frequency <= 0 || mode.halfCycles < 2) {
+        p.error = INFINITY;
+        return p;
+    }
+    const double wRef = 2 * M_PI * ref;
+    p.frequencyError = (mode.frequency - ref) / ref;
+    p.dampingRatio = mode.decay / wRef;
+    p.error = modeError({-mode.decay, 2 * M_PI * mode.frequency}, wRef);
     return p;
 }
 
@@ -229,8 +214,11 @@ double linearStaticTip(const Model& m, const TipFn& tip) {
     return tip ? tip(m, x) : tipDeflection(m, x);
 }
 
-// First bending frequency in z with the lumped mass: the lowest eigenpairs of M^-1/2 K M^-1/2
-// (shift-invert Lanczos about 0); of those, the mode whose tip moves most along z.
+// First bending frequency in z with the lumped mass: the lowest eigenpairs y_j, lambda_j of
+// M^-1/2 K M^-1/2 (shift-invert Lanczos about 0); of those, the mode that moves the tip face's
+// mean z most under a load along z: the static share of mode j in it is
+// (y_j . M^1/2 e_z) (mean tip z of M^-1/2 y_j) / lambda_j. (On a mesh whose bending stiffness has
+// skew principal axes, two modes share a z load; this picks the one that carries more of it.)
 double firstBendingFrequency(const Model& m) {
     int nf = 0;
     const auto map = freeDofMap(m, &nf);
@@ -246,14 +234,17 @@ double firstBendingFrequency(const Model& m) {
     const double L = m.X.row(0).maxCoeff();
     double best = -1, lambda = 0;
     for (int j = 0; j < lam.size(); ++j) {
-        double z = 0, other = 0;
-        for (int i = 0; i < m.nodes(); ++i)
-            if (m.X(0, i) > L * (1 - 1e-9) && map[3 * i] >= 0) {
-                z += std::abs(vec(map[3 * i + 2], j));
-                other += std::abs(vec(map[3 * i], j)) + std::abs(vec(map[3 * i + 1], j));
-            }
-        const double share = z / (z + other + 1e-300);
-        if (share > best || (share > 0.9 && lam(j) < lambda)) { best = share; lambda = lam(j); }
+        double load = 0, tip = 0;
+        int nTip = 0;
+        for (int i = 0; i < m.nodes(); ++i) {
+            const int d = map[3 * i + 2];
+            if (d < 0) continue;
+            const double sm = std::sqrt(m.mass(i));
+            load += vec(d, j) * sm;
+            if (m.X(0, i) > L * (1 - 1e-9)) { tip += vec(d, j) / sm; ++nTip; }
+        }
+        const double share = std::abs(load * tip) / (nTip ? nTip : 1) / lam(j);
+        if (share > best) { best = share; lambda = lam(j); }
     }
     return std::sqrt(lambda) / (2 * M_PI);
 }
@@ -270,8 +261,24 @@ double lowestFrequency(const Model& m) {
     return std::sqrt(eigs.eigenvalues()(0)) / (2 * M_PI);
 }
 
-// Richardson extrapolation of values on meshes h, h/2 for an O(h^2) method.
-double richardson(double coarse, double fine) { return fine + (fine - coarse) / 3.0; }
+// Richardson extrapolation of values on meshes h and h / ratio for an O(h^2) method.
+double richardson(double coarse, double fine, double ratio) { return fine + (fine - coarse) / (ratio * ratio - 1); }
+
+double observedOrder(const std::vector<int>& levels, const std::vector<double>& v) {
+    const size_t k = levels.size();
+    if (k < 3) return NAN;
+    const double n1 = levels[k - 3], n2 = levels[k - 2], n3 = levels[k - 1];
+    const double q = (v[k - 3] - v[k - 2]) / (v[k - 2] - v[k - 1]);
+    // (n1^-p - n2^-p) / (n2^-p - n3^-p) rises with p; bisect for the p that gives q.
+    auto g = [&](double p) { return (std::pow(n1, -p) - std::pow(n2, -p)) / (std::pow(n2, -p) - std::pow(n3, -p)); };
+    double lo = 0.1, hi = 8;
+    if (!(q > g(lo) && q < g(hi))) return NAN;
+    for (int it = 0; it < 100; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (g(mid) < q ? lo : hi) = mid;
+    }
+    return 0.5 * (lo + hi);
+}
 
 BarReferences barReferences(const std::vector<int>& levels, const std::function<Model(int)>& model) {
     BarReferences r;
@@ -281,8 +288,11 @@ BarReferences barReferences(const std::vector<int>& levels, const std::function<
         r.freqs.push_back(firstBendingFrequency(m));
     }
     const size_t k = levels.size() - 1;
-    r.tip = richardson(r.tips[k - 1], r.tips[k]);
-    r.frequency = richardson(r.freqs[k - 1], r.freqs[k]);
+    const double ratio = static_cast<double>(levels[k]) / levels[k - 1];
+    r.tip = richardson(r.tips[k - 1], r.tips[k], ratio);
+    r.frequency = richardson(r.freqs[k - 1], r.freqs[k], ratio);
+    r.tipOrder = observedOrder(levels, r.tips);
+    r.frequencyOrder = observedOrder(levels, r.freqs);
     return r;
 }
 
@@ -294,6 +304,9 @@ struct AccuracyArgs {
     bool json = false, tiny = false;
     std::string csv, plot, from;
     int maxRes = 4;
+    std::vector<int> res;           // cantilever resolutions (empty: 1 .. maxRes)
+    std::vector<int> refLevels;     // reference meshes (empty: 2, 4, 8)
+    int implicitMaxRes = 4;
     std::vector<std::string> only;  // configuration groups to run (empty: all)
 };
 
@@ -394,28 +407,79 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
     fs::rename(out + ".tmp.png", out);
 }
 
-std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, int maxRes, bool quiet) {
+// Backward Euler's cost at 1% on a mesh too fine to run it for a simulated second: its wall time
+// per step, measured, over the dt at which its first mode is 1% off (integratorMode, checked by
+// predicted_error against the runs it makes in full on coarser meshes).
+struct ImplicitProjection {
+    int res = 0;
+    long tets = 0;
+    double meshFrequency = 0;   // first bending frequency of the mesh (Lanczos) [Hz]
+    double meshError = 0;       // its error against the reference [-]
+    double dt = 0;              // largest dt with error <= 1%; 0 when the mesh alone misses it [s]
+    double stepSeconds = 0;     // wall time of one step, median of the timed steps [s]
+    int steps = 0;              // steps timed
+    double cost = INFINITY;     // stepSeconds / dt [s/s]
+};
+
+// Wall time of one backward-Euler step of m (the median of `steps`, after a first step that
+// builds the pattern and its ordering).
+double backwardEulerStepSeconds(const Model& m0, double dt, int steps) {
+    Model m = m0;
+    m.massDamping = 0;
+    State s = makeState(m);
+    Stepper st;
+    const StepOptions opt{Integrator::BackwardEuler, dt};
+    st.step(m, s, opt);
+    std::vector<double> w;
+    for (int k = 0; k < steps; ++k) {
+        const auto t0 = Clock::now();
+        st.step(m, s, opt);
+        w.push_back(since(t0));
+    }
+    std::sort(w.begin(), w.end());
+    return w[w.size() / 2];
+}
+
+std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool quiet, std::vector<ImplicitProjection>& proj) {
     std::vector<BenchPoint> pts;
     auto log = [&](const BenchPoint& p) {
         pts.push_back(p);
         if (!quiet) std::fprintf(stderr, "  %-22s %-40s error %.3e  cost %.4g s/s\n", p.problem.c_str(), p.config.c_str(), p.error, p.wallPerSimSecond);
     };
-    std::vector<int> res;
-    for (int r = 1; r <= maxRes; ++r) res.push_back(r);
+    const double wRef = 2 * M_PI * ctx.frequencyReference;
+    // A frequency point's predicted error: the integrator's mode formula on the mesh's own mode.
+    auto predicted = [&](BenchPoint p, const StepOptions& opt, double fMesh) {
+        if (p.problem == "cantilever_frequency" && fMesh > 0)
+            p.predictedError = modeError(integratorMode(opt.integrator, 2 * M_PI * fMesh, opt.dt), wRef);
+        return p;
+    };
+    // The bench's bar is the mirrored split: the Kuhn split's skew bending axes make a z load
+    // excite two modes of different frequency, and the tip's motion beat.
+    auto bar = [&](int r, BoxSplit split = BoxSplit::Mirrored) { return cantileverModel(ctx.bar, r, ElementModel::Corotational, split); };
+    std::vector<double> fMesh;
+    for (int r : ctx.res) fMesh.push_back(firstBendingFrequency(bar(r)));
     char name[160];
-    // Conforming meshes at 0.9 of their exact limit, plain symplectic Euler.
-    for (int r : res) {
-        const Model m = cantileverModel(ctx.bar, r);
-        const double dtExact = exactCriticalDt(m).dt;
-        const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
-        std::snprintf(name, sizeof name, "explicit %dx%dx%d f=0.9", 10 * r, r, r);
-        log(runStaticPoint(ctx, m, opt, name));
-        log(runFrequencyPoint(ctx, m, opt, name));
+    // Conforming meshes at 0.9 of their exact limit, plain symplectic Euler; the Kuhn split beside
+    // the mirrored one on the coarse meshes.
+    for (size_t i = 0; i < ctx.res.size(); ++i) {
+        const int r = ctx.res[i];
+        for (BoxSplit split : {BoxSplit::Mirrored, BoxSplit::Kuhn}) {
+            const bool kuhn = split == BoxSplit::Kuhn;
+            if (kuhn && r > 4) continue;
+            const Model m = bar(r, split);
+            const double dtExact = exactCriticalDt(m).dt;
+            const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
+            std::snprintf(name, sizeof name, "explicit %s%dx%dx%d f=0.9", kuhn ? "kuhn " : "", 10 * r, r, r);
+            log(runStaticPoint(ctx, m, opt, name));
+            log(kuhn ? runFrequencyPoint(ctx, m, opt, name) : predicted(runFrequencyPoint(ctx, m, opt, name), opt, fMesh[i]));
+        }
     }
-    // Per-element damping beyond the limit (thesis eq. 3.16) on the finest explicit mesh.
+    // Per-element damping beyond the limit (thesis eq. 3.16) on the finest mesh up to N = 8.
     {
-        const int r = res.back();
-        const Model m = cantileverModel(ctx.bar, r);
+        int r = ctx.res.front();
+        for (int q : ctx.res)
+            if (q <= 8) r = q;
+        const Model m = bar(r);
         const double dtExact = exactCriticalDt(m).dt;
         const Eigen::VectorXd r1r = estimateElements(m).r1r;
         for (double f : {1.5, 2.0}) {
@@ -427,17 +491,38 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, int ma
             log(runFrequencyPoint(ctx, m, opt, name));
         }
     }
-    // The implicit reference: backward Euler at several steps.
-    const std::vector<double> dts = ctx.tiny ? std::vector<double>{0.01} : std::vector<double>{0.1, 0.03, 0.01, 0.003};
-    for (int r : res) {
-        if (r < 2 && !ctx.tiny) continue;
-        const Model m = cantileverModel(ctx.bar, r);
-        for (double dt : dts) {
-            const StepOptions opt{Integrator::BackwardEuler, dt};
-            std::snprintf(name, sizeof name, "backward_euler %dx%dx%d dt=%g", 10 * r, r, r, dt);
-            log(runStaticPoint(ctx, m, opt, name));
-            log(runFrequencyPoint(ctx, m, opt, name));
-        }
+    // The implicit reference: backward Euler at several steps, run in full on the meshes where a
+    // simulated second is affordable; on every mesh, its step timed and its cost at 1% projected.
+    std::vector<double> dts = ctx.tiny ? std::vector<double>{0.01, 0.003} : std::vector<double>{0.1, 0.03, 0.01, 0.003};
+    for (size_t i = 0; i < ctx.res.size(); ++i) {
+        const int r = ctx.res[i];
+        const Model m = bar(r);
+        const double meshError = std::abs(fMesh[i] - ctx.frequencyReference) / ctx.frequencyReference;
+        std::vector<double> steps = dts;
+        // and near the mesh's floor: the dt at which the predicted error is 1.2 x the mesh's own
+        // (or 1%, when that is lower), so the front has a measured point where time error is small
+        const double dtNear = backwardEulerDtForError(2 * M_PI * fMesh[i], wRef, std::max(0.01, 1.2 * meshError));
+        if (dtNear > 0 && dtNear < 0.9 * steps.back()) steps.push_back(dtNear);
+        if ((r >= 2 || ctx.tiny) && r <= ctx.implicitMaxRes)
+            for (double dt : steps) {
+                const StepOptions opt{Integrator::BackwardEuler, dt};
+                std::snprintf(name, sizeof name, "backward_euler %dx%dx%d dt=%.3g", 10 * r, r, r, dt);
+                log(runStaticPoint(ctx, m, opt, name));
+                log(predicted(runFrequencyPoint(ctx, m, opt, name), opt, fMesh[i]));
+            }
+        ImplicitProjection pr;
+        pr.res = r;
+        pr.tets = m.elements();
+        pr.meshFrequency = fMesh[i];
+        pr.meshError = meshError;
+        pr.dt = backwardEulerDtForError(2 * M_PI * fMesh[i], wRef, 0.01);
+        pr.steps = ctx.tiny ? 3 : 5;
+        pr.stepSeconds = backwardEulerStepSeconds(m, pr.dt > 0 ? pr.dt : 1e-3, pr.steps);
+        if (pr.dt > 0) pr.cost = pr.stepSeconds / pr.dt;
+        if (!quiet)
+            std::fprintf(stderr, "  backward Euler %dx%dx%d: mesh frequency error %.4f, %.4g s a step, dt for 1%%: %.4g s, projected %.4g s/s\n",
+                         10 * r, r, r, pr.meshError, pr.stepSeconds, pr.dt, pr.cost);
+        proj.push_back(pr);
     }
     return pts;
 }
@@ -448,20 +533,32 @@ int runAccuracy(const AccuracyArgs& a) {
         return 2;
     }
     std::vector<BenchPoint> pts;
+    std::vector<ImplicitProjection> proj;
     json refs = json::object();
     if (!a.from.empty()) {
         pts = readPointsCsv(a.from);
     } else {
         AccuracyContext ctx;
         ctx.tiny = a.tiny;
-        ctx.maxRes = a.tiny ? 1 : a.maxRes;
+        if (a.tiny) ctx.res = {1};
+        else if (!a.res.empty()) ctx.res = a.res;
+        else for (int r = 1; r <= a.maxRes; ++r) ctx.res.push_back(r);
+        std::sort(ctx.res.begin(), ctx.res.end());
+        ctx.res.erase(std::unique(ctx.res.begin(), ctx.res.end()), ctx.res.end());
+        ctx.maxRes = ctx.res.back();
+        ctx.implicitMaxRes = a.implicitMaxRes;
         ctx.quiet = a.json;
         ctx.references = &refs;
         if (a.tiny) { ctx.bar.staticTime = 0.2; ctx.bar.frequencyTime = 0.5; }
         // Converged references: Richardson extrapolation of the two finest reference meshes
         // (linear tets converge as h^2); the coarser pair shows how well converged they are.
-        const std::vector<int> levels = a.tiny ? std::vector<int>{2, 4} : std::vector<int>{2, 4, 8};
-        const BarReferences br = barReferences(levels, [&](int r) { return cantileverModel(ctx.bar, r); });
+        std::vector<int> levels = a.tiny ? std::vector<int>{2, 4} : a.refLevels.empty() ? std::vector<int>{2, 4, 8} : a.refLevels;
+        std::sort(levels.begin(), levels.end());
+        levels.erase(std::unique(levels.begin(), levels.end()), levels.end());
+        if (levels.size() < 2) throw InputError("--ref-levels", 0, "needs at least two different levels");
+        const BarReferences br = barReferences(levels, [&](int r) {
+            return cantileverModel(ctx.bar, r, ElementModel::Corotational, BoxSplit::Mirrored);
+        });
         ctx.tipReference = br.tip;
         ctx.frequencyReference = br.frequency;
         // Euler-Bernoulli with Timoshenko's shear term (kappa = 5/6) and the first bending frequency.
@@ -470,14 +567,17 @@ int runAccuracy(const AccuracyArgs& a) {
         const double q = bar.material.rho * 9.81 * A, L = bar.L;
         const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
         const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
+        auto order = [](double p) { return std::isfinite(p) ? json(p) : json(nullptr); };
         refs["cantilever_static"] = {{"reference", ctx.tipReference}, {"levels", levels}, {"values", br.tips},
+                                     {"observed_order", order(br.tipOrder)},
                                      {"beam_theory", beamTip}, {"reference_over_beam", ctx.tipReference / beamTip}};
         refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference}, {"levels", levels}, {"values", br.freqs},
+                                        {"observed_order", order(br.frequencyOrder)},
                                         {"beam_theory", beamFreq}, {"reference_over_beam", ctx.frequencyReference / beamFreq}};
         if (!a.json)
             std::fprintf(stderr, "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
                          ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
-        if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.tiny ? 1 : a.maxRes, a.json);
+        if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj);
         for (auto& [name, fn] : registry().configs) {
             if (!selected(a, name)) continue;
             auto more = fn(ctx);
@@ -489,9 +589,15 @@ int runAccuracy(const AccuracyArgs& a) {
     json j;
     j["points"] = json::array();
     for (const auto& p : pts)
-        j["points"].push_back({{"problem", p.problem}, {"config", p.config}, {"error", jsonNumber(p.error)},
-                               {"wall_per_sim_second", p.wallPerSimSecond}, {"dt", p.dt},
-                               {"scheme", p.explicitScheme ? "explicit" : "implicit"}, {"pareto", p.pareto}});
+    {
+        json q = {{"problem", p.problem}, {"config", p.config}, {"error", jsonNumber(p.error)},
+                  {"wall_per_sim_second", p.wallPerSimSecond}, {"dt", p.dt},
+                  {"scheme", p.explicitScheme ? "explicit" : "implicit"}, {"pareto", p.pareto}};
+        if (std::isfinite(p.frequencyError)) q["frequency_error"] = p.frequencyError;
+        if (std::isfinite(p.dampingRatio)) q["damping_ratio"] = p.dampingRatio;
+        if (std::isfinite(p.predictedError)) q["predicted_error"] = p.predictedError;
+        j["points"].push_back(q);
+    }
     j["summary"] = json::object();
     for (const auto& p : pts) {
         if (j["summary"].contains(p.problem)) continue;
@@ -508,6 +614,25 @@ int runAccuracy(const AccuracyArgs& a) {
                                    {"common_error", jsonNumber(common)}, {"explicit_cost_at_common_error", jsonNumber(exC)},
                                    {"implicit_cost_at_common_error", jsonNumber(imC)}};
     }
+    // The implicit reference where it is too dear to run: measured step, projected steps.
+    if (!proj.empty()) {
+        j["implicit_projection"] = json::array();
+        const ImplicitProjection* best = nullptr;
+        for (const auto& pr : proj) {
+            j["implicit_projection"].push_back({{"res", pr.res}, {"tets", pr.tets}, {"mesh_frequency", pr.meshFrequency},
+                                                {"mesh_error", pr.meshError}, {"dt_at_1pct", jsonNumber(pr.dt > 0 ? pr.dt : -1)},
+                                                {"step_seconds", pr.stepSeconds}, {"steps_timed", pr.steps},
+                                                {"cost_at_1pct", jsonNumber(std::isfinite(pr.cost) ? pr.cost : -1)}});
+            if (std::isfinite(pr.cost) && (!best || pr.cost < best->cost)) best = &pr;
+        }
+        if (j["summary"].contains("cantilever_frequency")) {
+            auto& s = j["summary"]["cantilever_frequency"];
+            const double ex = costAtError(pts, "cantilever_frequency", 0.01, true);
+            s["implicit_cost_at_1pct_projected"] = best ? json(best->cost) : json(nullptr);
+            s["implicit_projected_res"] = best ? json(best->res) : json(nullptr);
+            s["speedup_at_1pct_projected"] = best && ex > 0 ? json(best->cost / ex) : json(nullptr);
+        }
+    }
     if (!refs.empty()) j["references"] = refs;
     if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
     if (!a.plot.empty()) plotPoints(pts, a.plot);
@@ -515,10 +640,29 @@ int runAccuracy(const AccuracyArgs& a) {
         std::cout << j.dump(2) << "\n";
         return 0;
     }
-    std::printf("%-22s %-42s %12s %14s %12s %s\n", "problem", "config", "error", "wall/sim [s/s]", "dt [s]", "pareto");
+    std::printf("%-26s %-42s %12s %14s %12s %6s %11s %11s %11s\n", "problem", "config", "error", "wall/sim [s/s]", "dt [s]",
+                "pareto", "freq err", "damping", "predicted");
+    auto opt = [](double v) {
+        char b[32];
+        if (std::isfinite(v)) std::snprintf(b, sizeof b, "%11.3e", v);
+        else std::snprintf(b, sizeof b, "%11s", "");
+        return std::string(b);
+    };
     for (const auto& p : pts)
-        std::printf("%-22s %-42s %12.4e %14.5g %12.4g %s\n", p.problem.c_str(), p.config.c_str(), p.error, p.wallPerSimSecond,
-                    p.dt, p.pareto ? "*" : "");
+        std::printf("%-26s %-42s %12.4e %14.5g %12.4g %6s %s %s %s\n", p.problem.c_str(), p.config.c_str(), p.error,
+                    p.wallPerSimSecond, p.dt, p.pareto ? "*" : "", opt(p.frequencyError).c_str(), opt(p.dampingRatio).c_str(),
+                    opt(p.predictedError).c_str());
+    if (!proj.empty()) {
+        std::printf("\nbackward Euler at 1%% on cantilever_frequency, projected: its step timed on each mesh, over the dt at\n"
+                    "which its first mode is 1%% off (mesh error from Lanczos):\n");
+        std::printf("  %-12s %8s %11s %12s %12s %14s\n", "mesh", "tets", "mesh error", "step [s]", "dt 1% [s]", "cost [s/s]");
+        for (const auto& pr : proj) {
+            char mesh[32];
+            std::snprintf(mesh, sizeof mesh, "%dx%dx%d", 10 * pr.res, pr.res, pr.res);
+            std::printf("  %-12s %8ld %11.4f %12.4g %12s %14s\n", mesh, pr.tets, pr.meshError, pr.stepSeconds,
+                        pr.dt > 0 ? std::to_string(pr.dt).c_str() : "-", std::isfinite(pr.cost) ? std::to_string(pr.cost).c_str() : "-");
+        }
+    }
     std::printf("\ncost at 1%% error (wall s per simulated s; - = not reached):\n");
     for (auto& [problem, s] : j["summary"].items()) {
         auto show = [](const json& v) { return v.is_null() ? std::string("-") : std::to_string(v.get<double>()); };
@@ -947,6 +1091,17 @@ void addBenchCommand(CLI::App& app) {
         c->add_option("--from", a->from, "Take the points from a CSV (problem,config,error,wall_per_sim_second,dt[,implicit]) "
                                          "instead of running");
         c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")->check(CLI::Range(1, 8))->capture_default_str();
+        c->add_option("--res", a->res, "Cantilever meshes N to run instead of 1 .. max-res, comma-separated (10N x N x N cubes)")
+            ->delimiter(',')
+            ->check(CLI::Range(1, 24));
+        c->add_option("--ref-levels", a->refLevels, "Reference meshes N, comma-separated, at least two: Richardson (h^2) from the "
+                                                    "two finest [default 2,4,8]")
+            ->delimiter(',')
+            ->check(CLI::Range(1, 24));
+        c->add_option("--implicit-max-res", a->implicitMaxRes, "Run backward Euler in full up to this N; beyond it only its step "
+                                                               "is timed (its cost at 1% projected)")
+            ->check(CLI::Range(0, 24))
+            ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: coarse meshes, short runs");
         c->add_option("--only", a->only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
             ->delimiter(',')

@@ -7,7 +7,7 @@
 
 namespace cutsim {
 
-TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
+TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz, BoxSplit split) {
     TetMesh m;
     const int px = nx + 1, py = ny + 1, pz = nz + 1;
     m.X.resize(3, static_cast<Eigen::Index>(px) * py * pz);
@@ -15,7 +15,10 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
     for (int k = 0; k < pz; ++k)
         for (int j = 0; j < py; ++j)
             for (int i = 0; i < px; ++i) m.X.col(id(i, j, k)) << lx * i / nx, ly * j / ny, lz * k / nz;
-    // Kuhn (Freudenthal) split: one tet per permutation of the axes, walking corner 0 -> 7.
+    // Kuhn (Freudenthal) split: one tet per permutation of the axes, walking the cube from one
+    // corner to the opposite one. Mirrored: the walk starts on the high side of every axis whose
+    // cube index is odd, so two neighbours are reflections of each other across their shared
+    // face, and that face is split the same way from both sides.
     static constexpr int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
     m.tets.resize(4, 6 * static_cast<Eigen::Index>(nx) * ny * nz);
     int t = 0;
@@ -23,10 +26,16 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
         for (int j = 0; j < ny; ++j)
             for (int i = 0; i < nx; ++i)
                 for (const auto& p : perms) {
-                    int c[3] = {i, j, k}, v[4];
-                    v[0] = id(i, j, k);
+                    const int lo[3] = {i, j, k};
+                    int c[3], d[3], v[4];
                     for (int s = 0; s < 3; ++s) {
-                        ++c[p[s]];
+                        const bool flip = split == BoxSplit::Mirrored && (lo[s] & 1);
+                        c[s] = lo[s] + (flip ? 1 : 0);
+                        d[s] = flip ? -1 : 1;
+                    }
+                    v[0] = id(c[0], c[1], c[2]);
+                    for (int s = 0; s < 3; ++s) {
+                        c[p[s]] += d[p[s]];
                         v[s + 1] = id(c[0], c[1], c[2]);
                     }
                     m.tets.col(t) << v[0], v[1], v[2], v[3];
