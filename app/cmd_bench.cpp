@@ -339,6 +339,16 @@ std::vector<BenchPoint> readPointsCsv(const std::string& path) {
             throw InputError(path, lineNo, "error, wall_per_sim_second and dt must be numbers");
         }
         p.explicitScheme = !(f.size() > 5 && (f[5] == "1" || f[5] == "implicit"));
+        // optional: pareto (recomputed), then frequency_error, damping_ratio, predicted_error
+        double* extra[3] = {&p.frequencyError, &p.dampingRatio, &p.predictedError};
+        for (size_t k = 7; k < f.size() && k < 10; ++k) {
+            if (f[k].empty()) continue;
+            try {
+                *extra[k - 7] = std::stod(f[k]);
+            } catch (const std::exception&) {
+                throw InputError(path, lineNo, "frequency_error, damping_ratio and predicted_error must be numbers or empty");
+            }
+        }
         pts.push_back(p);
     }
     return pts;
@@ -346,11 +356,17 @@ std::vector<BenchPoint> readPointsCsv(const std::string& path) {
 
 std::string pointsCsv(const std::vector<BenchPoint>& pts) {
     std::ostringstream o;
-    o << "problem,config,error,wall_per_sim_second,dt,scheme,pareto\n";
+    o << "problem,config,error,wall_per_sim_second,dt,scheme,pareto,frequency_error,damping_ratio,predicted_error\n";
     o.precision(8);
-    for (const auto& p : pts)
+    auto opt = [&](double v) -> std::ostream& { return std::isfinite(v) ? o << "," << v : o << ","; };
+    for (const auto& p : pts) {
         o << p.problem << "," << p.config << "," << p.error << "," << p.wallPerSimSecond << "," << p.dt << ","
-          << (p.explicitScheme ? "explicit" : "implicit") << "," << (p.pareto ? 1 : 0) << "\n";
+          << (p.explicitScheme ? "explicit" : "implicit") << "," << (p.pareto ? 1 : 0);
+        opt(p.frequencyError);
+        opt(p.dampingRatio);
+        opt(p.predictedError);
+        o << "\n";
+    }
     return o.str();
 }
 
@@ -1088,7 +1104,7 @@ void addBenchCommand(CLI::App& app) {
                                        "a cost is null when no point reaches the error");
         c->add_option("--csv", a->csv, "Write the points to this CSV file");
         c->add_option("--plot", a->plot, "Draw error against cost with the Pareto front to this PNG (needs gnuplot)");
-        c->add_option("--from", a->from, "Take the points from a CSV (problem,config,error,wall_per_sim_second,dt[,implicit]) "
+        c->add_option("--from", a->from, "Take the points from a CSV (problem,config,error,wall_per_sim_second,dt[,scheme,pareto,frequency_error,damping_ratio,predicted_error]) "
                                          "instead of running");
         c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")->check(CLI::Range(1, 8))->capture_default_str();
         c->add_option("--res", a->res, "Cantilever meshes N to run instead of 1 .. max-res, comma-separated (10N x N x N cubes)")
