@@ -24,7 +24,7 @@ std::vector<double> crossings(const std::vector<double>& t, const std::vector<do
 // Least squares of y ~ c + exp(-sigma tau) (a cos(w tau) + b sin(w tau)), tau = t - t_mid, by
 // Levenberg-Marquardt on all five parameters from the crossing and peak estimates. Crossings of a
 // decaying signal are biased: its mean over whole periods is not its centre, and a level off the
-// centre shifts the crossings more as the amplitude falls (a 0.4% low frequency at 3% damping).
+// centre shifts the crossings more as the amplitude falls (0.4% low at a 5% damping ratio).
 void refine(const std::vector<double>& t, const std::vector<double>& y, Oscillation& r) {
     const size_t n = t.size();
     const double tMid = 0.5 * (t.front() + t.back());
