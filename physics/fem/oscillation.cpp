@@ -11,7 +11,7 @@ namespace cutsim {
 
 namespace {
 
-// Times at which y crosses level upwards (up) or either way (both), by linear interpolation.
+// Times at which y crosses level upwards (upOnly) or either way, by linear interpolation.
 std::vector<double> crossings(const std::vector<double>& t, const std::vector<double>& y, double level, bool upOnly) {
     std::vector<double> c;
     for (size_t k = 1; k < y.size(); ++k) {
@@ -44,32 +44,33 @@ void refine(const std::vector<double>& t, const std::vector<double>& y, Oscillat
     }
     auto cost = [&](const Eigen::Matrix<double, 5, 1>& q, Eigen::Matrix<double, 5, 5>* JtJ, Eigen::Matrix<double, 5, 1>* Jtr) {
         double sum = 0;
-        if (JtJ) { JtJ->setZero(); Jtr->setZero(); }
+        JtJ->setZero();
+        Jtr->setZero();
         for (size_t k = 0; k < n; ++k) {
             const double tau = t[k] - tMid, e = std::exp(-q(3) * tau), c = std::cos(q(4) * tau), s = std::sin(q(4) * tau);
             const double osc = e * (q(1) * c + q(2) * s), res = y[k] - q(0) - osc;
             sum += res * res;
-            if (JtJ) {
-                Eigen::Matrix<double, 5, 1> g;
-                g << 1, e * c, e * s, -tau * osc, tau * e * (q(2) * c - q(1) * s);
-                *JtJ += g * g.transpose();
-                *Jtr += g * res;
-            }
+            Eigen::Matrix<double, 5, 1> g;
+            g << 1, e * c, e * s, -tau * osc, tau * e * (q(2) * c - q(1) * s);
+            *JtJ += g * g.transpose();
+            *Jtr += g * res;
         }
         return sum;
     };
-    Eigen::Matrix<double, 5, 5> JtJ;
-    Eigen::Matrix<double, 5, 1> Jtr;
+    Eigen::Matrix<double, 5, 5> JtJ, JtJq;
+    Eigen::Matrix<double, 5, 1> Jtr, Jtrq;
     double f = cost(p, &JtJ, &Jtr), lambda = 1e-3;
     for (int it = 0; it < 100 && std::isfinite(f); ++it) {
         Eigen::Matrix<double, 5, 5> H = JtJ;
         H.diagonal() *= 1 + lambda;
         const Eigen::Matrix<double, 5, 1> step = H.ldlt().solve(Jtr), q = p + step;
-        const double fq = cost(q, nullptr, nullptr);
+        const double fq = cost(q, &JtJq, &Jtrq);  // with its Jacobian: one pass per trial
         if (std::isfinite(fq) && fq <= f) {
             const bool done = std::abs(step(4)) < 1e-12 * std::abs(q(4)) && std::abs(step(3)) < 1e-12 * std::abs(q(4));
             p = q;
-            f = cost(p, &JtJ, &Jtr);
+            f = fq;
+            JtJ = JtJq;
+            Jtr = Jtrq;
             lambda = std::max(lambda / 10, 1e-12);
             if (done) break;
         } else {

@@ -60,8 +60,9 @@ TEST(Oscillation, BackwardEulerDtForErrorMeetsTheTarget) {
     EXPECT_EQ(backwardEulerDtForError(1.02 * wRef, wRef, 0.01), 0);
 }
 
-// One free corner of a tet (linear elements): three modes of K_33 / m_3. Started along the lowest
-// one, the corner oscillates in it alone; the run's fitted frequency and decay are the formula's.
+// One free corner of a tet (linear elements): three modes of K_33 / m_3, distinct because the
+// corner is off the axes. Started along the lowest one, the corner oscillates in it alone; the
+// run's fitted frequency and decay are the formula's.
 TEST(Oscillation, IntegratorRunsFollowTheirModeFormulas) {
     TetMesh tet;
     tet.X.resize(3, 4);
