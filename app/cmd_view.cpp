@@ -122,8 +122,7 @@ int runView(const ViewArgs& a) {
     SceneSnapshot scene(sc, sim.model, sim.ta.estimates().r1r, sim.dt, sim.surface.get());
     State state = makeState(sim.model);
     Stepper stepper;
-    StepOptions so{sc.integrator, sim.dt};
-    if (sim.alphaElem.size()) so.alphaElem = &sim.alphaElem;
+    StepOptions so = sc.stepOptions(sim.dt, sim.alphaElem);
     Orbit orbit(scene.defaultCamera(sim.model, 0));
     const double frameDt = 1.0 / sc.capture.fps;
 
@@ -183,8 +182,7 @@ int runView(const ViewArgs& a) {
         holdTool(Eigen::Vector3d(a.toolAt[0], a.toolAt[1], a.toolAt[2]));
     }
     auto stepChanged = [&] {
-        so = StepOptions{sc.integrator, sim.dt};
-        so.alphaElem = sim.alphaElem.size() ? &sim.alphaElem : nullptr;
+        so = sc.stepOptions(sim.dt, sim.alphaElem);
         stepper.reset();
     };
     // After a cut changed the model: the step, the contact points and the drawn surface follow.
@@ -276,8 +274,7 @@ int runView(const ViewArgs& a) {
         message.clear();
         sc.integrator = next.integrator;
         sc.dt = next.dt;
-        so = StepOptions{sc.integrator, sim.dt};
-        so.alphaElem = sim.alphaElem.size() ? &sim.alphaElem : nullptr;
+        so = sc.stepOptions(sim.dt, sim.alphaElem);
         stepper.reset();
         scene.setStep(sim.dt, sc.capture.criticalFactor);
     };

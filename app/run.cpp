@@ -482,9 +482,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
 
     State state = makeState(model);
     Stepper stepper;
-    StepOptions so{sc.integrator, dt};
-    so.minStretch = sc.minStretch;
-    if (alphaElem.size()) so.alphaElem = &alphaElem;
+    StepOptions so = sc.stepOptions(dt, alphaElem);
 
     const double frameDt = 1.0 / sc.capture.fps;
     double nextFrame = 0;
@@ -492,6 +490,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     std::string status = "ok";
     int exitCode = 0;
     long invertedSteps = 0, limitedSteps = 0;
+    long solverIterations = 0;       // CG iterations of backward Euler, summed over the steps
+    int solverIterationsMax = 0;
     int maxInverted = 0, maxLimited = 0;
     Progress progress(sc.duration, opt.quiet);
     const double mass0 = model.mass.sum();
@@ -674,6 +674,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         }
         // 2-4. forces, integrate, checks (fem/integrate.hpp)
         stepper.step(model, state, so);
+        solverIterations += stepper.lastSolverIterations();
+        solverIterationsMax = std::max(solverIterationsMax, stepper.lastSolverIterations());
         const double stepTime = since(ts);
         const double fshare = stepper.lastForceSeconds();
         stages.forces += fshare;
@@ -724,6 +726,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["wall_time"] = since(wallStart);
     report["threads"] = threads();
     report["integrator"] = integratorName(sc.integrator);
+    if (sc.integrator == Integrator::BackwardEuler)
+        report["implicit"] = {{"solver", implicitSolverName(sc.implicitSolver)},
+                              {"cg_iterations_mean", state.steps ? double(solverIterations) / double(state.steps) : 0.0},
+                              {"cg_iterations_max", solverIterationsMax}};
     report["dt"] = dt;
     report["dt_limit_action"] = limitAction;
     report["dt_initial"] = {{"exact", exact.dt}, {"certified", certified}, {"estimate", estimate}};

@@ -299,6 +299,9 @@ SceneDef parseScene(const json& j, const std::string& file) {
             d.finish();
         }
         s.minStretch = in.number("min_stretch", 0, 0, 0.9);
+        s.implicitSolver = parseImplicitSolver(in.string("solver", "direct", {"direct", "cg"}));
+        if (in.has("solver") && s.integrator != Integrator::BackwardEuler)
+            in.fail("solver", "applies to scheme backward_euler only");
         in.finish();
     }
     s.duration = root.number("duration", 1, 0, 1e6, true);

@@ -126,6 +126,7 @@ struct SceneDef {
 
     Integrator integrator = Integrator::SymplecticEuler;
     double minStretch = 0;      // integrator.min_stretch: stretch limiting, 0 off [-]
+    ImplicitSolver implicitSolver = ImplicitSolver::Direct;  // integrator.solver (backward Euler)
     DtPolicy dt;
     double duration = 1;          // [s]
 
@@ -139,6 +140,16 @@ struct SceneDef {
     bool writeVtu = true;           // final.vtu
 
     nlohmann::json source;          // the scene as read, after --set overrides
+
+    // The step options of this scene's integrator at step h; alphaElem (per-element damping, may
+    // be empty) must outlive their use.
+    StepOptions stepOptions(double h, const Eigen::VectorXd& alphaElem) const {
+        StepOptions so{integrator, h};
+        so.minStretch = minStretch;
+        so.solver = implicitSolver;
+        if (alphaElem.size()) so.alphaElem = &alphaElem;
+        return so;
+    }
 };
 
 // Reads and validates a scene file; `sets` are "key.path=value" overrides (value parsed as JSON,

@@ -4,6 +4,7 @@
 #include "fem/tet.hpp"
 
 #include <Eigen/Geometry>
+#include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
@@ -35,6 +36,16 @@ const char* integratorName(Integrator i) {
     return "?";
 }
 
+ImplicitSolver parseImplicitSolver(const std::string& name) {
+    if (name == "direct") return ImplicitSolver::Direct;
+    if (name == "cg") return ImplicitSolver::ConjugateGradient;
+    throw InputError("unknown implicit solver '" + name + "' (direct, cg)");
+}
+
+const char* implicitSolverName(ImplicitSolver s) {
+    return s == ImplicitSolver::Direct ? "direct" : "cg";
+}
+
 Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt) {
     Eigen::VectorXd a(dtCritElem.size());
     for (Eigen::Index e = 0; e < a.size(); ++e) {
@@ -51,6 +62,10 @@ struct ImplicitWorkspace {
     Eigen::SparseMatrix<double> A;            // system matrix on free DOFs
     std::vector<int> slot;                    // per element 144 entries -> index in A.valuePtr(), -1 if fixed
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
+    // Lower|Upper: Eigen runs the product with the full matrix, on all threads
+    Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
+    bool analysed = false;                    // solver's ordering and pattern, made on first use
+    int iterations = 0;                       // CG iterations of the last step
     int nElems = -1, nNodes = -1;
 
     void build(const Model& m) {
@@ -84,10 +99,11 @@ struct ImplicitWorkspace {
                     const int* p = std::lower_bound(rows + lo, rows + hi, gi);
                     slot[static_cast<size_t>(e) * 144 + r * 12 + c] = static_cast<int>(p - rows);
                 }
-        solver.analyzePattern(A);
+        analysed = false;
     }
 
-    void step(const Model& m, State& s, double dt) {
+    void step(const Model& m, State& s, const StepOptions& opt) {
+        const double dt = opt.dt;
         if (nElems != m.elements() || nNodes != m.nodes()) build(m);
         // s.f and s.rot come from the force stage the caller just ran
         const double c = m.massDamping;
@@ -118,9 +134,28 @@ struct ImplicitWorkspace {
                 const int d = dofMap[3 * i + k];
                 if (d >= 0) rhs(d) = m.mass(i) * s.v(k, i) + dt * s.f(k, i);
             }
-        solver.factorize(A);
-        if (solver.info() != Eigen::Success) throw std::runtime_error("backward Euler: factorisation failed");
-        const Eigen::VectorXd vNew = solver.solve(rhs);
+        Eigen::VectorXd vNew;
+        iterations = 0;
+        if (opt.solver == ImplicitSolver::Direct) {
+            if (!analysed) { solver.analyzePattern(A); analysed = true; }
+            solver.factorize(A);
+            if (solver.info() != Eigen::Success) throw std::runtime_error("backward Euler: factorisation failed");
+            vNew = solver.solve(rhs);
+        } else {
+            // A is SPD (M > 0 on free DOFs, K_R semi-definite); v+ differs from v by dt a.
+            Eigen::VectorXd guess(A.rows());
+            for (int i = 0; i < nNodes; ++i)
+                for (int k = 0; k < 3; ++k)
+                    if (dofMap[3 * i + k] >= 0) guess(dofMap[3 * i + k]) = s.v(k, i);
+            cg.setTolerance(opt.cgTolerance);
+            cg.setMaxIterations(std::max<Eigen::Index>(1000, 10 * A.rows()));
+            cg.compute(A);
+            vNew = cg.solveWithGuess(rhs, guess);
+            iterations = static_cast<int>(cg.iterations());
+            if (cg.info() != Eigen::Success)
+                throw std::runtime_error("backward Euler: CG did not reach its tolerance in " + std::to_string(iterations) +
+                                         " iterations");
+        }
         for (int i = 0; i < nNodes; ++i)
             for (int k = 0; k < 3; ++k) {
                 const int d = dofMap[3 * i + k];
@@ -135,6 +170,7 @@ Stepper::~Stepper() = default;
 Stepper::Stepper(Stepper&&) noexcept = default;
 Stepper& Stepper::operator=(Stepper&&) noexcept = default;
 void Stepper::reset() { implicit_.reset(); }
+int Stepper::lastSolverIterations() const { return implicit_ ? implicit_->iterations : 0; }
 
 void checkFinite(const Model& m, State& s) {
     int bad = 0;
@@ -276,7 +312,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     case Integrator::BackwardEuler: {
         if (!implicit_) implicit_ = std::make_unique<ImplicitWorkspace>();
         forces(m, s, nullptr, watch);
-        implicit_->step(m, s, dt);
+        implicit_->step(m, s, opt);
         limit(m, s, opt, s.flags.nearFlat);
         break;
     }

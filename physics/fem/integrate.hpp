@@ -17,8 +17,19 @@ enum class Integrator {
     SymplecticEuler,    // v += dt a(x); x += dt v                         (METHOD.md sec. 2)
     CentralDifference,  // half-step velocities, centred damping            (METHOD.md sec. 2)
     Newmark,            // explicit Newmark beta=0, gamma=1/2, damping factor alpha (eqs. 3.11-3.12)
-    BackwardEuler,      // implicit reference, linearised corotational, sparse LDL^T
+    BackwardEuler,      // implicit reference, linearised corotational (solver: ImplicitSolver)
 };
+
+// The linear solver of each backward-Euler step.
+enum class ImplicitSolver {
+    Direct,             // sparse LDL^T (Eigen's simplicial, AMD ordering), refactorised every step
+    ConjugateGradient,  // Jacobi-preconditioned CG warm-started from the current velocity, as
+                        // interactive simulators run implicit Euler; cheap where dt^2 K is small
+                        // against M, dear where it dominates
+};
+
+ImplicitSolver parseImplicitSolver(const std::string& name);  // "direct" or "cg"; throws InputError
+const char* implicitSolverName(ImplicitSolver s);
 
 Integrator parseIntegrator(const std::string& name);   // throws InputError on an unknown name
 const char* integratorName(Integrator i);
@@ -32,6 +43,8 @@ struct StepOptions {
     double minStretch = 0;             // > 0: project elements whose smallest principal stretch is
                                        // below it back to it after the position update
                                        // (fem/forces.hpp limitStretch); 0: off
+    ImplicitSolver solver = ImplicitSolver::Direct;  // backward Euler only
+    double cgTolerance = 1e-9;         // CG: relative residual |A v - b| / |b| to stop at
 };
 
 // The force stage watches for elements whose smallest stretch may be within this margin above
@@ -56,6 +69,8 @@ public:
     void reset();
     // Wall time of the force stage (element forces and gather) in the last step [s].
     double lastForceSeconds() const { return forceSeconds_; }
+    // CG iterations of the last backward-Euler step (0 for the direct solver or other schemes).
+    int lastSolverIterations() const;
 
 private:
     void forces(const Model& model, State& state, const double* alpha, double watch);

@@ -150,12 +150,21 @@ void checkMiLumpingAndLiver(const json& j) {
     EXPECT_GT(eqErr, 0.0);
     EXPECT_LT(eqErr, 1.0);
     int liverPts = 0;
+    double plain = NAN, damped = NAN;
     for (const auto& p : j["points"])
         if (p["problem"] == "liver_sag") {
             ++liverPts;
             ASSERT_TRUE(p["error"].is_number()) << p.dump();
+            const std::string config = p["config"].get<std::string>();
+            if (config.rfind("explicit liver", 0) == 0) plain = p["error"].get<double>();
+            if (config.rfind("explicit alpha_e_0.95 liver", 0) == 0) damped = p["error"].get<double>();
         }
-    EXPECT_EQ(liverPts, 3);  // explicit and backward Euler on the coarse liver, explicit on the MI liver
+    // explicit, per-element damping at 1.5 x the limit and backward Euler on the coarse liver,
+    // explicit on the MI liver
+    EXPECT_EQ(liverPts, 4);
+    // Damping the few elements faster than 1.5 x the limit changes the sag little: their stiffness
+    // is scaled, but the equilibrium is set by the whole liver (a change of a few percent at most).
+    EXPECT_NEAR(damped, plain, 0.05 * plain);
     // The MI liver (6 cells across): its lattice step is several times the conforming liver's
     // (0.45 ms, Table 4.3), and its sag is the same physics: within the coarse mesh's own error
     // scale of the reference, not off by the whole sag.
@@ -248,14 +257,26 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
         }
         ++checked;
     }
-    EXPECT_EQ(checked, 3);  // explicit, backward Euler at dt = 0.01 and 0.003 (0.1 and 0.03 overdamp the mode)
+    // explicit at 0.9 and 0.98 of the limit, backward Euler at dt = 0.01 and 0.003 (0.1 and 0.03
+    // overdamp the mode), and its CG solve at 0.003, which must give the direct solve's error
+    EXPECT_EQ(checked, 5);
+    double direct = NAN, cg = NAN;
+    for (const auto& p : j["points"])
+        if (p["problem"] == "cantilever_frequency") {
+            if (p["config"] == "backward_euler 20x2x2 dt=0.003") direct = p["error"].get<double>();
+            if (p["config"] == "backward_euler cg 20x2x2 dt=0.003") cg = p["error"].get<double>();
+        }
+    EXPECT_NEAR(cg, direct, 1e-8 * direct);
     // The mesh is 26% off: no dt brings backward Euler to 1%, and nothing is projected.
     ASSERT_EQ(j["implicit_projection"].size(), 1u);
     const auto& pr = j["implicit_projection"][0];
     EXPECT_EQ(pr["tets"].get<int>(), 480);
     EXPECT_GT(pr["mesh_error"].get<double>(), 0.2);
     EXPECT_TRUE(pr["dt_at_1pct"].is_null());
-    EXPECT_GT(pr["step_seconds"].get<double>(), 0);
+    EXPECT_GT(pr["step_seconds_direct"].get<double>(), 0);
+    EXPECT_GT(pr["step_seconds_cg"].get<double>(), 0);
+    EXPECT_GT(pr["cg_iterations"].get<int>(), 0);
+    EXPECT_EQ(pr["step_seconds"].get<double>(), std::min(pr["step_seconds_direct"].get<double>(), pr["step_seconds_cg"].get<double>()));
     EXPECT_TRUE(j["summary"]["cantilever_frequency"]["implicit_cost_at_1pct_projected"].is_null());
 }
 

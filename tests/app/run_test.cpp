@@ -212,6 +212,28 @@ TEST(Run, RefusesZeroAndNegativeE) {
                   "integrator.min_stretch");
 }
 
+// integrator.solver: the implicit scheme's linear solver, refused on an explicit scheme; the
+// report says which solver ran and how many CG iterations its steps took.
+TEST(Run, ImplicitSolverKey) {
+    const std::string bar = test::source("assets/scenes/bar_sag.json");
+    expectRefused(bar, "--set integrator.solver=cg", "integrator.solver");
+    expectRefused(bar, "--set integrator.scheme=backward_euler --set integrator.solver=lu", "integrator.solver");
+    for (const char* solver : {"direct", "cg"}) {
+        json j = barSag();
+        j["integrator"] = {{"scheme", "backward_euler"}, {"solver", solver}, {"dt", {{"mode", "fixed"}, {"value", 0.002}}}};
+        j["duration"] = 0.02;
+        const std::string out = workDir() + "/" + solver;
+        std::string err;
+        ASSERT_EQ(test::runCutsim("run " + writeScene(workDir(), std::string(solver) + ".json", j) + " --out " + out +
+                                  " --no-render --quiet", nullptr, &err), 0) << err;
+        const json r = readReport(out);
+        EXPECT_EQ(r["steps"].get<long>(), 10);
+        EXPECT_EQ(r["implicit"]["solver"].get<std::string>(), solver);
+        if (std::string(solver) == "cg") EXPECT_GT(r["implicit"]["cg_iterations_max"].get<int>(), 0);
+        else EXPECT_EQ(r["implicit"]["cg_iterations_max"].get<int>(), 0);
+    }
+}
+
 TEST(Run, RefusesMissingMeshFile) {
     json j = barSag();
     j["object"] = {{"mesh", "nope.msh"}};
