@@ -67,6 +67,7 @@ struct AccuracyContext {
     int maxRes = 4;                 // finest explicit cantilever: 10N x N x N cubes
     std::vector<int> res;           // the cantilever resolutions N to run (ascending; maxRes is the last)
     int implicitMaxRes = 4;         // backward Euler runs in full up to this N; beyond, its step is timed
+    int cgMaxRes = 0;               // and beyond that, up to this N, its CG solve runs in full at its 1% dt
     bool quiet = false;             // no progress lines on stderr
     nlohmann::json* references = nullptr; // configurations add their problems' references here
 };

@@ -309,6 +309,7 @@ struct AccuracyArgs {
     std::vector<int> res;           // cantilever resolutions (empty: 1 .. maxRes)
     std::vector<int> refLevels;     // reference meshes (empty: 2, 4, 8)
     int implicitMaxRes = 4;
+    int cgMaxRes = 0;
     int threads = 0;                // worker threads of the explicit runs (0: all cores)
     std::vector<std::string> only;  // configuration groups to run (empty: all)
 };
@@ -565,6 +566,14 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
                          "dt for 1%%: %.4g s, projected %.4g s/s\n",
                          10 * r, r, r, pr.meshError, pr.directSeconds, pr.cgSeconds, pr.cgIterations, pr.dt, pr.cost);
         proj.push_back(pr);
+        // The projection checked where a full run is affordable: backward Euler with CG (the
+        // cheaper solve at this dt) at the dt the mode formula gives for 1%
+        if (r > ctx.implicitMaxRes && r <= ctx.cgMaxRes && pr.dt > 0) {
+            StepOptions cg{Integrator::BackwardEuler, pr.dt};
+            cg.solver = ImplicitSolver::ConjugateGradient;
+            std::snprintf(name, sizeof name, "backward_euler cg %dx%dx%d dt=%.3g", 10 * r, r, r, cg.dt);
+            log(predicted(runFrequencyPoint(ctx, m, cg, name), cg, fMesh[i]));
+        }
     }
     return pts;
 }
@@ -592,6 +601,7 @@ int runAccuracy(const AccuracyArgs& a) {
         ctx.res.erase(std::unique(ctx.res.begin(), ctx.res.end()), ctx.res.end());
         ctx.maxRes = ctx.res.back();
         ctx.implicitMaxRes = a.implicitMaxRes;
+        ctx.cgMaxRes = a.cgMaxRes;
         ctx.quiet = a.json;
         ctx.references = &refs;
         if (a.tiny) { ctx.bar.staticTime = 0.2; ctx.bar.frequencyTime = 0.5; }
@@ -1153,9 +1163,13 @@ void addBenchCommand(CLI::App& app) {
                                                                "is timed (its cost at 1% projected)")
             ->check(CLI::Range(0, 24))
             ->capture_default_str();
+        c->add_option("--cg-max-res", a->cgMaxRes, "Beyond --implicit-max-res and up to this N, run backward Euler with CG "
+                                                   "in full at the dt its mode formula gives for 1% (the projection, measured)")
+            ->check(CLI::Range(0, 24))
+            ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: coarse meshes, short runs");
-        c->add_option("--threads", a->threads, "Worker threads of the explicit runs (0 = all cores; backward Euler's "
-                                               "factorisation is sequential)")
+        c->add_option("--threads", a->threads, "Worker threads of the explicit runs and of CG's products (0 = all cores; "
+                                               "the LDL^T factorisation is sequential)")
             ->check(CLI::Range(0, 1024))
             ->capture_default_str();
         c->add_option("--only", a->only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
