@@ -499,7 +499,7 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
             log(runStaticPoint(ctx, m, opt, name));
             log(kuhn ? runFrequencyPoint(ctx, m, opt, name) : predicted(runFrequencyPoint(ctx, m, opt, name), opt, fMesh[i]));
             // The finest mesh also at 0.98 of its limit: the limit is exact (Lanczos), and plain
-            // schemes are stable to 0.995 of it and beyond (bench stability)
+            // schemes are stable to 0.999 of it (bench stability)
             if (!kuhn && r == ctx.res.back()) {
                 const StepOptions near{Integrator::SymplecticEuler, 0.98 * dtExact};
                 std::snprintf(name, sizeof name, "explicit %dx%dx%d f=0.98", 10 * r, r, r);

@@ -141,6 +141,9 @@ struct ImplicitWorkspace {
             solver.factorize(A);
             if (solver.info() != Eigen::Success) throw std::runtime_error("backward Euler: factorisation failed");
             vNew = solver.solve(rhs);
+        } else if (!rhs.allFinite()) {
+            // CG would iterate to its cap on NaNs; pass them on for checkFinite to flag
+            vNew = rhs;
         } else {
             // A is SPD (M > 0 on free DOFs, K_R semi-definite); v+ differs from v by dt a.
             Eigen::VectorXd guess(A.rows());

@@ -585,6 +585,19 @@ TEST(BackwardEuler, FreeBodyFallsByHand) {
     EXPECT_THROW(parseImplicitSolver("lu"), InputError);
 }
 
+// A non-finite velocity reaches the CG solve as a flag, at once, not as a search to the cap.
+TEST(BackwardEuler, CgFlagsNonFinite) {
+    Model m = cantilever(10, 2, ElementModel::Corotational);
+    State s = makeState(m);
+    s.v(2, m.nodes() - 1) = std::numeric_limits<double>::quiet_NaN();
+    Stepper st;
+    StepOptions opt{Integrator::BackwardEuler, 1e-3};
+    opt.solver = ImplicitSolver::ConjugateGradient;
+    st.step(m, s, opt);
+    EXPECT_GT(s.flags.nonFinite, 0);
+    EXPECT_EQ(st.lastSolverIterations(), 0);
+}
+
 // Non-finite values are flagged, not hidden.
 TEST(Stepper, FlagsNonFinite) {
     Model m = buildModel(test::boxMesh(1, 1, 1, 1, 1, 1), Material{});
