@@ -11,16 +11,21 @@ namespace cutsim {
 // Elastic force of elements [begin, end) into state.fe; alpha (nullable, nElems) scales each
 // element's force (per-element damping factor alpha_e, thesis eq. 3.16). Counts inverted elements
 // into *inverted and into *nearFlat (nullable) those whose smallest principal stretch may be below
-// watch (its lower bound 2 det F / |F|^2 is). Updates state.rot (corotational).
+// watch (its lower bound 2 det F / |F|^2 is). Updates state.rot of every element (corotational).
 void elementForces(const Model& model, State& state, const double* alpha, int begin, int end, int* inverted,
                    double watch = 0, int* nearFlat = nullptr);
 
 // Nodal force of nodes [begin, end): sum of incident element forces + gravity + fExt.
 void gatherForces(const Model& model, State& state, int begin, int end);
 
-// Both stages over all elements and nodes on all threads; fills state.f and state.flags.inverted
-// (and .nearFlat: elements whose smallest principal stretch may be below watch).
-void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0);
+// The nodal forces state.f (elastic + gravity + fExt) of all elements on all threads, bitwise the
+// same on any number of threads: each node sums its elements in element order, as gatherForces
+// after elementForces would. Fills state.flags.inverted (and .nearFlat: elements whose smallest
+// principal stretch may be below watch). state.rot is updated for every element with
+// allRotations (the implicit tangent needs it), else only for elements near flat, the ones whose
+// rotation is read back (forces.cpp, kKeepRotation); state.fe is scratch.
+void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0,
+                   bool allRotations = false);
 
 // Stretch limiting (strain limiting on the principal stretches by projection, as Thomaszewski,
 // Pabst, Strasser 2009 do for cloth): each element whose smallest principal stretch sigma3 is

@@ -182,9 +182,9 @@ void checkFinite(const Model& m, State& s) {
     s.flags.nonFinite = bad;
 }
 
-void Stepper::forces(const Model& m, State& s, const double* alpha, double watch) {
+void Stepper::forces(const Model& m, State& s, const double* alpha, double watch, bool allRotations) {
     const auto t0 = std::chrono::steady_clock::now();
-    computeForces(m, s, alpha, watch);
+    computeForces(m, s, alpha, watch, allRotations);
     forceSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -314,7 +314,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     }
     case Integrator::BackwardEuler: {
         if (!implicit_) implicit_ = std::make_unique<ImplicitWorkspace>();
-        forces(m, s, nullptr, watch);
+        forces(m, s, nullptr, watch, true);  // the tangent is assembled from every element's R
         implicit_->step(m, s, opt);
         limit(m, s, opt, s.flags.nearFlat);
         break;

@@ -73,7 +73,7 @@ public:
     int lastSolverIterations() const;
 
 private:
-    void forces(const Model& model, State& state, const double* alpha, double watch);
+    void forces(const Model& model, State& state, const double* alpha, double watch, bool allRotations = false);
     void limit(const Model& model, State& state, const StepOptions& opt, int nearFlat);
 
     std::unique_ptr<ImplicitWorkspace> implicit_;

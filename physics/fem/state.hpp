@@ -5,6 +5,8 @@
 
 #include <Eigen/Core>
 
+#include <vector>
+
 namespace cutsim {
 
 // Numerical trouble seen in the last step (DESIGN.md, error tier 3). Reset at every step.
@@ -25,7 +27,10 @@ struct State {
     Eigen::Matrix3Xd fExt;      // applied nodal forces, besides gravity (3 x nNodes) [N]
     Eigen::Matrix<double, 9, Eigen::Dynamic> rot; // element rotation R of the last force evaluation,
                                 // column-major 3x3 (9 x nElems); warm start for inverted elements
-    Eigen::Matrix<double, 12, Eigen::Dynamic> fe; // elastic force per element and local node (12 x nElems) [N]
+    Eigen::Matrix<double, 12, Eigen::Dynamic> fe; // elastic force per element and local node (12 x nElems) [N]:
+                                // all of it after elementForces; computeForces fills only the
+                                // slots of nodes whose elements span two threads' ranges
+    std::vector<unsigned char> sharedNode; // scratch of computeForces: node's elements span two ranges
     double time = 0;            // simulated time [s]
     long steps = 0;             // steps taken
     bool started = false;       // integrator history (a, half-step v) initialised

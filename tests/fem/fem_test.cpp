@@ -147,7 +147,8 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
         x.col(m.tets(0, 5)) = x.col(m.tets(1, 5)) + 0.5 * (x.col(m.tets(1, 5)) - x.col(m.tets(0, 5)));  // invert
         s.x = Rot * x;
         const Eigen::Matrix<double, 9, Eigen::Dynamic> rot0 = s.rot;
-        computeForces(m, s, alpha.data());
+        int kernelInverted = 0;
+        elementForces(m, s, alpha.data(), 0, m.elements(), &kernelInverted);
         int inverted = 0;
         const double lam = m.material.lambda(), mu = m.material.mu();
         const double fmax = s.fe.cwiseAbs().maxCoeff();
@@ -174,7 +175,7 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
             }
         }
         EXPECT_GE(inverted, 1);
-        EXPECT_EQ(s.flags.inverted, inverted);
+        EXPECT_EQ(kernelInverted, inverted);
         // ranges that split blocks (as thread ranges may) give the same forces
         const Eigen::Matrix<double, 12, Eigen::Dynamic> fe = s.fe;
         s.fe.setZero();
@@ -184,7 +185,66 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
         for (int k = 0; k < 4; ++k) elementForces(m, s, alpha.data(), cuts[k], cuts[k + 1], &inv2);
         EXPECT_EQ(inv2, inverted);
         EXPECT_LT((s.fe - fe).cwiseAbs().maxCoeff(), 1e-14 * fmax);
+        // the fused force stage: each node's sum of its element slots plus gravity, and the flags
+        m.gravity << 0.5, -1, -9.81;
+        s.fExt.setRandom();
+        Eigen::Matrix3Xd f(3, m.nodes());
+        for (int i = 0; i < m.nodes(); ++i) {
+            f.col(i) = s.fExt.col(i) + m.mass(i) * m.gravity;
+            for (int e = 0; e < m.elements(); ++e)
+                for (int a = 0; a < 4; ++a)
+                    if (m.tets(a, e) == i) f.col(i) += fe.col(e).segment<3>(3 * a);
+        }
+        s.rot = rot0;
+        computeForces(m, s, alpha.data());
+        EXPECT_LT((s.f - f).cwiseAbs().maxCoeff(), 1e-14 * fmax);
+        EXPECT_EQ(s.flags.inverted, inverted);
     }
+}
+
+// The fused force stage sums each node in element order on any number of threads: its forces are
+// bitwise those of elementForces then gatherForces, on one thread and on two (a mesh above the
+// parallel threshold, so the two threads' element ranges share a layer of nodes). Without
+// allRotations only elements near flat store their rotation; with it, all do.
+TEST(Forces, FusedStageIsBitwiseTheGatherOnAnyThreads) {
+    Model m = buildModel(test::boxMesh(1, 1, 0.25, 16, 16, 6), Material{});
+    ASSERT_GE(m.elements(), 9000);
+    m.gravity << 0, 0, -9.81;
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> U(-1, 1);
+    State s0 = makeState(m);
+    for (int i = 0; i < m.nodes(); ++i) s0.x.col(i) += 0.01 * Eigen::Vector3d(U(rng), U(rng), U(rng));
+    s0.x.col(m.tets(0, 100)) = s0.x.col(m.tets(1, 100));  // flattens element 100 (and bends its neighbours)
+    s0.fExt.setRandom();
+    State ref = s0;
+    elementForces(m, ref, nullptr, 0, m.elements(), nullptr);
+    gatherForces(m, ref, 0, m.nodes());
+    for (int threads : {1, 2}) {
+        setThreads(threads);
+        for (bool all : {false, true}) {
+            State s = s0;
+            s.rot.setConstant(7.0);  // not a rotation: shows which were written
+            computeForces(m, s, nullptr, 0, all);
+            EXPECT_EQ((s.f - ref.f).cwiseAbs().maxCoeff(), 0.0) << threads << " threads";
+            int written = 0;
+            for (int e = 0; e < m.elements(); ++e) {
+                const bool w = s.rot(0, e) != 7.0;
+                written += w;
+                if (w) {
+                    EXPECT_EQ(s.rot.col(e), ref.rot.col(e)) << "element " << e;
+                }
+                const int* n = m.tets.col(e).data();
+                Eigen::Matrix3d Ds;
+                Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
+                if ((Ds * m.dmInv(e)).determinant() < 0.01) {
+                    EXPECT_TRUE(w) << "element " << e << " is near flat";
+                }
+            }
+            if (all) EXPECT_EQ(written, m.elements());
+            else EXPECT_LT(written, m.elements() / 100) << "the others' rotations are not stored";
+        }
+    }
+    setThreads(0);
 }
 
 // The rotation of an inverted F is the invertible-FEM one (Irving et al. 2004): a proper rotation
