@@ -7,6 +7,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 namespace cutsim {
@@ -279,7 +280,12 @@ void gatherForces(const Model& m, State& s, int begin, int end) {
     for (int i = begin; i < end; ++i) gatherNode(m, s, i);
 }
 
-void computeForces(const Model& m, State& s, const double* alpha, double watch, bool allRotations) {
+void computeForces(const Model& m, State& s, const double* alpha, double watch, bool allRotations,
+                   ForceStageSeconds* times) {
+    using Clock = std::chrono::steady_clock;
+    const auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
+    Clock::time_point t0;
+    if (times) t0 = Clock::now();
     int inverted = 0, nearFlat = 0;
     const int ne = m.elements(), nn = m.nodes();
     s.sharedNode.resize(static_cast<size_t>(nn));
@@ -299,11 +305,15 @@ void computeForces(const Model& m, State& s, const double* alpha, double watch, 
             s.sharedNode[static_cast<size_t>(i)] = shared;
         }
 #pragma omp barrier
+        // phase times: the first thread's clock at the barriers that end the phases
+        if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
         elementBlocks(m, s, alpha, split(ne, t), split(ne, t + 1), &inverted, watch, &nearFlat, out);
 #pragma omp barrier
+        if (times && t == 0) { times->elements += since(t0); t0 = Clock::now(); }
         for (int i = split(nn, t); i < split(nn, t + 1); ++i)
             if (s.sharedNode[static_cast<size_t>(i)]) gatherNode(m, s, i);
     }
+    if (times) times->nodes += since(t0);
     s.flags.inverted = inverted;
     s.flags.nearFlat = nearFlat;
     s.flags.firstInverted = -1;

@@ -24,8 +24,13 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 // principal stretch may be below watch). state.rot is updated for every element with
 // allRotations (the implicit tangent needs it), else only for elements near flat, the ones whose
 // rotation is read back (forces.cpp, kKeepRotation); state.fe is scratch.
+// times (nullable) accumulates the wall time of its phases.
+struct ForceStageSeconds {
+    double elements = 0;  // element kernel, adding into the nodes of one thread
+    double nodes = 0;     // each node's load and shared flag before, the shared nodes' sums after
+};
 void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0,
-                   bool allRotations = false);
+                   bool allRotations = false, ForceStageSeconds* times = nullptr);
 
 // Stretch limiting (strain limiting on the principal stretches by projection, as Thomaszewski,
 // Pabst, Strasser 2009 do for cloth): each element whose smallest principal stretch sigma3 is
