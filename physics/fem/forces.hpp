@@ -1,5 +1,6 @@
 // Internal forces of linear and corotational tets (METHOD.md sec. 1, thesis eq. 2.41).
-// Hot loops are free functions over an index range: gather, compute, scatter-free.
+// Hot loops are free functions over an index range: gather, compute, scatter into the nodes the
+// thread alone touches (computeForces); no locks, no atomics.
 #pragma once
 
 #include "fem/state.hpp"
@@ -20,7 +21,8 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 
 // The nodal forces state.f (elastic + gravity + fExt) of all elements on all threads, bitwise the
 // same on any number of threads: each node sums its elements in element order, as gatherForces
-// after elementForces would. Fills state.flags.inverted (and .nearFlat: elements whose smallest
+// after elementForces would (which is what it does on small meshes; on large ones the kernel adds
+// into the nodes a thread alone touches, forces.cpp kFusedElements). Fills state.flags.inverted (and .nearFlat: elements whose smallest
 // principal stretch may be below watch). state.rot is updated for every element with
 // allRotations (the implicit tangent needs it), else only for elements near flat, the ones whose
 // rotation is read back (forces.cpp, kKeepRotation); state.fe is scratch.

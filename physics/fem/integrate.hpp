@@ -1,6 +1,7 @@
 // Time integration. The stages of one step, in this order (DESIGN.md convention 3):
 //   1. contact   (tools; applied as fExt by the caller before step())
-//   2. forces    computeForces: element stage, then node gather
+//   2. forces    computeForces: node loads, element stage adding into each thread's own nodes,
+//                then the nodes two threads share
 //   3. integrate velocity and position update of the chosen scheme; fixed nodes stay put
 //   4. checks    stretch limiting when asked; non-finite values and inverted elements into state.flags
 #pragma once

@@ -28,8 +28,8 @@ struct State {
     Eigen::Matrix<double, 9, Eigen::Dynamic> rot; // element rotation R of the last force evaluation,
                                 // column-major 3x3 (9 x nElems); warm start for inverted elements
     Eigen::Matrix<double, 12, Eigen::Dynamic> fe; // elastic force per element and local node (12 x nElems) [N]:
-                                // all of it after elementForces; computeForces fills only the
-                                // slots of nodes whose elements span two threads' ranges
+                                // all of it after elementForces; scratch of computeForces, which
+                                // on large meshes fills only the slots of nodes two threads share
     std::vector<unsigned char> sharedNode; // scratch of computeForces: node's elements span two ranges
     double time = 0;            // simulated time [s]
     long steps = 0;             // steps taken

@@ -10,6 +10,7 @@
 #include <Eigen/SVD>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 using namespace cutsim;
@@ -202,46 +203,55 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
     }
 }
 
-// The fused force stage sums each node in element order on any number of threads: its forces are
-// bitwise those of elementForces then gatherForces, on one thread and on two (a mesh above the
-// parallel threshold, so the two threads' element ranges share a layer of nodes). Without
-// allRotations only elements near flat store their rotation; with it, all do.
-TEST(Forces, FusedStageIsBitwiseTheGatherOnAnyThreads) {
-    Model m = buildModel(test::boxMesh(1, 1, 0.25, 16, 16, 6), Material{});
-    ASSERT_GE(m.elements(), 9000);
-    m.gravity << 0, 0, -9.81;
-    std::mt19937 rng(11);
-    std::uniform_real_distribution<double> U(-1, 1);
-    State s0 = makeState(m);
-    for (int i = 0; i < m.nodes(); ++i) s0.x.col(i) += 0.01 * Eigen::Vector3d(U(rng), U(rng), U(rng));
-    s0.x.col(m.tets(0, 100)) = s0.x.col(m.tets(1, 100));  // flattens element 100 (and bends its neighbours)
-    s0.fExt.setRandom();
-    State ref = s0;
-    elementForces(m, ref, nullptr, 0, m.elements(), nullptr);
-    gatherForces(m, ref, 0, m.nodes());
-    for (int threads : {1, 2}) {
-        setThreads(threads);
-        for (bool all : {false, true}) {
-            State s = s0;
-            s.rot.setConstant(7.0);  // not a rotation: shows which were written
-            computeForces(m, s, nullptr, 0, all);
-            EXPECT_EQ((s.f - ref.f).cwiseAbs().maxCoeff(), 0.0) << threads << " threads";
-            int written = 0;
-            for (int e = 0; e < m.elements(); ++e) {
-                const bool w = s.rot(0, e) != 7.0;
-                written += w;
-                if (w) {
-                    EXPECT_EQ(s.rot.col(e), ref.rot.col(e)) << "element " << e;
+// computeForces sums each node in element order on any number of threads, both on meshes small
+// enough for the per-element slots (9216 tets) and on those where the kernel adds into the nodes
+// (34,560 tets, above kFusedElements): its forces are bitwise those of elementForces then
+// gatherForces, on one thread and on two (both meshes are above the parallel threshold, so the two
+// threads' element ranges share a layer of nodes). Without allRotations only elements near flat
+// store their rotation; with it, all do.
+TEST(Forces, ForceStageIsBitwiseTheGatherOnAnyThreads) {
+    for (int nz : {6, 10}) {
+        const int nxy = nz == 6 ? 16 : 24;
+        Model m = buildModel(test::boxMesh(1, 1, 0.25, nxy, nxy, nz), Material{});
+        ASSERT_GE(m.elements(), 9000);
+        m.gravity << 0, 0, -9.81;
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<double> U(-1, 1);
+        State s0 = makeState(m);
+        const double h = std::min(1.0 / nxy, 0.25 / nz);
+        for (int i = 0; i < m.nodes(); ++i) s0.x.col(i) += 0.15 * h * Eigen::Vector3d(U(rng), U(rng), U(rng));
+        s0.x.col(m.tets(0, 100)) = s0.x.col(m.tets(1, 100));  // flattens element 100 (and bends its neighbours)
+        s0.fExt.setRandom();
+        State ref = s0;
+        elementForces(m, ref, nullptr, 0, m.elements(), nullptr);
+        gatherForces(m, ref, 0, m.nodes());
+        for (int threads : {1, 2}) {
+            setThreads(threads);
+            for (bool all : {false, true}) {
+                State s = s0;
+                s.rot.setConstant(7.0);  // not a rotation: shows which were written
+                computeForces(m, s, nullptr, 0, all);
+                EXPECT_EQ((s.f - ref.f).cwiseAbs().maxCoeff(), 0.0) << m.elements() << " tets, " << threads << " threads";
+                int written = 0;
+                for (int e = 0; e < m.elements(); ++e) {
+                    const bool w = s.rot(0, e) != 7.0;
+                    written += w;
+                    if (w) {
+                        EXPECT_EQ(s.rot.col(e), ref.rot.col(e)) << "element " << e;
+                    }
+                    const int* n = m.tets.col(e).data();
+                    Eigen::Matrix3d Ds;
+                    Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
+                    if ((Ds * m.dmInv(e)).determinant() < 0.01) {
+                        EXPECT_TRUE(w) << "element " << e << " is near flat";
+                    }
                 }
-                const int* n = m.tets.col(e).data();
-                Eigen::Matrix3d Ds;
-                Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
-                if ((Ds * m.dmInv(e)).determinant() < 0.01) {
-                    EXPECT_TRUE(w) << "element " << e << " is near flat";
+                if (all) {
+                    EXPECT_EQ(written, m.elements());
+                } else {
+                    EXPECT_LT(written, m.elements() / 100) << "the others' rotations are not stored";
                 }
             }
-            if (all) EXPECT_EQ(written, m.elements());
-            else EXPECT_LT(written, m.elements() / 100) << "the others' rotations are not stored";
         }
     }
     setThreads(0);
