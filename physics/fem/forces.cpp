@@ -112,8 +112,8 @@ namespace {
 // gravity and applied force), in element order; a node shared with another thread's range
 // (shared[node] != 0) takes its slot in state.fe, summed after the barrier in the same element
 // order. Either way a node's sum runs in the order of gatherForces: the forces are bitwise the
-// same on any number of threads, and the per-element array is neither written nor read back for
-// the other nodes (it was ~2/3 of a step's memory traffic at 100k tets).
+// same on any number of threads, and the per-element array (96 bytes an element, against ~100
+// read for the element's inputs) is neither written nor read back for the other nodes.
 struct ForceOut {
     double* f = nullptr;
     const unsigned char* shared = nullptr;  // null with f: no node is shared
@@ -123,16 +123,18 @@ struct ForceOut {
 // state.rot is read back only as the tie-break of invertibleRotation, for an element whose det F
 // has come near 0. Without allRotations the kernel stores R only where the lower bound
 // 2 det F / |F|^2 of the smallest principal stretch is below 0.4 (it is 2/3 at rest), so every
-// element on its way to flat keeps its last rotation fresh, and the other 72 bytes an element
-// (~a third of the step's remaining stores) are not written. An element that goes from a bound of
+// element on its way to flat keeps its last rotation fresh, and the other elements' 72 bytes are
+// not written. An element that goes from a bound of
 // 0.4 to flat in one step (a node crossing ~half its element in one stable step) breaks a tie
 // against an older rotation of its own.
 constexpr double kKeepRotation = 0.4;
 
 // From this many elements on, computeForces adds into the nodes in the kernel: state.fe (96 bytes
 // an element, 3 MB here) no longer stays in the two cores' 1 MB L2 caches between the element pass
-// and the node pass. Below it, that round trip is cheaper than the fused stage's node flags and
-// extra barrier (measured: 10k tets 5-15% faster on two threads, 105k tets 13% slower).
+// and the node pass. Below it, that round trip costs less than the fused stage's node flags and
+// extra barrier. Measured (BENCHMARKS.md, step throughput): on 10k tets the fused stage was 3-16%
+// dearer on two threads; on 105k tets it is 1.2-1.4x cheaper on one thread, and on two within
+// this machine's spread.
 constexpr int kFusedElements = 32768;
 
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes); lanes past count are padded
@@ -302,7 +304,7 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
                     ForceStageSeconds* times, int& inverted, int& nearFlat) {
     const int ne = m.elements(), nn = m.nodes();
     const ForceOut out{nullptr, nullptr, allRotations};
-    Clock::time_point t0 = Clock::now();
+    Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
     int inv = 0, near = 0;
 #pragma omp parallel reduction(+ : inv, near) if (ne >= kParallelElements)
     {
@@ -324,7 +326,7 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
                  ForceStageSeconds* times, int& inverted, int& nearFlat) {
     const int ne = m.elements(), nn = m.nodes();
     s.sharedNode.resize(static_cast<size_t>(nn));
-    Clock::time_point t0 = Clock::now();
+    Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
     int inv = 0, near = 0;
 #pragma omp parallel reduction(+ : inv, near) if (ne >= kParallelElements)
     {

@@ -46,7 +46,9 @@ struct Model {
     // Empty for an uncut model.
     std::vector<int> lightNodes;
 
-    // Node -> incident element slots (CSR): slot s = 4*e + a means local node a of element e.
+    // Node -> incident element slots (CSR): slot s = 4*e + a means local node a of element e; a
+    // node's slots in ascending element order (computeForces sums in it and finds the nodes two
+    // threads share from the first and last).
     std::vector<int> nodeSlotStart;  // (nNodes + 1)
     std::vector<int> nodeSlots;      // (4 * nElems)
 
