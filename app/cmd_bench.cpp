@@ -446,15 +446,16 @@ struct ImplicitProjection {
     double cost = INFINITY;     // stepSeconds() / dt [s/s]
 };
 
-// Wall time of one backward-Euler step of m (the median of `steps`, after a first step that
-// builds the pattern and its ordering), and the CG iterations of that step. The cantilever starts
-// from rest under gravity, so the timed steps are those of the run's start.
+// Backward Euler at dt with the given linear solver.
 StepOptions backwardEulerOptions(double dt, ImplicitSolver solver) {
     StepOptions opt{Integrator::BackwardEuler, dt};
     opt.solver = solver;
     return opt;
 }
 
+// Wall time of one backward-Euler step of m (the median of `steps`, after a first step that
+// builds the pattern and its ordering), and the CG iterations of that step. The cantilever starts
+// from rest under gravity, so the timed steps are those of the run's start.
 std::pair<double, int> backwardEulerStepSeconds(const Model& m0, double dt, int steps, ImplicitSolver solver) {
     Model m = m0;
     m.massDamping = 0;

@@ -133,7 +133,7 @@ constexpr double kKeepRotation = 0.4;
 // an element, 3 MB here) no longer stays in the two cores' 1 MB L2 caches between the element pass
 // and the node pass. Below it, that round trip costs less than the fused stage's node flags and
 // extra barrier. Measured (BENCHMARKS.md, step throughput): on 10k tets the fused stage was 3-16%
-// dearer on two threads; on 105k tets it is 1.2-1.4x cheaper on one thread, and on two within
+// dearer on two threads; on 105k tets it is 1.16-1.4x cheaper on one thread, and on two within
 // this machine's spread.
 constexpr int kFusedElements = 32768;
 

@@ -29,7 +29,8 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 // times (nullable) accumulates the wall time of its phases.
 struct ForceStageSeconds {
     double elements = 0;  // element kernel, adding into the nodes of one thread
-    double nodes = 0;     // each node's load and shared flag before, the shared nodes' sums after
+    double nodes = 0;     // outside the kernel: below kFusedElements the gather; above, each
+                          // node's load and shared flag before and the shared nodes' sums after
 };
 void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0,
                    bool allRotations = false, ForceStageSeconds* times = nullptr);
