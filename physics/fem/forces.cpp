@@ -143,6 +143,26 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
                         bool corot, double watch, int* nearFlat, const ForceOut& out) {
     Lane Ds[9], Dm[9], scale;
     const double* xs = s.x.data();
+#ifdef CUTSIM_LANE_TRANSPOSE
+    if (count == kLanes) {
+        // A full block: each lane's 3-vectors (node positions, DmInv columns) read whole and
+        // transposed in registers; the same values as the per-lane copies below, bitwise.
+        const double* p[kLanes];
+        Lane node[4][3];
+        for (int a = 0; a < 4; ++a) {
+            for (int l = 0; l < kLanes; ++l) p[l] = xs + 3 * m.tets(a, e0 + l);
+            transposeLanes3(p, node[a]);
+        }
+        for (int a = 0; a < 3; ++a)
+            for (int r = 0; r < 3; ++r) Ds[3 * a + r] = node[a + 1][r] - node[0][r];
+        for (int c = 0; c < 3; ++c) {
+            for (int l = 0; l < kLanes; ++l) p[l] = m.DmInv.col(e0 + l).data() + 3 * c;
+            transposeLanes3(p, Dm + 3 * c);
+        }
+        scale = -loadLanes(m.volume.data() + e0) * loadLanes(m.fraction.data() + e0);
+        if (alpha) scale *= loadLanes(alpha + e0);
+    } else
+#endif
     for (int l = 0; l < kLanes; ++l) {
         if (l < count) {
             const int e = e0 + l;
@@ -229,6 +249,33 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
         for (int r = 0; r < 3; ++r)
             P[3 + 3 * c + r] = scale * (RS[r] * Dm[c] + RS[3 + r] * Dm[3 + c] + RS[6 + r] * Dm[6 + c]);
     for (int r = 0; r < 3; ++r) P[r] = -(P[3 + r] + P[6 + r] + P[9 + r]);
+#ifdef CUTSIM_LANE_TRANSPOSE
+    if (count == kLanes) {
+        // each node's force of each lane as one 3-vector, added or stored by masked 4-wide access
+        __m256d fa[4][kLanes];
+        for (int a = 0; a < 4; ++a) untransposeLanes3(P + 3 * a, fa[a]);
+        for (int l = 0; l < kLanes; ++l) {
+            double* fe = s.fe.col(e0 + l).data();
+            const int* n = m.tets.col(e0 + l).data();
+            for (int a = 0; a < 4; ++a) {
+                if (out.f && !(out.shared && out.shared[n[a]])) {
+                    // scalar adds: a masked store does not forward to the next lane's load of a shared node
+                    double* fn = out.f + 3 * n[a];
+                    fn[0] += fa[a][l][0];
+                    fn[1] += fa[a][l][1];
+                    fn[2] += fa[a][l][2];
+                } else {
+                    _mm256_mask_storeu_pd(fe + 3 * a, 0x7, fa[a][l]);
+                }
+            }
+            if (corot && (out.allRotations || 2 * det[l] < kKeepRotation * f2[l])) {
+                double* rot = s.rot.col(e0 + l).data();
+                for (int k = 0; k < 9; ++k) rot[k] = X[k][l];
+            }
+        }
+        return inv;
+    }
+#endif
     for (int l = 0; l < count; ++l) {
         double* fe = s.fe.col(e0 + l).data();
         if (out.f) {

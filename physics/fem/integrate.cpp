@@ -175,6 +175,10 @@ Stepper& Stepper::operator=(Stepper&&) noexcept = default;
 void Stepper::reset() { implicit_.reset(); }
 int Stepper::lastSolverIterations() const { return implicit_ ? implicit_->iterations : 0; }
 
+namespace {
+inline int nonFinite(const State& s, int i) { return !s.x.col(i).allFinite() || !s.v.col(i).allFinite(); }
+} // namespace
+
 void checkFinite(const Model& m, State& s) {
     int bad = 0;
     for (int i = 0; i < m.nodes(); ++i)
@@ -256,13 +260,18 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
         forces(m, s, alpha, watch);
         // damping taken implicitly so it never limits the step: v = (v + dt a) / (1 + c dt)
         const double damp = 1.0 / (1.0 + c * dt);
-#pragma omp parallel for schedule(static) if (n >= kParallelNodes)
+        int bad = 0;
+#pragma omp parallel for schedule(static) reduction(+ : bad) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             const double w = m.invMass(i);
-            if (w == 0) { s.v.col(i).setZero(); continue; }
-            s.v.col(i) = (s.v.col(i) + dt * w * s.f.col(i)) * damp;
-            s.x.col(i) += dt * s.v.col(i);
+            if (w == 0) s.v.col(i).setZero();
+            else {
+                s.v.col(i) = (s.v.col(i) + dt * w * s.f.col(i)) * damp;
+                s.x.col(i) += dt * s.v.col(i);
+            }
+            bad += nonFinite(s, i);
         }
+        s.flags.nonFinite = bad;
         if (!m.lightNodes.empty()) dampLight(m, s, dt);
         limit(m, s, opt, s.flags.nearFlat);
         break;
@@ -273,13 +282,18 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
         forces(m, s, alpha, watch);
         const double h = s.started ? dt : 0.5 * dt;
         const double cm = 1.0 - 0.5 * c * h, cp = 1.0 / (1.0 + 0.5 * c * h);
-#pragma omp parallel for schedule(static) if (n >= kParallelNodes)
+        int bad = 0;
+#pragma omp parallel for schedule(static) reduction(+ : bad) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             const double w = m.invMass(i);
-            if (w == 0) { s.v.col(i).setZero(); continue; }
-            s.v.col(i) = (cm * s.v.col(i) + h * w * s.f.col(i)) * cp;
-            s.x.col(i) += dt * s.v.col(i);
+            if (w == 0) s.v.col(i).setZero();
+            else {
+                s.v.col(i) = (cm * s.v.col(i) + h * w * s.f.col(i)) * cp;
+                s.x.col(i) += dt * s.v.col(i);
+            }
+            bad += nonFinite(s, i);
         }
+        s.flags.nonFinite = bad;
         if (!m.lightNodes.empty()) dampLight(m, s, dt);
         s.started = true;
         limit(m, s, opt, s.flags.nearFlat);
@@ -322,7 +336,10 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     }
     s.time += dt;
     ++s.steps;
-    checkFinite(m, s);
+    // The first-order schemes count non-finite nodes in their update pass; a second pass over
+    // every node is needed only where nodes moved after it (light-node damping, stretch limiting).
+    const bool counted = opt.integrator == Integrator::SymplecticEuler || opt.integrator == Integrator::CentralDifference;
+    if (!counted || !m.lightNodes.empty() || s.flags.limited > 0) checkFinite(m, s);
 }
 
 } // namespace cutsim
