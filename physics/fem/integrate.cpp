@@ -336,8 +336,9 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     }
     s.time += dt;
     ++s.steps;
-    // The first-order schemes count non-finite nodes in their update pass; a second pass over
-    // every node is needed only where nodes moved after it (light-node damping, stretch limiting).
+    // Symplectic Euler and central difference count non-finite nodes in their update pass; a
+    // second pass over every node is needed only where nodes moved after it (light-node damping,
+    // stretch limiting).
     const bool counted = opt.integrator == Integrator::SymplecticEuler || opt.integrator == Integrator::CentralDifference;
     if (!counted || !m.lightNodes.empty() || s.flags.limited > 0) checkFinite(m, s);
 }
