@@ -270,13 +270,8 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
                     _mm256_mask_storeu_pd(fe + 3 * a, 0x7, fa[a][l]);
                 }
             }
-            if (corot && (out.allRotations || 2 * det[l] < kKeepRotation * f2[l])) {
-                double* rot = s.rot.col(e0 + l).data();
-                for (int k = 0; k < 9; ++k) rot[k] = X[k][l];
-            }
         }
-        return inv;
-    }
+    } else
 #endif
     for (int l = 0; l < count; ++l) {
         double* fe = s.fe.col(e0 + l).data();
@@ -292,11 +287,12 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
         } else {
             for (int k = 0; k < 12; ++k) fe[k] = P[k][l];
         }
-        if (corot && (out.allRotations || 2 * det[l] < kKeepRotation * f2[l])) {
+    }
+    for (int l = 0; l < count && corot; ++l)
+        if (out.allRotations || 2 * det[l] < kKeepRotation * f2[l]) {
             double* rot = s.rot.col(e0 + l).data();
             for (int k = 0; k < 9; ++k) rot[k] = X[k][l];
         }
-    }
     return inv;
 }
 

@@ -181,8 +181,7 @@ inline int nonFinite(const State& s, int i) { return !s.x.col(i).allFinite() || 
 
 void checkFinite(const Model& m, State& s) {
     int bad = 0;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (!s.x.col(i).allFinite() || !s.v.col(i).allFinite()) ++bad;
+    for (int i = 0; i < m.nodes(); ++i) bad += nonFinite(s, i);
     s.flags.nonFinite = bad;
 }
 
