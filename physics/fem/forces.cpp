@@ -338,6 +338,21 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
+// The NodeUpdate of nodes [begin, end); returns how many are not finite after it.
+int updateNodes(const Model& m, State& s, const NodeUpdate& u, int begin, int end) {
+    int bad = 0;
+    for (int i = begin; i < end; ++i) {
+        const double w = m.invMass(i);
+        if (w == 0) s.v.col(i).setZero();
+        else {
+            s.v.col(i) = (u.a * s.v.col(i) + u.h * w * s.f.col(i)) * u.b;
+            s.x.col(i) += u.dt * s.v.col(i);
+        }
+        bad += nonFiniteNode(s, i);
+    }
+    return bad;
+}
+
 // Thread t's share [split(n, t), split(n, t + 1)) of n items.
 struct Split {
     int nt;
@@ -346,12 +361,12 @@ struct Split {
 
 // Small meshes: every element into state.fe, one barrier, then each node's sum.
 void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch, bool allRotations,
-                    ForceStageSeconds* times, int& inverted, int& nearFlat) {
+                    ForceStageSeconds* times, NodeUpdate* up, int& inverted, int& nearFlat) {
     const int ne = m.elements(), nn = m.nodes();
     const ForceOut out{nullptr, nullptr, allRotations};
     Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
-    int inv = 0, near = 0;
-#pragma omp parallel reduction(+ : inv, near) if (ne >= kParallelElements)
+    int inv = 0, near = 0, bad = 0;
+#pragma omp parallel reduction(+ : inv, near, bad) if (ne >= kParallelElements)
     {
         const int t = omp_get_thread_num();
         const Split split{omp_get_num_threads()};
@@ -359,8 +374,13 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
 #pragma omp barrier
         if (times && t == 0) { times->elements += since(t0); t0 = Clock::now(); }
         gatherForces(m, s, split(nn, t), split(nn, t + 1));
+        if (up) {
+            if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
+            bad += updateNodes(m, s, *up, split(nn, t), split(nn, t + 1));
+        }
     }
-    if (times) times->nodes += since(t0);
+    if (times) (up ? times->update : times->nodes) += since(t0);
+    if (up) up->nonFinite = bad;
     inverted = inv;
     nearFlat = near;
 }
@@ -368,12 +388,12 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
 // Large meshes: each node's load first, then the kernel adds into the nodes its thread alone
 // touches; the nodes two threads share are summed from their slots after the last barrier.
 void forcesFused(const Model& m, State& s, const double* alpha, double watch, bool allRotations,
-                 ForceStageSeconds* times, int& inverted, int& nearFlat) {
+                 ForceStageSeconds* times, NodeUpdate* up, int& inverted, int& nearFlat) {
     const int ne = m.elements(), nn = m.nodes();
     s.sharedNode.resize(static_cast<size_t>(nn));
     Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
-    int inv = 0, near = 0;
-#pragma omp parallel reduction(+ : inv, near) if (ne >= kParallelElements)
+    int inv = 0, near = 0, bad = 0;
+#pragma omp parallel reduction(+ : inv, near, bad) if (ne >= kParallelElements)
     {
         const int nt = omp_get_num_threads(), t = omp_get_thread_num();
         const Split split{nt};
@@ -397,8 +417,14 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
         if (times && t == 0) { times->elements += since(t0); t0 = Clock::now(); }
         for (int i = split(nn, t); i < split(nn, t + 1) && nt > 1; ++i)
             if (s.sharedNode[static_cast<size_t>(i)]) gatherNode(m, s, i);
+        // this thread's nodes now hold their sums: the other threads add only into their own
+        if (up) {
+            if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
+            bad += updateNodes(m, s, *up, split(nn, t), split(nn, t + 1));
+        }
     }
-    if (times) times->nodes += since(t0);
+    if (times) (up ? times->update : times->nodes) += since(t0);
+    if (up) up->nonFinite = bad;
     inverted = inv;
     nearFlat = near;
 }
@@ -406,11 +432,11 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
 } // namespace
 
 void computeForces(const Model& m, State& s, const double* alpha, double watch, bool allRotations,
-                   ForceStageSeconds* times) {
+                   ForceStageSeconds* times, NodeUpdate* update) {
     int inverted = 0, nearFlat = 0;
     const int ne = m.elements();
-    if (ne < kFusedElements) forcesViaSlots(m, s, alpha, watch, allRotations, times, inverted, nearFlat);
-    else forcesFused(m, s, alpha, watch, allRotations, times, inverted, nearFlat);
+    if (ne < kFusedElements) forcesViaSlots(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
+    else forcesFused(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
     s.flags.inverted = inverted;
     s.flags.nearFlat = nearFlat;
     s.flags.firstInverted = -1;

@@ -31,9 +31,22 @@ struct ForceStageSeconds {
     double elements = 0;  // element kernel, adding into the nodes of one thread
     double nodes = 0;     // outside the kernel: below kFusedElements the gather; above, each
                           // node's load and shared flag before and the shared nodes' sums after
+    double update = 0;    // the NodeUpdate, timed on the first thread
+};
+// Whether node i's position or velocity has a non-finite component.
+inline bool nonFiniteNode(const State& s, int i) { return !s.x.col(i).allFinite() || !s.v.col(i).allFinite(); }
+
+// An explicit velocity and position update run by computeForces inside its parallel region, on
+// each thread's nodes once their forces are summed (one fork and join and one pass over the
+// nodes fewer than a loop of its own): v <- (a v + (h w) f) b, x <- x + dt v for a free node of
+// inverse mass w; v <- 0 for a prescribed one. nonFinite counts the nodes whose x or v is then
+// not finite.
+struct NodeUpdate {
+    double a = 1, h = 0, b = 1, dt = 0;
+    int nonFinite = 0;
 };
 void computeForces(const Model& model, State& state, const double* alpha = nullptr, double watch = 0,
-                   bool allRotations = false, ForceStageSeconds* times = nullptr);
+                   bool allRotations = false, ForceStageSeconds* times = nullptr, NodeUpdate* update = nullptr);
 
 // Stretch limiting (strain limiting on the principal stretches by projection, as Thomaszewski,
 // Pabst, Strasser 2009 do for cloth): each element whose smallest principal stretch sigma3 is

@@ -175,20 +175,18 @@ Stepper& Stepper::operator=(Stepper&&) noexcept = default;
 void Stepper::reset() { implicit_.reset(); }
 int Stepper::lastSolverIterations() const { return implicit_ ? implicit_->iterations : 0; }
 
-namespace {
-inline int nonFinite(const State& s, int i) { return !s.x.col(i).allFinite() || !s.v.col(i).allFinite(); }
-} // namespace
-
 void checkFinite(const Model& m, State& s) {
     int bad = 0;
-    for (int i = 0; i < m.nodes(); ++i) bad += nonFinite(s, i);
+    for (int i = 0; i < m.nodes(); ++i) bad += nonFiniteNode(s, i);
     s.flags.nonFinite = bad;
 }
 
-void Stepper::forces(const Model& m, State& s, const double* alpha, double watch, bool allRotations) {
+void Stepper::forces(const Model& m, State& s, const double* alpha, double watch, bool allRotations, NodeUpdate* update) {
     const auto t0 = std::chrono::steady_clock::now();
-    computeForces(m, s, alpha, watch, allRotations);
-    forceSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    ForceStageSeconds times;
+    computeForces(m, s, alpha, watch, allRotations, update ? &times : nullptr, update);
+    // the update's share (first thread's clock) counts as integration
+    forceSeconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() - times.update;
 }
 
 // Calls f(o) for each node o sharing an element with n, once per shared element. Prescribed
@@ -256,21 +254,11 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     switch (opt.integrator) {
     case Integrator::SymplecticEuler: {
         if (!m.lightNodes.empty()) lightMeans(m, s);
-        forces(m, s, alpha, watch);
-        // damping taken implicitly so it never limits the step: v = (v + dt a) / (1 + c dt)
-        const double damp = 1.0 / (1.0 + c * dt);
-        int bad = 0;
-#pragma omp parallel for schedule(static) reduction(+ : bad) if (n >= kParallelNodes)
-        for (int i = 0; i < n; ++i) {
-            const double w = m.invMass(i);
-            if (w == 0) s.v.col(i).setZero();
-            else {
-                s.v.col(i) = (s.v.col(i) + dt * w * s.f.col(i)) * damp;
-                s.x.col(i) += dt * s.v.col(i);
-            }
-            bad += nonFinite(s, i);
-        }
-        s.flags.nonFinite = bad;
+        // damping taken implicitly so it never limits the step: v = (v + dt a) / (1 + c dt);
+        // the update runs in the force stage's parallel region
+        NodeUpdate up{1.0, dt, 1.0 / (1.0 + c * dt), dt};
+        forces(m, s, alpha, watch, false, &up);
+        s.flags.nonFinite = up.nonFinite;
         if (!m.lightNodes.empty()) dampLight(m, s, dt);
         limit(m, s, opt, s.flags.nearFlat);
         break;
@@ -278,21 +266,10 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     case Integrator::CentralDifference: {
         // v_{n+1/2} = ((1 - c dt/2) v_{n-1/2} + dt a_n) / (1 + c dt/2); the first step is a half step.
         if (!m.lightNodes.empty()) lightMeans(m, s);
-        forces(m, s, alpha, watch);
         const double h = s.started ? dt : 0.5 * dt;
-        const double cm = 1.0 - 0.5 * c * h, cp = 1.0 / (1.0 + 0.5 * c * h);
-        int bad = 0;
-#pragma omp parallel for schedule(static) reduction(+ : bad) if (n >= kParallelNodes)
-        for (int i = 0; i < n; ++i) {
-            const double w = m.invMass(i);
-            if (w == 0) s.v.col(i).setZero();
-            else {
-                s.v.col(i) = (cm * s.v.col(i) + h * w * s.f.col(i)) * cp;
-                s.x.col(i) += dt * s.v.col(i);
-            }
-            bad += nonFinite(s, i);
-        }
-        s.flags.nonFinite = bad;
+        NodeUpdate up{1.0 - 0.5 * c * h, h, 1.0 / (1.0 + 0.5 * c * h), dt};
+        forces(m, s, alpha, watch, false, &up);
+        s.flags.nonFinite = up.nonFinite;
         if (!m.lightNodes.empty()) dampLight(m, s, dt);
         s.started = true;
         limit(m, s, opt, s.flags.nearFlat);

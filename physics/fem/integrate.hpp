@@ -3,9 +3,12 @@
 //   2. forces    computeForces: node loads, element stage adding into each thread's own nodes,
 //                then the nodes two threads share
 //   3. integrate velocity and position update of the chosen scheme; fixed nodes stay put
+//                (symplectic Euler and central difference: inside the force stage's parallel
+//                region, on each thread's nodes once summed; fem/forces.hpp NodeUpdate)
 //   4. checks    stretch limiting when asked; non-finite values and inverted elements into state.flags
 #pragma once
 
+#include "fem/forces.hpp"
 #include "fem/state.hpp"
 
 #include <memory>
@@ -68,13 +71,15 @@ public:
 
     void step(const Model& model, State& state, const StepOptions& opt);
     void reset();
-    // Wall time of the force stage (element forces and gather) in the last step [s].
+    // Wall time of the force stage (element forces and gather) in the last step [s]; a node
+    // update run inside it counts as integration.
     double lastForceSeconds() const { return forceSeconds_; }
     // CG iterations of the last backward-Euler step (0 for the direct solver or other schemes).
     int lastSolverIterations() const;
 
 private:
-    void forces(const Model& model, State& state, const double* alpha, double watch, bool allRotations = false);
+    void forces(const Model& model, State& state, const double* alpha, double watch, bool allRotations = false,
+                NodeUpdate* update = nullptr);
     void limit(const Model& model, State& state, const StepOptions& opt, int nearFlat);
 
     std::unique_ptr<ImplicitWorkspace> implicit_;

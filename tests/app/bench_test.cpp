@@ -257,9 +257,9 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
         }
         ++checked;
     }
-    // explicit at 0.9 and 0.98 of the limit, backward Euler at dt = 0.01 and 0.003 (0.1 and 0.03
-    // overdamp the mode), and its CG solve at 0.003, which must give the direct solve's error
-    EXPECT_EQ(checked, 5);
+    // explicit at 0.9, 0.98 and 0.999 of the limit, backward Euler at dt = 0.01 and 0.003 (0.1 and
+    // 0.03 overdamp the mode), and its CG solve at 0.003, which must give the direct solve's error
+    EXPECT_EQ(checked, 6);
     double direct = NAN, cg = NAN;
     for (const auto& p : j["points"])
         if (p["problem"] == "cantilever_frequency") {
