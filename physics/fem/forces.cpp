@@ -338,8 +338,13 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-// The NodeUpdate of nodes [begin, end); returns how many are not finite after it.
-int updateNodes(const Model& m, State& s, const NodeUpdate& u, int begin, int end) {
+// Inside the force stage's region, once nodes [begin, end) hold their sums: their NodeUpdate (if
+// any), the first thread closing the node phase on its clock. Returns how many are not finite.
+int updateNodes(const Model& m, State& s, const NodeUpdate* up, int begin, int end, int t, ForceStageSeconds* times,
+                Clock::time_point& t0) {
+    if (!up) return 0;
+    if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
+    const NodeUpdate& u = *up;
     int bad = 0;
     for (int i = begin; i < end; ++i) {
         const double w = m.invMass(i);
@@ -374,10 +379,7 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
 #pragma omp barrier
         if (times && t == 0) { times->elements += since(t0); t0 = Clock::now(); }
         gatherForces(m, s, split(nn, t), split(nn, t + 1));
-        if (up) {
-            if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
-            bad += updateNodes(m, s, *up, split(nn, t), split(nn, t + 1));
-        }
+        bad += updateNodes(m, s, up, split(nn, t), split(nn, t + 1), t, times, t0);
     }
     if (times) (up ? times->update : times->nodes) += since(t0);
     if (up) up->nonFinite = bad;
@@ -418,10 +420,7 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
         for (int i = split(nn, t); i < split(nn, t + 1) && nt > 1; ++i)
             if (s.sharedNode[static_cast<size_t>(i)]) gatherNode(m, s, i);
         // this thread's nodes now hold their sums: the other threads add only into their own
-        if (up) {
-            if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
-            bad += updateNodes(m, s, *up, split(nn, t), split(nn, t + 1));
-        }
+        bad += updateNodes(m, s, up, split(nn, t), split(nn, t + 1), t, times, t0);
     }
     if (times) (up ? times->update : times->nodes) += since(t0);
     if (up) up->nonFinite = bad;

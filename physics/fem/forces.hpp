@@ -31,7 +31,7 @@ struct ForceStageSeconds {
     double elements = 0;  // element kernel, adding into the nodes of one thread
     double nodes = 0;     // outside the kernel: below kFusedElements the gather; above, each
                           // node's load and shared flag before and the shared nodes' sums after
-    double update = 0;    // the NodeUpdate, timed on the first thread
+    double update = 0;    // a NodeUpdate: the first thread's clock from its update to the region's end
 };
 // Whether node i's position or velocity has a non-finite component.
 inline bool nonFiniteNode(const State& s, int i) { return !s.x.col(i).allFinite() || !s.v.col(i).allFinite(); }

@@ -8,7 +8,6 @@
 //   4. checks    stretch limiting when asked; non-finite values and inverted elements into state.flags
 #pragma once
 
-#include "fem/forces.hpp"
 #include "fem/state.hpp"
 
 #include <memory>
@@ -58,6 +57,7 @@ inline constexpr double kStretchWatchMargin = 0.3;
 // Per-element damping factors for a step dt from per-element critical steps (thesis eq. 3.16).
 Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt);
 
+struct NodeUpdate;         // fem/forces.hpp
 struct ImplicitWorkspace;  // sparse pattern and factorisation of the backward-Euler system
 
 // Advances a state by one step. Owns the implicit workspace when the scheme needs one;
