@@ -521,6 +521,15 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
                 log(runStaticPoint(ctx, m, opt, name));
                 log(kuhn ? runFrequencyPoint(ctx, m, opt, name) : predicted(runFrequencyPoint(ctx, m, opt, name), opt, fMesh[i]));
             }
+            // and with the element forces in single precision (integrator.precision), at 0.999
+            if (!kuhn && r == ctx.res.back()) {
+                Model ms = m;
+                ms.precision = ForcePrecision::Single;
+                const StepOptions opt{Integrator::SymplecticEuler, 0.999 * dtExact};
+                std::snprintf(name, sizeof name, "explicit single %dx%dx%d f=0.999", 10 * r, r, r);
+                log(runStaticPoint(ctx, ms, opt, name));
+                log(predicted(runFrequencyPoint(ctx, ms, opt, name), opt, fMesh[i]));
+            }
         }
     }
     // Per-element damping beyond the limit (thesis eq. 3.16) on the finest mesh up to N = 8.
@@ -996,11 +1005,15 @@ int runStep(const StepArgs& a) {
     json j;
     j["runs"] = json::array();
     if (!a.json)
-        std::printf("%9s %7s %8s %14s %12s %12s %12s\n", "tets", "threads", "steps", "tet-steps/s", "element %", "nodes %", "integrate %");
+        std::printf("%9s %7s %9s %8s %14s %12s %12s %12s\n", "tets", "threads", "precision", "steps", "tet-steps/s", "element %",
+                    "nodes %", "integrate %");
     for (int n : sizes) {
-        const Model m = stepModel(n);
-        for (int th : threadCounts) {
+        Model m = stepModel(n);
+        for (int th : threadCounts)
+        for (ForcePrecision precision : {ForcePrecision::Double, ForcePrecision::Single}) {
             setThreads(th);
+            m.precision = precision;
+            const char* precisionName = precision == ForcePrecision::Single ? "single" : "double";
             State s = makeState(m);
             s.x = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix() * m.X;
             Stepper st;
@@ -1024,13 +1037,13 @@ int runStep(const StepArgs& a) {
             const double elemShare = phases.elements / reps / perStep, nodeShare = phases.nodes / reps / perStep;
             const double integrateShare = std::max(0.0, 1.0 - forceSec / total);
             const double rate = static_cast<double>(m.elements()) * steps / total;
-            j["runs"].push_back({{"tets", m.elements()}, {"nodes", m.nodes()}, {"threads", th}, {"steps", steps},
+            j["runs"].push_back({{"tets", m.elements()}, {"nodes", m.nodes()}, {"threads", th}, {"precision", precisionName}, {"steps", steps},
                                  {"seconds", total}, {"tet_steps_per_second", rate},
                                  {"stages", {{"forces", forceSec / total}, {"element", elemShare}, {"nodes", nodeShare},
                                              {"integrate", integrateShare}}}});
             if (!a.json)
-                std::printf("%9d %7d %8ld %14.4g %12.1f %12.1f %12.1f\n", m.elements(), th, steps, rate, 100 * elemShare,
-                            100 * nodeShare, 100 * integrateShare);
+                std::printf("%9d %7d %9s %8ld %14.4g %12.1f %12.1f %12.1f\n", m.elements(), th, precisionName, steps, rate,
+                            100 * elemShare, 100 * nodeShare, 100 * integrateShare);
         }
     }
     setThreads(0);
@@ -1193,9 +1206,9 @@ void addBenchCommand(CLI::App& app) {
     }
     {
         auto a = std::make_shared<StepArgs>();
-        auto* c = bench->add_subcommand("step", "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, and the "
-                                                "share of each stage");
-        c->add_flag("--json", a->json, "Print {runs: [{tets, threads, steps, tet_steps_per_second, stages}]}");
+        auto* c = bench->add_subcommand("step", "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, double and "
+                                                "single-precision forces, and the share of each stage");
+        c->add_flag("--json", a->json, "Print {runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}");
         c->add_option("--seconds", a->seconds, "Measuring time per configuration [s]")->check(CLI::PositiveNumber)->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: one small box");
         c->callback([a] { setExitCode(guarded([&] { return runStep(*a); })); });

@@ -306,6 +306,7 @@ Simulation prepareScene(const SceneDef& sc) {
     }
     model.gravity = sc.gravity;
     model.massDamping = sc.damping;
+    model.precision = sc.precision;
     for (const auto& reg : sc.fixed) {
         const auto nodes = selectNodes(reg, model.X);
         if (nodes.empty()) throw InputError(sc.file + ": " + reg.path + ": selects no node");
@@ -726,6 +727,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     report["wall_time"] = since(wallStart);
     report["threads"] = threads();
     report["integrator"] = integratorName(sc.integrator);
+    report["force_precision"] = sc.precision == ForcePrecision::Single ? "single" : "double";
     if (sc.integrator == Integrator::BackwardEuler)
         report["implicit"] = {{"solver", implicitSolverName(sc.implicitSolver)},
                               {"cg_iterations_mean", state.steps ? double(solverIterations) / double(state.steps) : 0.0},

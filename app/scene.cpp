@@ -302,6 +302,11 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.implicitSolver = parseImplicitSolver(in.string("solver", "direct", {"direct", "cg"}));
         if (in.has("solver") && s.integrator != Integrator::BackwardEuler)
             in.fail("solver", "applies to scheme backward_euler only");
+        s.precision = in.string("precision", "double", {"double", "single"}) == "single" ? ForcePrecision::Single
+                                                                                      : ForcePrecision::Double;
+        // backward Euler's tangent and CG residual (1e-9) want the forces to double precision
+        if (s.precision == ForcePrecision::Single && s.integrator == Integrator::BackwardEuler)
+            in.fail("precision", "single applies to the explicit schemes only");
         in.finish();
     }
     s.duration = root.number("duration", 1, 0, 1e6, true);

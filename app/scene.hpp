@@ -127,6 +127,7 @@ struct SceneDef {
     Integrator integrator = Integrator::SymplecticEuler;
     double minStretch = 0;      // integrator.min_stretch: stretch limiting, 0 off [-]
     ImplicitSolver implicitSolver = ImplicitSolver::Direct;  // integrator.solver (backward Euler)
+    ForcePrecision precision = ForcePrecision::Double;       // integrator.precision (explicit schemes)
     DtPolicy dt;
     double duration = 1;          // [s]
 

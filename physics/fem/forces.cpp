@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <type_traits>
 
 namespace cutsim {
 
@@ -137,142 +138,106 @@ constexpr double kKeepRotation = 0.4;
 // this machine's spread.
 constexpr int kFusedElements = 32768;
 
-// Forces of the elements e0 .. e0 + count - 1 (count <= kLanes); lanes past count are padded
-// with an undeformed unit element and not written back. Matrices are column-major, (r, c) at 3c + r.
-inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
-                        bool corot, double watch, int* nearFlat, const ForceOut& out) {
-    Lane Ds[9], Dm[9], scale;
+// Lanes of the single-precision kernel: 16 floats, one AVX-512 register; a block of them is two
+// 8-double blocks (LaneHalf) converted, so the loads and node adds stay those of the double kernel.
+constexpr int kLanesF = 2 * kLanes;
+typedef float LaneF __attribute__((vector_size(4 * kLanesF)));
+typedef float LaneHalf __attribute__((vector_size(4 * kLanes)));
+
+inline LaneF joinLanes(Lane lo, Lane hi) {
+    const LaneHalf a = __builtin_convertvector(lo, LaneHalf), b = __builtin_convertvector(hi, LaneHalf);
+    return __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+}
+inline Lane lowLanes(LaneF v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7), Lane); }
+inline Lane highLanes(LaneF v) {
+    return __builtin_convertvector(__builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15), Lane);
+}
+
+// Lane count and scalar of a lane type.
+template <class L> constexpr int lanesOf = sizeof(L) / sizeof(L{}[0]);
+template <class L> using ScalarOf = std::remove_cvref_t<decltype(L{}[0])>;
+
+template <class L> bool anyOf(const L& mask) {
+    bool any = false;
+    for (int l = 0; l < lanesOf<L>; ++l) any = any || mask[l];
+    return any;
+}
+
+// Inputs of a block of elements e0 .. e0 + count - 1, lane l for element e0 + l: the edge matrix
+// Ds (differences taken in double), DmInv and the force scale -V fraction alpha; lanes past count
+// are padded with an undeformed unit element and scale 0. Matrices are column-major, (r, c) at 3c + r.
+template <class L>
+inline void copyLanes(const Model& m, const State& s, const double* alpha, int e0, int count, L Ds[9], L Dm[9], L& scale) {
+    using S = ScalarOf<L>;
     const double* xs = s.x.data();
-#ifdef CUTSIM_LANE_TRANSPOSE
-    if (count == kLanes) {
-        // A full block: each lane's 3-vectors (node positions, DmInv columns) read whole and
-        // transposed in registers; the same values as the per-lane copies below, bitwise.
-        const double* p[kLanes];
-        Lane node[4][3];
-        for (int a = 0; a < 4; ++a) {
-            for (int l = 0; l < kLanes; ++l) p[l] = xs + 3 * m.tets(a, e0 + l);
-            transposeLanes3(p, node[a]);
-        }
-        for (int a = 0; a < 3; ++a)
-            for (int r = 0; r < 3; ++r) Ds[3 * a + r] = node[a + 1][r] - node[0][r];
-        for (int c = 0; c < 3; ++c) {
-            for (int l = 0; l < kLanes; ++l) p[l] = m.DmInv.col(e0 + l).data() + 3 * c;
-            transposeLanes3(p, Dm + 3 * c);
-        }
-        scale = -loadLanes(m.volume.data() + e0) * loadLanes(m.fraction.data() + e0);
-        if (alpha) scale *= loadLanes(alpha + e0);
-    } else
-#endif
-    for (int l = 0; l < kLanes; ++l) {
+    for (int l = 0; l < lanesOf<L>; ++l) {
         if (l < count) {
             const int e = e0 + l;
             const int* n = m.tets.col(e).data();
             const double* p0 = xs + 3 * n[0];
             for (int a = 0; a < 3; ++a) {
                 const double* pa = xs + 3 * n[a + 1];
-                for (int r = 0; r < 3; ++r) Ds[3 * a + r][l] = pa[r] - p0[r];
+                for (int r = 0; r < 3; ++r) Ds[3 * a + r][l] = static_cast<S>(pa[r] - p0[r]);
             }
             const double* dm = m.DmInv.col(e).data();
-            for (int k = 0; k < 9; ++k) Dm[k][l] = dm[k];
-            scale[l] = -m.volume(e) * m.fraction(e) * (alpha ? alpha[e] : 1.0);
+            for (int k = 0; k < 9; ++k) Dm[k][l] = static_cast<S>(dm[k]);
+            scale[l] = static_cast<S>(-m.volume(e) * m.fraction(e) * (alpha ? alpha[e] : 1.0));
         } else {
-            for (int k = 0; k < 9; ++k) Dm[k][l] = Ds[k][l] = (k % 4 == 0) ? 1.0 : 0.0;
+            for (int k = 0; k < 9; ++k) Dm[k][l] = Ds[k][l] = (k % 4 == 0) ? 1 : 0;
             scale[l] = 0;
         }
     }
-    Lane F[9];  // F = Ds DmInv
-    for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
-    const Lane det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) +
-                     F[6] * (F[1] * F[5] - F[4] * F[2]);
-    // watch: the lower bound 2 det F / |F|^2 of the smallest principal stretch (limitStretch)
-    Lane f2 = F[0] * F[0];
-    for (int k = 1; k < 9; ++k) f2 += F[k] * F[k];
-    int inv = 0, near = 0;
-    for (int l = 0; l < count; ++l) {
-        inv += det[l] <= 0;
-        near += 2 * det[l] < watch * f2[l];
-    }
-    *nearFlat += near;
-    Lane X[9];
-    if (corot) {
-        for (int k = 0; k < 9; ++k) X[k] = F[k];
-        const Lane sc = f2 / 3.0;
-        // Newton needs det F well away from 0 (its first step divides by it): det > 1e-6 sc^1.5
-        LaneMask active = (det > 0) & (det * det > 1e-12 * sc * sc * sc);
-        for (int l = 0; l < count; ++l) {
-            if (active[l]) continue;
-            // degenerate or inverted (rare): the invertible-FEM rotation, per element
-            Eigen::Matrix3d Fl;
-            for (int k = 0; k < 9; ++k) Fl(k % 3, k / 3) = F[k][l];
-            const Eigen::Matrix3d R = invertibleRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
-            for (int k = 0; k < 9; ++k) X[k][l] = R(k % 3, k / 3);
-        }
-        for (int l = count; l < kLanes; ++l) active[l] = 0;  // padding: F = I is its own rotation
-        // Polar rotation by Newton's iteration X <- (X + X^-T) / 2 (Higham 1986), per lane until
-        // that lane's update is below 1e-6 (quadratic convergence: its error is then ~1e-12);
-        // converged lanes are frozen, so each lane gets exactly the iterations it would alone.
-        for (int it = 0; it < 30; ++it) {
-            if (!anyLane(active)) break;
-            // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
-            const Lane c0 = X[4] * X[8] - X[5] * X[7], c1 = X[5] * X[6] - X[3] * X[8], c2 = X[3] * X[7] - X[4] * X[6];
-            const Lane c3 = X[7] * X[2] - X[8] * X[1], c4 = X[8] * X[0] - X[6] * X[2], c5 = X[6] * X[1] - X[7] * X[0];
-            const Lane c6 = X[1] * X[5] - X[2] * X[4], c7 = X[2] * X[3] - X[0] * X[5], c8 = X[0] * X[4] - X[1] * X[3];
-            const Lane h = 0.5 / (X[0] * c0 + X[1] * c1 + X[2] * c2);
-            const Lane C[9] = {c0, c1, c2, c3, c4, c5, c6, c7, c8};
-            Lane d = Lane{};
-            for (int k = 0; k < 9; ++k) {
-                const Lane xn = 0.5 * X[k] + h * C[k];
-                d += (xn - X[k]) * (xn - X[k]);
-                X[k] = active ? xn : X[k];
-            }
-            active = active & ~(d < 1e-12);
-        }
-    } else {
-        for (int k = 0; k < 9; ++k) X[k] = Lane{} + ((k % 4 == 0) ? 1.0 : 0.0);
-    }
-    // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
-    // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
-    Lane H[9], sig[9], RS[9];
-    for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r)
-            H[3 * c + r] = X[3 * r] * F[3 * c] + X[3 * r + 1] * F[3 * c + 1] + X[3 * r + 2] * F[3 * c + 2] -
-                           (r == c ? 1.0 : 0.0);
-    const Lane tr = lam * (H[0] + H[4] + H[8]);
-    for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r) sig[3 * c + r] = mu * (H[3 * c + r] + H[3 * r + c]) + (r == c ? tr : Lane{});
-    for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r) RS[3 * c + r] = X[r] * sig[3 * c] + X[3 + r] * sig[3 * c + 1] + X[6 + r] * sig[3 * c + 2];
-    // P = scale (R sigma) DmInv^T: columns are the forces on nodes 1..3; node 0 takes minus their sum
-    Lane P[12];
-    for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r)
-            P[3 + 3 * c + r] = scale * (RS[r] * Dm[c] + RS[3 + r] * Dm[3 + c] + RS[6 + r] * Dm[6 + c]);
-    for (int r = 0; r < 3; ++r) P[r] = -(P[3 + r] + P[6 + r] + P[9 + r]);
+}
+
 #ifdef CUTSIM_LANE_TRANSPOSE
-    if (count == kLanes) {
-        // Each lane's force on each node as one 3-vector: stored to state.fe by a masked 4-wide
-        // store; added into a node by three scalar adds, since a masked 4-wide add made the step
-        // ~25% dearer on one thread (measured; likely because the next element's load of the
-        // same node then waits for the masked store to retire instead of taking it forwarded).
-        __m256d fa[4][kLanes];
-        for (int a = 0; a < 4; ++a) untransposeLanes3(P + 3 * a, fa[a]);
-        for (int l = 0; l < kLanes; ++l) {
-            double* fe = s.fe.col(e0 + l).data();
-            const int* n = m.tets.col(e0 + l).data();
-            for (int a = 0; a < 4; ++a) {
-                if (out.f && !(out.shared && out.shared[n[a]])) {
-                    double* fn = out.f + 3 * n[a];
-                    fn[0] += fa[a][l][0];
-                    fn[1] += fa[a][l][1];
-                    fn[2] += fa[a][l][2];
-                } else {
-                    _mm256_mask_storeu_pd(fe + 3 * a, 0x7, fa[a][l]);
-                }
+// A full block of kLanes doubles: each lane's 3-vectors (node positions, DmInv columns) read
+// whole and transposed in registers; the same values as copyLanes, bitwise.
+inline void loadFullBlock(const Model& m, const State& s, const double* alpha, int e0, Lane Ds[9], Lane Dm[9], Lane& scale) {
+    const double* xs = s.x.data();
+    const double* p[kLanes];
+    Lane node[4][3];
+    for (int a = 0; a < 4; ++a) {
+        for (int l = 0; l < kLanes; ++l) p[l] = xs + 3 * m.tets(a, e0 + l);
+        transposeLanes3(p, node[a]);
+    }
+    for (int a = 0; a < 3; ++a)
+        for (int r = 0; r < 3; ++r) Ds[3 * a + r] = node[a + 1][r] - node[0][r];
+    for (int c = 0; c < 3; ++c) {
+        for (int l = 0; l < kLanes; ++l) p[l] = m.DmInv.col(e0 + l).data() + 3 * c;
+        transposeLanes3(p, Dm + 3 * c);
+    }
+    scale = -loadLanes(m.volume.data() + e0) * loadLanes(m.fraction.data() + e0);
+    if (alpha) scale *= loadLanes(alpha + e0);
+}
+
+// Adds a full block's forces P (12 rows: nodes 0..3) into the nodes, or stores them to state.fe.
+// Each lane's force on each node as one 3-vector: stored to state.fe by a masked 4-wide store;
+// added into a node by three scalar adds, since a masked 4-wide add made the step ~25% dearer on
+// one thread (measured; likely because the next element's load of the same node then waits for
+// the masked store to retire instead of taking it forwarded).
+inline void writeFullBlock(const Model& m, State& s, int e0, const Lane P[12], const ForceOut& out) {
+    __m256d fa[4][kLanes];
+    for (int a = 0; a < 4; ++a) untransposeLanes3(P + 3 * a, fa[a]);
+    for (int l = 0; l < kLanes; ++l) {
+        double* fe = s.fe.col(e0 + l).data();
+        const int* n = m.tets.col(e0 + l).data();
+        for (int a = 0; a < 4; ++a) {
+            if (out.f && !(out.shared && out.shared[n[a]])) {
+                double* fn = out.f + 3 * n[a];
+                fn[0] += fa[a][l][0];
+                fn[1] += fa[a][l][1];
+                fn[2] += fa[a][l][2];
+            } else {
+                _mm256_mask_storeu_pd(fe + 3 * a, 0x7, fa[a][l]);
             }
         }
-    } else
+    }
+}
 #endif
+
+// copyLanes's inverse for the forces P of lanes 0 .. count - 1.
+template <class L>
+inline void writeLanes(const Model& m, State& s, int e0, int count, const L P[12], const ForceOut& out) {
     for (int l = 0; l < count; ++l) {
         double* fe = s.fe.col(e0 + l).data();
         if (out.f) {
@@ -288,11 +253,144 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
             for (int k = 0; k < 12; ++k) fe[k] = P[k][l];
         }
     }
-    for (int l = 0; l < count && corot; ++l)
-        if (out.allRotations || 2 * det[l] < kKeepRotation * f2[l]) {
+}
+
+// Forces P (rows 3a .. 3a + 2: node a) of a block from its inputs, in L's arithmetic; X gets each
+// lane's rotation (I for the linear model). Returns the inverted elements among the first count.
+template <class L>
+inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L Dm[9], L scale,
+                       double lam, double mu, bool corot, double watch, int* nearFlat, L P[12], L X[9], L& det, L& f2) {
+    using S = ScalarOf<L>;
+    L F[9];  // F = Ds DmInv
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
+    det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) + F[6] * (F[1] * F[5] - F[4] * F[2]);
+    // watch: the lower bound 2 det F / |F|^2 of the smallest principal stretch (limitStretch)
+    f2 = F[0] * F[0];
+    for (int k = 1; k < 9; ++k) f2 += F[k] * F[k];
+    int inv = 0, near = 0;
+    for (int l = 0; l < count; ++l) {
+        inv += det[l] <= 0;
+        near += 2 * double(det[l]) < watch * double(f2[l]);
+    }
+    *nearFlat += near;
+    if (corot) {
+        for (int k = 0; k < 9; ++k) X[k] = F[k];
+        const L sc = f2 / S(3);
+        // Newton needs det F well away from 0 (its first step divides by it): det > 1e-6 sc^1.5
+        auto active = (det > 0) & (det * det > S(1e-12) * sc * sc * sc);
+        for (int l = 0; l < count; ++l) {
+            if (active[l]) continue;
+            // degenerate or inverted (rare): the invertible-FEM rotation, per element
+            Eigen::Matrix3d Fl;
+            for (int k = 0; k < 9; ++k) Fl(k % 3, k / 3) = F[k][l];
+            const Eigen::Matrix3d R = invertibleRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
+            for (int k = 0; k < 9; ++k) X[k][l] = static_cast<S>(R(k % 3, k / 3));
+        }
+        for (int l = count; l < lanesOf<L>; ++l) active[l] = 0;  // padding: F = I is its own rotation
+        // Polar rotation by Newton's iteration X <- (X + X^-T) / 2 (Higham 1986), per lane until
+        // that lane's update is below 1e-6 (quadratic convergence: its error is then ~1e-12);
+        // converged lanes are frozen, so each lane gets exactly the iterations it would alone.
+        for (int it = 0; it < 30; ++it) {
+            if (!anyOf(active)) break;
+            // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
+            const L c0 = X[4] * X[8] - X[5] * X[7], c1 = X[5] * X[6] - X[3] * X[8], c2 = X[3] * X[7] - X[4] * X[6];
+            const L c3 = X[7] * X[2] - X[8] * X[1], c4 = X[8] * X[0] - X[6] * X[2], c5 = X[6] * X[1] - X[7] * X[0];
+            const L c6 = X[1] * X[5] - X[2] * X[4], c7 = X[2] * X[3] - X[0] * X[5], c8 = X[0] * X[4] - X[1] * X[3];
+            const L h = S(0.5) / (X[0] * c0 + X[1] * c1 + X[2] * c2);
+            const L C[9] = {c0, c1, c2, c3, c4, c5, c6, c7, c8};
+            L d = L{};
+            for (int k = 0; k < 9; ++k) {
+                const L xn = S(0.5) * X[k] + h * C[k];
+                d += (xn - X[k]) * (xn - X[k]);
+                X[k] = active ? xn : X[k];
+            }
+            active = active & ~(d < S(1e-12));
+        }
+    } else {
+        for (int k = 0; k < 9; ++k) X[k] = L{} + S((k % 4 == 0) ? 1 : 0);
+    }
+    // Linear stress of the unrotated displacement gradient H = R^T F - I; f_a = -V R sigma g_a
+    // equals -R K_e (R^T x - X) of eq. 2.41 without forming K_e.
+    L H[9], sig[9], RS[9];
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            H[3 * c + r] = X[3 * r] * F[3 * c] + X[3 * r + 1] * F[3 * c + 1] + X[3 * r + 2] * F[3 * c + 2] - S(r == c ? 1 : 0);
+    const L tr = S(lam) * (H[0] + H[4] + H[8]);
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) sig[3 * c + r] = S(mu) * (H[3 * c + r] + H[3 * r + c]) + (r == c ? tr : L{});
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r) RS[3 * c + r] = X[r] * sig[3 * c] + X[3 + r] * sig[3 * c + 1] + X[6 + r] * sig[3 * c + 2];
+    // P = scale (R sigma) DmInv^T: columns are the forces on nodes 1..3; node 0 takes minus their sum
+    for (int c = 0; c < 3; ++c)
+        for (int r = 0; r < 3; ++r)
+            P[3 + 3 * c + r] = scale * (RS[r] * Dm[c] + RS[3 + r] * Dm[3 + c] + RS[6 + r] * Dm[6 + c]);
+    for (int r = 0; r < 3; ++r) P[r] = -(P[3 + r] + P[6 + r] + P[9 + r]);
+    return inv;
+}
+
+// The rotations the kernel keeps (ForceOut::allRotations, kKeepRotation).
+template <class L>
+inline void keepRotations(State& s, int e0, int count, const L X[9], const L& det, const L& f2, const ForceOut& out) {
+    for (int l = 0; l < count; ++l)
+        if (out.allRotations || 2 * double(det[l]) < kKeepRotation * double(f2[l])) {
             double* rot = s.rot.col(e0 + l).data();
             for (int k = 0; k < 9; ++k) rot[k] = X[k][l];
         }
+}
+
+// Forces of the elements e0 .. e0 + count - 1 (count <= kLanes) in double.
+inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
+                        bool corot, double watch, int* nearFlat, const ForceOut& out) {
+    Lane Ds[9], Dm[9], scale, P[12], X[9], det, f2;
+#ifdef CUTSIM_LANE_TRANSPOSE
+    if (count == kLanes) loadFullBlock(m, s, alpha, e0, Ds, Dm, scale);
+    else
+#endif
+        copyLanes(m, s, alpha, e0, count, Ds, Dm, scale);
+    const int inv = blockForces(s, e0, count, Ds, Dm, scale, lam, mu, corot, watch, nearFlat, P, X, det, f2);
+#ifdef CUTSIM_LANE_TRANSPOSE
+    if (count == kLanes) writeFullBlock(m, s, e0, P, out);
+    else
+#endif
+        writeLanes(m, s, e0, count, P, out);
+    if (corot) keepRotations(s, e0, count, X, det, f2, out);
+    return inv;
+}
+
+// The same for count <= kLanesF elements in float (ForcePrecision::Single): a full block loads and
+// writes as two double blocks, converted.
+inline int elementBlockF(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
+                         bool corot, double watch, int* nearFlat, const ForceOut& out) {
+    LaneF Ds[9], Dm[9], scale, P[12], X[9], det, f2;
+#ifdef CUTSIM_LANE_TRANSPOSE
+    const bool full = count == kLanesF;
+    if (full) {
+        Lane lo[19], hi[19];  // Ds, Dm, scale of each half
+        loadFullBlock(m, s, alpha, e0, lo, lo + 9, lo[18]);
+        loadFullBlock(m, s, alpha, e0 + kLanes, hi, hi + 9, hi[18]);
+        for (int k = 0; k < 9; ++k) {
+            Ds[k] = joinLanes(lo[k], hi[k]);
+            Dm[k] = joinLanes(lo[9 + k], hi[9 + k]);
+        }
+        scale = joinLanes(lo[18], hi[18]);
+    } else
+#endif
+        copyLanes(m, s, alpha, e0, count, Ds, Dm, scale);
+    const int inv = blockForces(s, e0, count, Ds, Dm, scale, lam, mu, corot, watch, nearFlat, P, X, det, f2);
+#ifdef CUTSIM_LANE_TRANSPOSE
+    if (full) {
+        Lane lo[12], hi[12];
+        for (int k = 0; k < 12; ++k) {
+            lo[k] = lowLanes(P[k]);
+            hi[k] = highLanes(P[k]);
+        }
+        writeFullBlock(m, s, e0, lo, out);
+        writeFullBlock(m, s, e0 + kLanes, hi, out);
+    } else
+#endif
+        writeLanes(m, s, e0, count, P, out);
+    if (corot) keepRotations(s, e0, count, X, det, f2, out);
     return inv;
 }
 
@@ -301,8 +399,12 @@ void elementBlocks(const Model& m, State& s, const double* alpha, int begin, int
     const double lam = m.material.lambda(), mu = m.material.mu();
     const bool corot = m.elementModel == ElementModel::Corotational;
     int inv = 0, near = 0;
-    for (int e = begin; e < end; e += kLanes)
-        inv += elementBlock(m, s, alpha, e, std::min(kLanes, end - e), lam, mu, corot, watch, &near, out);
+    if (m.precision == ForcePrecision::Single)
+        for (int e = begin; e < end; e += kLanesF)
+            inv += elementBlockF(m, s, alpha, e, std::min(kLanesF, end - e), lam, mu, corot, watch, &near, out);
+    else
+        for (int e = begin; e < end; e += kLanes)
+            inv += elementBlock(m, s, alpha, e, std::min(kLanes, end - e), lam, mu, corot, watch, &near, out);
     if (inverted) *inverted += inv;
     if (nearFlat) *nearFlat += near;
 }

@@ -257,16 +257,22 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
         }
         ++checked;
     }
-    // explicit at 0.9, 0.98 and 0.999 of the limit, backward Euler at dt = 0.01 and 0.003 (0.1 and
-    // 0.03 overdamp the mode), and its CG solve at 0.003, which must give the direct solve's error
-    EXPECT_EQ(checked, 6);
-    double direct = NAN, cg = NAN;
+    // explicit at 0.9, 0.98 and 0.999 of the limit and in single precision at 0.999, backward Euler
+    // at dt = 0.01 and 0.003 (0.1 and 0.03 overdamp the mode), and its CG solve at 0.003, which
+    // must give the direct solve's error
+    EXPECT_EQ(checked, 7);
+    double direct = NAN, cg = NAN, dbl = NAN, sgl = NAN;
     for (const auto& p : j["points"])
         if (p["problem"] == "cantilever_frequency") {
             if (p["config"] == "backward_euler 20x2x2 dt=0.003") direct = p["error"].get<double>();
             if (p["config"] == "backward_euler cg 20x2x2 dt=0.003") cg = p["error"].get<double>();
+            if (p["config"] == "explicit 20x2x2 f=0.999") dbl = p["error"].get<double>();
+            if (p["config"] == "explicit single 20x2x2 f=0.999") sgl = p["error"].get<double>();
         }
     EXPECT_NEAR(cg, direct, 1e-8 * direct);
+    // float forces move the measured mode by far less than the mesh's 26%, but do move it
+    EXPECT_NEAR(sgl, dbl, 1e-4 * dbl);
+    EXPECT_NE(sgl, dbl);
     // The mesh is 26% off: no dt brings backward Euler to 1%, and nothing is projected.
     ASSERT_EQ(j["implicit_projection"].size(), 1u);
     const auto& pr = j["implicit_projection"][0];
@@ -340,7 +346,7 @@ TEST(BenchStability, AfterCutsAndRandomCuts) {
 
 TEST(BenchStep, TinyRunContract) {
     const json j = runJson("bench step --tiny --json --seconds 0.02");
-    ASSERT_EQ(j["runs"].size(), 2u);
+    ASSERT_EQ(j["runs"].size(), 4u);  // 1 and 2 threads, each in double and single precision
     for (const auto& r : j["runs"]) {
         EXPECT_EQ(r["tets"].get<int>(), 6 * 27);
         EXPECT_GT(r["tet_steps_per_second"].get<double>(), 0);
@@ -352,8 +358,11 @@ TEST(BenchStep, TinyRunContract) {
             EXPECT_TRUE(std::isfinite(r["stages"][k].get<double>()));
         }
     }
-    EXPECT_EQ(j["runs"][0]["threads"], 1);
-    EXPECT_EQ(j["runs"][1]["threads"], 2);
+    const char* precisions[] = {"double", "single"};
+    for (int k = 0; k < 4; ++k) {
+        EXPECT_EQ(j["runs"][k]["threads"], 1 + k / 2);
+        EXPECT_EQ(j["runs"][k]["precision"], precisions[k % 2]);
+    }
 }
 
 // What a scene does not use costs nothing: no tools, no cuts, no rendering -> those stages are 0.

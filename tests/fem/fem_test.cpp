@@ -203,16 +203,66 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
     }
 }
 
+// ForcePrecision::Single runs the kernel in float on 16 lanes: the double kernel's forces to float's
+// rounding (F ~ I carries ~6e-8, here against strains ~0.1), the same inverted elements and the
+// same rotations to float's precision; block splits do not change a lane's result, and the fused
+// stage sums these forces in double. A lane mixed up or a value dropped would be off by ~fmax.
+TEST(Forces, SinglePrecisionKernelMatchesDouble) {
+    const TetMesh box = test::boxMesh(1, 1, 0.5, 3, 3, 1);  // 54 tets: 3 blocks of 16 and a tail of 6
+    for (auto em : {ElementModel::Corotational, ElementModel::Linear}) {
+        Model m = buildModel(box, Material{}, em);
+        std::mt19937 rng(5);
+        std::uniform_real_distribution<double> U(-1, 1);
+        Eigen::VectorXd alpha(m.elements());
+        for (int e = 0; e < m.elements(); ++e) alpha(e) = 0.5 + 0.5 * std::abs(U(rng));
+        State s0 = makeState(m);
+        for (int i = 0; i < m.nodes(); ++i) s0.x.col(i) += 0.08 * Eigen::Vector3d(U(rng), U(rng), U(rng));
+        s0.x.col(m.tets(0, 37)) = s0.x.col(m.tets(1, 37)) + 0.5 * (s0.x.col(m.tets(1, 37)) - s0.x.col(m.tets(0, 37)));
+        State d = s0, f = s0;
+        int invD = 0, invF = 0;
+        elementForces(m, d, alpha.data(), 0, m.elements(), &invD);
+        m.precision = ForcePrecision::Single;
+        elementForces(m, f, alpha.data(), 0, m.elements(), &invF);
+        const double fmax = d.fe.cwiseAbs().maxCoeff();
+        ASSERT_GT(fmax, 1.0);
+        const double err = (f.fe - d.fe).cwiseAbs().maxCoeff();
+        EXPECT_GT(err, 0) << "the single kernel ran in double";
+        EXPECT_LT(err, 2e-6 * fmax);  // measured 2.4e-7 (corotational), 1.2e-7 (linear)
+        EXPECT_GE(invD, 1);
+        EXPECT_EQ(invF, invD);
+        if (em == ElementModel::Corotational) {
+            // near-flat and inverted elements keep their rotation (the inverted one from the
+            // invertible-FEM path, per lane in double)
+            for (int e = 0; e < m.elements(); ++e)
+                if (f.rot.col(e) != s0.rot.col(e)) {
+                    EXPECT_LT((f.rot.col(e) - d.rot.col(e)).cwiseAbs().maxCoeff(), 1e-5) << "element " << e;
+                }
+        }
+        State g = s0;
+        int inv2 = 0;
+        const int cuts[] = {0, 13, 21, 37, m.elements()};
+        for (int k = 0; k < 4; ++k) elementForces(m, g, alpha.data(), cuts[k], cuts[k + 1], &inv2);
+        EXPECT_EQ(inv2, invD);
+        EXPECT_EQ((g.fe - f.fe).cwiseAbs().maxCoeff(), 0.0);
+        gatherForces(m, f, 0, m.nodes());
+        State c = s0;
+        computeForces(m, c, alpha.data());
+        EXPECT_EQ((c.f - f.f).cwiseAbs().maxCoeff(), 0.0);
+    }
+}
+
 // computeForces sums each node in element order on any number of threads, both on meshes small
 // enough for the per-element slots (9216 tets) and on those where the kernel adds into the nodes
 // (34,560 tets, above kFusedElements): its forces are bitwise those of elementForces then
 // gatherForces, on one thread and on two (both meshes are above the parallel threshold, so the two
-// threads' element ranges share a layer of nodes). Without allRotations only elements near flat
-// store their rotation; with it, all do.
+// threads' element ranges share a layer of nodes), in double and in single precision. Without
+// allRotations only elements near flat store their rotation; with it, all do.
 TEST(Forces, ForceStageIsBitwiseTheGatherOnAnyThreads) {
-    for (int nz : {6, 10}) {
+    for (int nz : {6, 10})
+    for (auto precision : {ForcePrecision::Double, ForcePrecision::Single}) {
         const int nxy = nz == 6 ? 16 : 24;
         Model m = buildModel(test::boxMesh(1, 1, 0.25, nxy, nxy, nz), Material{});
+        m.precision = precision;
         ASSERT_GE(m.elements(), 9000);
         m.gravity << 0, 0, -9.81;
         std::mt19937 rng(11);
@@ -610,6 +660,31 @@ TEST(Cantilever, DynamicsSettleOnStaticSolution) {
         while (s.time < 0.6) st.step(m, s, opt);
         EXPECT_NEAR(meanTipDeflection(m, s.x) / ref, 1.0, 0.01);
     }
+}
+
+// The single-precision kernel follows the double one on the bar swinging down under gravity
+// (strains ~1e-3, so float's ~6e-8 on F is ~1e-4 of the stress): the tip's path over 0.2 s stays
+// within 1e-4 of its largest deflection.
+TEST(Cantilever, SinglePrecisionFollowsDouble) {
+    Model m = cantilever(10, 2, ElementModel::Corotational);
+    const double dt = 0.9 * denseCriticalDt(m);
+    State d = makeState(m), f = makeState(m);
+    Stepper sd, sf;
+    const StepOptions opt{Integrator::SymplecticEuler, dt};
+    Model mf = m;
+    mf.precision = ForcePrecision::Single;
+    double worst = 0, largest = 0;
+    while (d.time < 0.2) {
+        sd.step(m, d, opt);
+        sf.step(mf, f, opt);
+        const double td = meanTipDeflection(m, d.x);
+        largest = std::max(largest, std::abs(td));
+        worst = std::max(worst, std::abs(meanTipDeflection(m, f.x) - td));
+    }
+    RecordProperty("worst_over_largest", std::to_string(worst / largest));
+    EXPECT_GT(largest, 1e-3);
+    EXPECT_GT(worst, 0);
+    EXPECT_LT(worst, 1e-4 * largest);  // measured 1.3e-5
 }
 
 // Backward Euler's CG solve gives the direct solve's steps: a bar swinging down under gravity at
