@@ -263,8 +263,8 @@ int runView(const ViewArgs& a) {
         next.dt.mode = DtPolicy::Mode::Fraction;
         next.dt.fraction = frac;
         try {
-            if (integ == Integrator::BackwardEuler && sc.precision == ForcePrecision::Single)
-                throw InputError(sc.file + ": integrator.precision: single applies to the explicit schemes only");
+            if (const char* why = precisionConflict(integ, sc.precision))
+                throw InputError(sc.file + ": integrator.precision: " + why);
             chooseStep(next, sim); // changes sim only when it accepts
         } catch (const InputError& e) {
             message = e.what();

@@ -153,6 +153,10 @@ struct SceneDef {
     }
 };
 
+// Why integrator.precision does not go with scheme `integ` (scene key and the viewer's switch),
+// or null: single precision is for the explicit schemes (fem/model.hpp ForcePrecision).
+const char* precisionConflict(Integrator integ, ForcePrecision precision);
+
 // Reads and validates a scene file; `sets` are "key.path=value" overrides (value parsed as JSON,
 // else taken as a string). Throws InputError naming the file and key path.
 SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets = {});

@@ -157,12 +157,6 @@ inline Lane highLanes(LaneF v) {
 template <class L> constexpr int lanesOf = sizeof(L) / sizeof(L{}[0]);
 template <class L> using ScalarOf = std::remove_cvref_t<decltype(L{}[0])>;
 
-template <class L> bool anyOf(const L& mask) {
-    bool any = false;
-    for (int l = 0; l < lanesOf<L>; ++l) any = any || mask[l];
-    return any;
-}
-
 // Inputs of a block of elements e0 .. e0 + count - 1, lane l for element e0 + l: the edge matrix
 // Ds (differences taken in double), DmInv and the force scale -V fraction alpha; lanes past count
 // are padded with an undeformed unit element and scale 0. Matrices are column-major, (r, c) at 3c + r.
@@ -292,7 +286,7 @@ inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L
         // that lane's update is below 1e-6 (quadratic convergence: its error is then ~1e-12);
         // converged lanes are frozen, so each lane gets exactly the iterations it would alone.
         for (int it = 0; it < 30; ++it) {
-            if (!anyOf(active)) break;
+            if (!anyLane(active)) break;
             // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
             const L c0 = X[4] * X[8] - X[5] * X[7], c1 = X[5] * X[6] - X[3] * X[8], c2 = X[3] * X[7] - X[4] * X[6];
             const L c3 = X[7] * X[2] - X[8] * X[1], c4 = X[8] * X[0] - X[6] * X[2], c5 = X[6] * X[1] - X[7] * X[0];

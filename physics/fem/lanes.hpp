@@ -24,9 +24,10 @@ inline Lane sqrtLanes(Lane x) {
     return x;
 }
 inline Lane absLanes(Lane x) { return x < 0 ? -x : x; }
-inline bool anyLane(LaneMask m) {
+// Whether any lane of a comparison result is set (of Lane, or of the float lanes of fem/forces.cpp).
+template <class Mask> inline bool anyLane(const Mask& m) {
     bool any = false;
-    for (int l = 0; l < kLanes; ++l) any = any || m[l];
+    for (unsigned l = 0; l < sizeof(Mask) / sizeof(m[0]); ++l) any = any || m[l];
     return any;
 }
 

@@ -18,7 +18,8 @@ enum class ElementModel : std::uint8_t { Linear, Corotational };
 // Arithmetic of the element force kernel (fem/forces.cpp). Positions, velocities, node sums and
 // every other stage stay double; Single runs the element's F, rotation and stress in float on
 // twice the lanes. Its force error relative to the element's stress is ~6e-8 / strain (float's
-// rounding of F ~ I); explicit schemes only (backward Euler's CG wants double residuals).
+// rounding of F ~ I). Meant for the explicit schemes: a backward-Euler step spends under 2% of its
+// time in this kernel (BENCHMARKS.md), so it would gain nothing there.
 enum class ForcePrecision : std::uint8_t { Double, Single };
 
 struct Model {
