@@ -91,6 +91,46 @@ BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m, const Step
 // let an integrator's damping go unseen, and its period error cancel the mesh's stiffness.
 BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config,
                              const TipProbe& probe = {});
+// A frequency run (as runFrequencyPoint) advanced in slices, so that runs can take turns on the
+// machine (runPaired): the same steps, hence the same point, in any slicing.
+class FrequencyRun {
+public:
+    FrequencyRun(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, std::string config, TipProbe probe = {});
+    ~FrequencyRun();
+    FrequencyRun(FrequencyRun&&) noexcept;
+    // Steps on while the simulated time is below until (INFINITY: to the run's end) and the run has
+    // neither ended nor diverged; returns the wall time of these steps [s].
+    double advance(double until);
+    bool done() const;
+    // The point of the steps so far (its cost: their wall time over their simulated time).
+    BenchPoint point() const;
+    const AccuracyContext& context() const { return *ctx_; }
+
+private:
+    const AccuracyContext* ctx_;
+    Model m_;
+    StepOptions opt_;
+    std::string config_;
+    TipProbe probe_;
+    State s_;
+    Stepper st_;
+    long n_ = 0, k_ = 0;
+    std::vector<double> t_, y_;
+    double wall_ = 0;
+    bool diverged_ = false;
+};
+
+// Runs that took turns: each run's point, and its wall time in each slice [s].
+struct PairedRuns {
+    std::vector<BenchPoint> points;
+    std::vector<std::vector<double>> sliceWall;  // [run][slice]
+};
+// Runs all of runs to their end in `slices` turns of equal simulated time (bar.frequencyTime /
+// slices), the order reversed every other turn. A slow spell of the machine then falls on every
+// run alike, and the ratio of two runs' costs is measured at equal conditions, which costs taken
+// minutes apart are not.
+PairedRuns runPaired(std::vector<FrequencyRun>& runs, int slices);
+
 // Linear static tip deflection, K u = M g over the free DOFs (small-displacement limit of the
 // corotational model) [m]; tip: as TipProbe (null: tipDeflection).
 double linearStaticTip(const Model& m, const TipFn& tip = {});

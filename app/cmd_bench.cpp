@@ -160,36 +160,47 @@ BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const Ste
     return p;
 }
 
-BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
-                             const TipProbe& probe) {
-    Model m = m0;
-    m.massDamping = 0;
-    State s = makeState(m);
-    Stepper st;
-    const long n = static_cast<long>(std::ceil(ctx.bar.frequencyTime / opt.dt - 1e-9));
-    std::vector<double> t, y;
-    t.reserve(n + 1);
-    y.reserve(n + 1);
+FrequencyRun::FrequencyRun(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, std::string config, TipProbe probe)
+    : ctx_(&ctx), m_(m0), opt_(opt), config_(std::move(config)), probe_(std::move(probe)) {
+    m_.massDamping = 0;
+    s_ = makeState(m_);
+    n_ = static_cast<long>(std::ceil(ctx.bar.frequencyTime / opt.dt - 1e-9));
+    t_.reserve(n_ + 1);
+    y_.reserve(n_ + 1);
+}
+
+FrequencyRun::~FrequencyRun() = default;
+FrequencyRun::FrequencyRun(FrequencyRun&&) noexcept = default;
+
+double FrequencyRun::advance(double until) {
     double wall = 0;
-    bool diverged = false;
-    for (long k = 0; k < n && !diverged; ++k) {
+    // the same steps in any slicing: the run's end is its step count, not a time
+    while (k_ < n_ && !diverged_ && s_.time < until) {
         const auto t0 = Clock::now();
-        st.step(m, s, opt);
+        st_.step(m_, s_, opt_);
         wall += since(t0);
-        diverged = s.flags.nonFinite != 0 || ((k & 63) == 63 && runaway(s));
-        t.push_back(s.time);
+        diverged_ = s_.flags.nonFinite != 0 || ((k_ & 63) == 63 && runaway(s_));
+        ++k_;
+        t_.push_back(s_.time);
         // outside the timed part: a measurement, not the method
-        y.push_back(probe.tip ? probe.tip(m, s.x) : tipDeflection(m, s.x));
+        y_.push_back(probe_.tip ? probe_.tip(m_, s_.x) : tipDeflection(m_, s_.x));
     }
+    wall_ += wall;
+    return wall;
+}
+
+bool FrequencyRun::done() const { return k_ >= n_ || diverged_; }
+
+BenchPoint FrequencyRun::point() const {
     BenchPoint p;
-    p.problem = probe.problem.empty() ? "cantilever_frequency" : probe.problem + "_frequency";
-    p.config = config;
-    p.dt = opt.dt;
-    p.explicitScheme = opt.integrator != Integrator::BackwardEuler;
-    p.wallPerSimSecond = wall / s.time;
-    const double ref = probe.problem.empty() ? ctx.frequencyReference : probe.reference;
-    const Oscillation mode = fitOscillation(t, y);
-    if (diverged || mode.frequency <= 0 || mode.halfCycles < 2) {
+    p.problem = probe_.problem.empty() ? "cantilever_frequency" : probe_.problem + "_frequency";
+    p.config = config_;
+    p.dt = opt_.dt;
+    p.explicitScheme = opt_.integrator != Integrator::BackwardEuler;
+    p.wallPerSimSecond = s_.time > 0 ? wall_ / s_.time : INFINITY;
+    const double ref = probe_.problem.empty() ? ctx_->frequencyReference : probe_.reference;
+    const Oscillation mode = fitOscillation(t_, y_);
+    if (diverged_ || mode.frequency <= 0 || mode.halfCycles < 2) {
         p.error = INFINITY;
         return p;
     }
@@ -198,6 +209,29 @@ BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const 
     p.dampingRatio = mode.decay / wRef;
     p.error = modeError({-mode.decay, 2 * M_PI * mode.frequency}, wRef);
     return p;
+}
+
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
+                             const TipProbe& probe) {
+    FrequencyRun run(ctx, m0, opt, config, probe);
+    run.advance(INFINITY);
+    return run.point();
+}
+
+PairedRuns runPaired(std::vector<FrequencyRun>& runs, int slices) {
+    PairedRuns out;
+    out.sliceWall.assign(runs.size(), std::vector<double>(static_cast<size_t>(slices), 0.0));
+    const double T = runs.empty() ? 0 : runs.front().context().bar.frequencyTime;
+    for (int i = 0; i < slices; ++i) {
+        const double until = i + 1 == slices ? INFINITY : T * (i + 1) / slices;
+        // alternate the order, so that no run always follows the same one
+        for (size_t j = 0; j < runs.size(); ++j) {
+            const size_t r = i % 2 ? runs.size() - 1 - j : j;
+            out.sliceWall[r][static_cast<size_t>(i)] = runs[r].advance(until);
+        }
+    }
+    for (const auto& r : runs) out.points.push_back(r.point());
+    return out;
 }
 
 // Linear static tip deflection K u = M g (small-displacement limit of the corotational model).
@@ -446,6 +480,23 @@ struct ImplicitProjection {
     double cost = INFINITY;     // stepSeconds() / dt [s/s]
 };
 
+// An implicit point and the explicit runs that took turns with it (runPaired), on one mesh.
+struct PairedComparison {
+    BenchPoint implicitPoint;
+    int slices = 0;
+    struct Explicit {
+        BenchPoint point;
+        double ratio = 0;                  // implicit cost / explicit cost over the whole run
+        double firstHalf = 0, secondHalf = 0; // the same over the first and the last half of the slices
+        double sliceMin = 0, sliceMax = 0; // the smallest and largest ratio of one slice
+    };
+    std::vector<Explicit> runs;
+};
+
+// Turns of a paired comparison: 20 slices of 0.05 simulated s in the full run, each a few seconds
+// of the machine's time on the finest bars.
+constexpr int kPairedSlices = 20;
+
 // Backward Euler at dt with the given linear solver.
 StepOptions backwardEulerOptions(double dt, ImplicitSolver solver) {
     StepOptions opt{Integrator::BackwardEuler, dt};
@@ -473,7 +524,8 @@ std::pair<double, int> backwardEulerStepSeconds(const Model& m0, double dt, int 
     return w[w.size() / 2];
 }
 
-std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool quiet, std::vector<ImplicitProjection>& proj) {
+std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool quiet, std::vector<ImplicitProjection>& proj,
+                                              std::vector<PairedComparison>& paired) {
     std::vector<BenchPoint> pts;
     auto log = [&](const BenchPoint& p) {
         pts.push_back(p);
@@ -492,12 +544,62 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
     std::vector<double> fMesh;
     for (int r : ctx.res) fMesh.push_back(firstBendingFrequency(bar(r)));
     char name[160];
-    // Backward Euler solved by CG at dt, its first mode measured (frequency problem only).
+    const int finest = ctx.res.back();
+    double dtFinest = 0;  // exact limit of the finest mirrored bar, set by the conforming runs
+    // Backward Euler solved by CG at dt, its first mode measured (frequency problem only). On the
+    // finest mesh the explicit runs at 0.999 of its limit, in double and single precision, take
+    // turns with it: their cost ratio at equal machine conditions. Their points are those of the
+    // conforming runs above, bitwise (the same steps), and are not logged twice.
     auto cgFrequencyPoint = [&](const Model& m, int r, double dt, double f) {
         const StepOptions cg = backwardEulerOptions(dt, ImplicitSolver::ConjugateGradient);
         std::snprintf(name, sizeof name, "backward_euler cg %dx%dx%d dt=%.3g", 10 * r, r, r, dt);
-        const BenchPoint p = predicted(runFrequencyPoint(ctx, m, cg, name), cg, f);
+        if (r != finest || !(dtFinest > 0)) {
+            const BenchPoint p = predicted(runFrequencyPoint(ctx, m, cg, name), cg, f);
+            log(p);
+            return p;
+        }
+        std::vector<FrequencyRun> runs;
+        runs.emplace_back(ctx, m, cg, name);
+        const StepOptions ex{Integrator::SymplecticEuler, 0.999 * dtFinest};
+        std::snprintf(name, sizeof name, "explicit %dx%dx%d f=0.999", 10 * r, r, r);
+        runs.emplace_back(ctx, m, ex, name);
+        Model ms = m;
+        ms.precision = ForcePrecision::Single;
+        std::snprintf(name, sizeof name, "explicit single %dx%dx%d f=0.999", 10 * r, r, r);
+        runs.emplace_back(ctx, ms, ex, name);
+        const PairedRuns turns = runPaired(runs, kPairedSlices);
+        const BenchPoint p = predicted(turns.points[0], cg, f);
         log(p);
+        PairedComparison c;
+        c.implicitPoint = p;
+        c.slices = kPairedSlices;
+        auto ratioOver = [&](size_t run, int from, int to) {
+            double im = 0, exw = 0;
+            for (int i = from; i < to; ++i) {
+                im += turns.sliceWall[0][static_cast<size_t>(i)];
+                exw += turns.sliceWall[run][static_cast<size_t>(i)];
+            }
+            return exw > 0 ? im / exw : INFINITY;
+        };
+        for (size_t k = 1; k < runs.size(); ++k) {
+            PairedComparison::Explicit e;
+            e.point = turns.points[k];
+            e.ratio = p.wallPerSimSecond / e.point.wallPerSimSecond;
+            e.firstHalf = ratioOver(k, 0, kPairedSlices / 2);
+            e.secondHalf = ratioOver(k, kPairedSlices / 2, kPairedSlices);
+            e.sliceMin = INFINITY;
+            e.sliceMax = 0;
+            for (int i = 0; i < kPairedSlices; ++i) {
+                const double q = ratioOver(k, i, i + 1);
+                e.sliceMin = std::min(e.sliceMin, q);
+                e.sliceMax = std::max(e.sliceMax, q);
+            }
+            if (!quiet)
+                std::fprintf(stderr, "    taking turns with it: %-34s error %.3e  cost %.4g s/s  ratio %.3g (halves %.3g, %.3g)\n",
+                             e.point.config.c_str(), e.point.error, e.point.wallPerSimSecond, e.ratio, e.firstHalf, e.secondHalf);
+            c.runs.push_back(e);
+        }
+        paired.push_back(c);
         return p;
     };
     // Conforming meshes at 0.9 of their exact limit, plain symplectic Euler; the Kuhn split beside
@@ -509,6 +611,7 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
             if (kuhn && r > 4) continue;
             const Model m = bar(r, split);
             const double dtExact = exactCriticalDt(m).dt;
+            if (!kuhn && r == finest) dtFinest = dtExact;
             // The finest mesh also at 0.98 and 0.999 of its limit: the limit is exact (Lanczos),
             // and plain schemes are stable to 0.999 of it (bench stability). That sweep is unloaded;
             // here the bar hangs under gravity, whose stress could lift the top eigenvalue past the
@@ -611,6 +714,7 @@ int runAccuracy(const AccuracyArgs& a) {
     }
     std::vector<BenchPoint> pts;
     std::vector<ImplicitProjection> proj;
+    std::vector<PairedComparison> paired;
     json refs = json::object();
     if (!a.from.empty()) {
         pts = readPointsCsv(a.from);
@@ -658,7 +762,7 @@ int runAccuracy(const AccuracyArgs& a) {
         if (!a.json)
             std::fprintf(stderr, "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
                          ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
-        if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj);
+        if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj, paired);
         for (auto& [name, fn] : registry().configs) {
             if (!selected(a, name)) continue;
             auto more = fn(ctx);
@@ -716,6 +820,39 @@ int runAccuracy(const AccuracyArgs& a) {
             s["speedup_at_1pct_projected"] = best && ex > 0 ? json(best->cost / ex) : json(nullptr);
         }
     }
+    // Explicit runs that took turns with an implicit one: their cost ratio at equal machine
+    // conditions. The summary's: the cheapest implicit point at 1% and its cheapest explicit one.
+    if (!paired.empty()) {
+        j["paired"] = json::array();
+        const PairedComparison* best = nullptr;
+        const PairedComparison::Explicit* bestEx = nullptr;
+        for (const auto& c : paired) {
+            json runs = json::array();
+            for (const auto& e : c.runs)
+                runs.push_back({{"config", e.point.config}, {"error", jsonNumber(e.point.error)}, {"cost", e.point.wallPerSimSecond},
+                                {"ratio", e.ratio}, {"ratio_first_half", e.firstHalf}, {"ratio_second_half", e.secondHalf},
+                                {"slice_ratio_min", e.sliceMin}, {"slice_ratio_max", e.sliceMax}});
+            j["paired"].push_back({{"problem", c.implicitPoint.problem}, {"implicit", c.implicitPoint.config},
+                                   {"implicit_error", jsonNumber(c.implicitPoint.error)}, {"implicit_cost", c.implicitPoint.wallPerSimSecond},
+                                   {"slices", c.slices}, {"explicit", runs}});
+            if (!(c.implicitPoint.error <= 0.01) || (best && best->implicitPoint.wallPerSimSecond <= c.implicitPoint.wallPerSimSecond))
+                continue;
+            const PairedComparison::Explicit* cheapest = nullptr;
+            for (const auto& e : c.runs)
+                if (e.point.error <= 0.01 && (!cheapest || e.point.wallPerSimSecond < cheapest->point.wallPerSimSecond)) cheapest = &e;
+            if (cheapest) {
+                best = &c;
+                bestEx = cheapest;
+            }
+        }
+        const std::string problem = paired.front().implicitPoint.problem;
+        if (j["summary"].contains(problem)) {
+            auto& s = j["summary"][problem];
+            s["speedup_at_1pct_paired"] = bestEx ? json(bestEx->ratio) : json(nullptr);
+            s["paired_explicit"] = bestEx ? json(bestEx->point.config) : json(nullptr);
+            s["paired_implicit"] = best ? json(best->implicitPoint.config) : json(nullptr);
+        }
+    }
     if (!refs.empty()) j["references"] = refs;
     if (a.from.empty()) j["threads"] = threads();
     if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
@@ -749,6 +886,18 @@ int runAccuracy(const AccuracyArgs& a) {
                         std::isfinite(pr.cost) ? std::to_string(pr.cost).c_str() : "-");
         }
     }
+    if (!paired.empty()) {
+        std::printf("\nexplicit runs taking turns with an implicit one (%d slices of equal simulated time; ratio = implicit cost /\n"
+                    "explicit cost, over the run, its two halves, and the range of single slices):\n", paired.front().slices);
+        for (const auto& c : paired) {
+            std::printf("  %s: error %.4e, %.5g s/s\n", c.implicitPoint.config.c_str(), c.implicitPoint.error,
+                        c.implicitPoint.wallPerSimSecond);
+            for (const auto& e : c.runs)
+                std::printf("    %-38s error %.4e  %9.5g s/s  ratio %6.3f  halves %6.3f %6.3f  slices %6.3f .. %6.3f\n",
+                            e.point.config.c_str(), e.point.error, e.point.wallPerSimSecond, e.ratio, e.firstHalf, e.secondHalf,
+                            e.sliceMin, e.sliceMax);
+        }
+    }
     std::printf("\ncost at 1%% error (wall s per simulated s; - = not reached):\n");
     for (auto& [problem, s] : j["summary"].items()) {
         auto show = [](const json& v) { return v.is_null() ? std::string("-") : std::to_string(v.get<double>()); };
@@ -756,6 +905,9 @@ int runAccuracy(const AccuracyArgs& a) {
                     problem.c_str(), show(s["best_explicit_cost_at_1pct"]).c_str(), show(s["implicit_cost_at_1pct"]).c_str(),
                     show(s["common_error"]).c_str(), show(s["explicit_cost_at_common_error"]).c_str(),
                     show(s["implicit_cost_at_common_error"]).c_str());
+        if (s.contains("speedup_at_1pct_paired") && !s["speedup_at_1pct_paired"].is_null())
+            std::printf("  %-22s taking turns at 1%%: %s cheaper by %.3fx than %s\n", "", s["paired_explicit"].get<std::string>().c_str(),
+                        s["speedup_at_1pct_paired"].get<double>(), s["paired_implicit"].get<std::string>().c_str());
     }
     return 0;
 }

@@ -270,6 +270,28 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
             if (p["config"] == "explicit single 20x2x2 f=0.999") sgl = p["error"].get<double>();
         }
     EXPECT_NEAR(cg, direct, 1e-8 * direct);
+    // The CG run on the finest mesh took turns with the explicit runs at 0.999 (runPaired): the same
+    // steps in slices, so the same errors, bitwise; the ratios are of the costs, and a ratio of sums
+    // lies between the smallest and largest ratio of its parts (the slices, the halves).
+    ASSERT_EQ(j["paired"].size(), 1u);
+    const auto& pc = j["paired"][0];
+    EXPECT_EQ(pc["implicit"], "backward_euler cg 20x2x2 dt=0.003");
+    EXPECT_EQ(pc["implicit_error"].get<double>(), cg);
+    EXPECT_EQ(pc["slices"].get<int>(), 20);
+    ASSERT_EQ(pc["explicit"].size(), 2u);
+    for (const auto& e : pc["explicit"]) {
+        const double err = e["error"].get<double>();
+        EXPECT_EQ(err, e["config"] == "explicit 20x2x2 f=0.999" ? dbl : sgl) << e.dump();
+        const double ratio = e["ratio"].get<double>(), h1 = e["ratio_first_half"].get<double>(), h2 = e["ratio_second_half"].get<double>();
+        EXPECT_NEAR(ratio, pc["implicit_cost"].get<double>() / e["cost"].get<double>(), 1e-12 * ratio);
+        EXPECT_GT(ratio, 0);
+        EXPECT_LE(std::min(h1, h2), ratio * (1 + 1e-12));
+        EXPECT_GE(std::max(h1, h2), ratio * (1 - 1e-12));
+        EXPECT_LE(e["slice_ratio_min"].get<double>(), std::min(h1, h2) * (1 + 1e-12));
+        EXPECT_GE(e["slice_ratio_max"].get<double>(), std::max(h1, h2) * (1 - 1e-12));
+    }
+    // 26% off: no pairing at 1%
+    EXPECT_TRUE(j["summary"]["cantilever_frequency"]["speedup_at_1pct_paired"].is_null());
     // float forces move the measured mode by far less than the mesh's 26%, but do move it
     EXPECT_NEAR(sgl, dbl, 1e-4 * dbl);
     EXPECT_NE(sgl, dbl);
