@@ -1307,8 +1307,9 @@ void addBenchCommand(CLI::App& app) {
                                                     "deflection, first bending frequency) on conforming and MI meshes, the notched "
                                                     "cantilever per XFEM lumping option, the liver sagging under gravity");
         c->add_flag("--json", a->json, "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
-                                       "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, ...}}, "
-                                       "references}; error is null for a run that diverged or gave no frequency, "
+                                       "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, speedup_at_1pct_paired, ...}}, "
+                                       "paired: [{implicit, implicit_cost, slices, explicit: [{config, cost, ratio, ...}]}] (the explicit "
+                                       "runs that took turns with the CG runs on the finest bar), references}; error is null for a run that diverged or gave no frequency, "
                                        "a cost is null when no point reaches the error");
         c->add_option("--csv", a->csv, "Write the points to this CSV file");
         c->add_option("--plot", a->plot, "Draw error against cost with the Pareto front to this PNG (needs gnuplot)");
