@@ -101,7 +101,8 @@ public:
     // Steps on while the simulated time is below until (INFINITY: to the run's end) and the run has
     // neither ended nor diverged; returns the wall time of these steps [s].
     double advance(double until);
-    bool done() const;
+    // Simulated time of the steps so far [s].
+    double time() const { return s_.time; }
     // The point of the steps so far (its cost: their wall time over their simulated time).
     BenchPoint point() const;
     const AccuracyContext& context() const { return *ctx_; }
@@ -120,15 +121,19 @@ private:
     bool diverged_ = false;
 };
 
-// Runs that took turns: each run's point, and its wall time in each slice [s].
+// Runs that took turns: each run's point, its simulated time, and its wall time in each slice [s].
 struct PairedRuns {
     std::vector<BenchPoint> points;
+    std::vector<double> simTime;                 // [run]
     std::vector<std::vector<double>> sliceWall;  // [run][slice]
+    // Cost of run a over cost of run b (wall per simulated second) in slices [from, to): their
+    // walls there, over the whole runs' simulated times, so that the ratio of a part and of the
+    // whole differ by the walls alone.
+    double costRatio(size_t a, size_t b, int from, int to) const;
 };
 // Runs all of runs to their end in `slices` turns of equal simulated time (bar.frequencyTime /
-// slices), the order reversed every other turn. A slow spell of the machine then falls on every
-// run alike, and the ratio of two runs' costs is measured at equal conditions, which costs taken
-// minutes apart are not.
+// slices), the order reversed every other turn. A slow spell of the machine then falls on the
+// runs' turns of that time, not on one run alone, which costs taken minutes apart cannot avoid.
 PairedRuns runPaired(std::vector<FrequencyRun>& runs, int slices);
 
 // Linear static tip deflection, K u = M g over the free DOFs (small-displacement limit of the

@@ -189,8 +189,6 @@ double FrequencyRun::advance(double until) {
     return wall;
 }
 
-bool FrequencyRun::done() const { return k_ >= n_ || diverged_; }
-
 BenchPoint FrequencyRun::point() const {
     BenchPoint p;
     p.problem = probe_.problem.empty() ? "cantilever_frequency" : probe_.problem + "_frequency";
@@ -230,8 +228,20 @@ PairedRuns runPaired(std::vector<FrequencyRun>& runs, int slices) {
             out.sliceWall[r][static_cast<size_t>(i)] = runs[r].advance(until);
         }
     }
-    for (const auto& r : runs) out.points.push_back(r.point());
+    for (const auto& r : runs) {
+        out.points.push_back(r.point());
+        out.simTime.push_back(r.time());
+    }
     return out;
+}
+
+double PairedRuns::costRatio(size_t a, size_t b, int from, int to) const {
+    double wa = 0, wb = 0;
+    for (int i = from; i < to; ++i) {
+        wa += sliceWall[a][static_cast<size_t>(i)];
+        wb += sliceWall[b][static_cast<size_t>(i)];
+    }
+    return wb > 0 && simTime[a] > 0 ? (wa / simTime[a]) / (wb / simTime[b]) : INFINITY;
 }
 
 // Linear static tip deflection K u = M g (small-displacement limit of the corotational model).
@@ -544,6 +554,11 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
     std::vector<double> fMesh;
     for (int r : ctx.res) fMesh.push_back(firstBendingFrequency(bar(r)));
     char name[160];
+    // Config of an explicit run: variant "", "kuhn " or "single " (the turns below repeat these names).
+    auto explicitName = [&](const char* variant, int r, double f) {
+        std::snprintf(name, sizeof name, "explicit %s%dx%dx%d f=%g", variant, 10 * r, r, r, f);
+        return std::string(name);
+    };
     const int finest = ctx.res.back();
     double dtFinest = 0;  // exact limit of the finest mirrored bar, set by the conforming runs
     // Backward Euler solved by CG at dt, its first mode measured (frequency problem only). On the
@@ -561,36 +576,26 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
         std::vector<FrequencyRun> runs;
         runs.emplace_back(ctx, m, cg, name);
         const StepOptions ex{Integrator::SymplecticEuler, 0.999 * dtFinest};
-        std::snprintf(name, sizeof name, "explicit %dx%dx%d f=0.999", 10 * r, r, r);
-        runs.emplace_back(ctx, m, ex, name);
+        runs.emplace_back(ctx, m, ex, explicitName("", r, 0.999));
         Model ms = m;
         ms.precision = ForcePrecision::Single;
-        std::snprintf(name, sizeof name, "explicit single %dx%dx%d f=0.999", 10 * r, r, r);
-        runs.emplace_back(ctx, ms, ex, name);
+        runs.emplace_back(ctx, ms, ex, explicitName("single ", r, 0.999));
         const PairedRuns turns = runPaired(runs, kPairedSlices);
         const BenchPoint p = predicted(turns.points[0], cg, f);
         log(p);
         PairedComparison c;
         c.implicitPoint = p;
         c.slices = kPairedSlices;
-        auto ratioOver = [&](size_t run, int from, int to) {
-            double im = 0, exw = 0;
-            for (int i = from; i < to; ++i) {
-                im += turns.sliceWall[0][static_cast<size_t>(i)];
-                exw += turns.sliceWall[run][static_cast<size_t>(i)];
-            }
-            return exw > 0 ? im / exw : INFINITY;
-        };
         for (size_t k = 1; k < runs.size(); ++k) {
             PairedComparison::Explicit e;
             e.point = turns.points[k];
-            e.ratio = p.wallPerSimSecond / e.point.wallPerSimSecond;
-            e.firstHalf = ratioOver(k, 0, kPairedSlices / 2);
-            e.secondHalf = ratioOver(k, kPairedSlices / 2, kPairedSlices);
+            e.ratio = turns.costRatio(0, k, 0, kPairedSlices);
+            e.firstHalf = turns.costRatio(0, k, 0, kPairedSlices / 2);
+            e.secondHalf = turns.costRatio(0, k, kPairedSlices / 2, kPairedSlices);
             e.sliceMin = INFINITY;
             e.sliceMax = 0;
             for (int i = 0; i < kPairedSlices; ++i) {
-                const double q = ratioOver(k, i, i + 1);
+                const double q = turns.costRatio(0, k, i, i + 1);
                 e.sliceMin = std::min(e.sliceMin, q);
                 e.sliceMax = std::max(e.sliceMax, q);
             }
@@ -617,21 +622,21 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
             // here the bar hangs under gravity, whose stress could lift the top eigenvalue past the
             // unloaded limit (a run that diverges shows as such).
             std::vector<double> fractions = {0.9};
-            if (!kuhn && r == ctx.res.back()) fractions.insert(fractions.end(), {0.98, 0.999});
+            if (!kuhn && r == finest) fractions.insert(fractions.end(), {0.98, 0.999});
             for (double f : fractions) {
                 const StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
-                std::snprintf(name, sizeof name, "explicit %s%dx%dx%d f=%g", kuhn ? "kuhn " : "", 10 * r, r, r, f);
-                log(runStaticPoint(ctx, m, opt, name));
-                log(kuhn ? runFrequencyPoint(ctx, m, opt, name) : predicted(runFrequencyPoint(ctx, m, opt, name), opt, fMesh[i]));
+                const std::string cfg = explicitName(kuhn ? "kuhn " : "", r, f);
+                log(runStaticPoint(ctx, m, opt, cfg));
+                log(kuhn ? runFrequencyPoint(ctx, m, opt, cfg) : predicted(runFrequencyPoint(ctx, m, opt, cfg), opt, fMesh[i]));
             }
             // and with the element forces in single precision (integrator.precision), at 0.999
-            if (!kuhn && r == ctx.res.back()) {
+            if (!kuhn && r == finest) {
                 Model ms = m;
                 ms.precision = ForcePrecision::Single;
                 const StepOptions opt{Integrator::SymplecticEuler, 0.999 * dtExact};
-                std::snprintf(name, sizeof name, "explicit single %dx%dx%d f=0.999", 10 * r, r, r);
-                log(runStaticPoint(ctx, ms, opt, name));
-                log(predicted(runFrequencyPoint(ctx, ms, opt, name), opt, fMesh[i]));
+                const std::string cfg = explicitName("single ", r, 0.999);
+                log(runStaticPoint(ctx, ms, opt, cfg));
+                log(predicted(runFrequencyPoint(ctx, ms, opt, cfg), opt, fMesh[i]));
             }
         }
     }
