@@ -3,8 +3,9 @@
 // costs. Results are described in BENCHMARKS.md.
 #include "bench.hpp"
 #include "commands.hpp"
-#include "run.hpp"
-#include "scene.hpp"
+#include "sim/simulation.hpp"
+#include "util/stopwatch.hpp"
+#include "sim/scene.hpp"
 
 #include "cut/random_cuts.hpp"
 #include "fem/forces.hpp"
@@ -1217,20 +1218,16 @@ struct CostArgs {
     int threads = 0;
 };
 
+// The scene run without rendering by the library's Simulation, as `cutsim run --no-render` runs it.
 json runVariant(const std::string& scene, std::vector<std::string> sets, int threads) {
-    const fs::path dir = fs::temp_directory_path() / ("cutsim_cost_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
     const SceneDef def = loadScene(scene, sets);
-    RunOptions ro;
-    ro.out = dir.string();
-    ro.render = false;
-    ro.quiet = true;
-    ro.threads = threads;
-    const int rc = runScene(def, ro);
-    std::ifstream in(dir / "report.json");
-    json r = json::parse(in);
-    fs::remove_all(dir);
-    r["exit_code"] = rc;
+    Simulation::Options so;
+    so.threads = threads;
+    Simulation sim(def, so);
+    const Stopwatch wall;
+    while (sim.status() == RunStatus::Running && !sim.finished()) sim.step();
+    sim.finish();
+    json r = sim.report({{"wall_time", wall.seconds() + sim.record().wallSetup}});
     return r;
 }
 
@@ -1267,7 +1264,7 @@ int runCost(const CostArgs& a) {
         return 0;
     }
     std::printf("scene %s (no rendering)\n%-20s %8s %10s", a.scene.c_str(), "variant", "steps", "wall [s]");
-    const std::vector<std::string> stages = {"contact", "forces", "integrate", "cut", "timestep", "render", "encode"};
+    const std::vector<std::string> stages = {"loads", "contact", "cut", "forces", "integrate", "checks", "timestep"};
     for (const auto& s : stages) std::printf(" %11s", s.c_str());
     std::printf("\n");
     for (const auto& v : j["variants"]) {

@@ -5,7 +5,7 @@
 #include "fem/state.hpp"
 #include "mesh/embedding.hpp"
 #include "snapshot/snapshot.hpp"
-#include "scene.hpp"
+#include "sim/scene.hpp"
 #include "snapshot/snapshot.hpp"
 
 #include <memory>

@@ -148,13 +148,16 @@ TEST(Run, BarSagReportHoldsTheContract) {
     EXPECT_EQ(r["energy"][0]["kinetic"].get<double>(), 0.0);  // starts at rest
     EXPECT_GT(r["energy"].back()["kinetic"].get<double>(), 0.0);  // and falls under gravity
 
-    // Stages: all seven; with --no-render and no tools only forces, integrate and timestep take time.
+    // Stages: all nine (Stage); with --no-render and no tools nor cuts only loads, forces,
+    // integrate, checks and timestep take time.
     const json& st = r["stages"];
-    EXPECT_EQ(st.size(), 7u);
-    for (const char* key : {"contact", "forces", "integrate", "cut", "timestep", "render", "encode"})
+    EXPECT_EQ(st.size(), 9u);
+    for (const char* key : {"loads", "contact", "cut", "forces", "integrate", "checks", "timestep", "render", "encode"})
         ASSERT_TRUE(st.contains(key)) << key;
     for (const char* key : {"contact", "cut", "render", "encode"}) EXPECT_EQ(st[key].get<double>(), 0.0) << key;
-    for (const char* key : {"forces", "integrate", "timestep"}) EXPECT_GT(st[key].get<double>(), 0.0) << key;
+    for (const char* key : {"forces", "integrate", "checks", "timestep"}) EXPECT_GT(st[key].get<double>(), 0.0) << key;
+    EXPECT_EQ(r["exit_code"].get<int>(), 0);
+    EXPECT_EQ(r["state_hash"].get<std::string>().size(), 16u);
 
     EXPECT_EQ(r["frames"].get<int>(), 0);
     EXPECT_EQ(r["video"].get<std::string>(), "");
@@ -338,6 +341,94 @@ TEST(Run, RefusesAFixedRegionThatSelectsNoNode) {
     std::string err;
     expectRefused(writeScene(workDir(), "nofix.json", j), "", "fixed[0]", &err);
     EXPECT_NE(err.find("selects no node"), std::string::npos) << err;
+}
+
+// A fixed step of 1/60 s on the bar, 41x its exact limit, with on_limit "damp": the per-element
+// damping cannot hold it and the state blows up. The run must say so (exit 3, ExitCode::Diverged)
+// long before a value is non-finite, name the damp policy, and write no final.vtu.
+TEST(Run, DampedStepThatBlowsUpIsDiverged) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    const int code = test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                                         " --no-render --quiet"
+                                         " --set 'integrator.dt={\"mode\":\"fixed\",\"value\":0.016666666666666666,"
+                                         "\"on_limit\":\"damp\"}'",
+                                     nullptr, &err);
+    EXPECT_EQ(code, 3) << err;
+    const json r = readReport(out);
+    const std::string status = r["status"];
+    EXPECT_EQ(status.rfind("diverged:", 0), 0u) << status;
+    EXPECT_NE(status.find("on_limit \"damp\" could not hold"), std::string::npos) << status;
+    EXPECT_EQ(r["exit_code"].get<int>(), 3);
+    EXPECT_EQ(r["dt_limit_action"].get<std::string>(), "damped");
+    EXPECT_LT(r["steps"].get<long>(), 90);  // 1.5 s would be 90 steps: stopped early
+    EXPECT_FALSE(fs::exists(out + "/final.vtu"));
+    // Still finite and far from the 1e181 m the unchecked run reached.
+    for (const auto& e : r["energy"]) EXPECT_TRUE(e["total"].is_number()) << e;
+    EXPECT_LT(r["checks"]["displacement_seen"].get<double>(), 1e3);
+}
+
+// Each bound is a failure of its own: a speed bound below what the sagging bar reaches trips the
+// speed check, with the key named.
+TEST(Run, SpeedAboveTheCheckIsDiverged) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    const int code = test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                                         " --no-render --quiet --set checks.max_speed=0.05",
+                                     nullptr, &err);
+    EXPECT_EQ(code, 3) << err;
+    const std::string status = readReport(out)["status"];
+    EXPECT_NE(status.find("above the bound 0.05 m/s"), std::string::npos) << status;
+}
+
+// The derived bounds for the bar: c_p = sqrt(E (1 - nu) / ((1 + nu)(1 - 2 nu) rho)) = 36.69 m/s
+// (E = 1 MPa, nu = 0.3, rho = 1000), size sqrt(1 + 0.01 + 0.01) = 1.00995 m, T = 1.5 s, g = 9.81:
+// speed 10 c_p + g T = 381.61 m/s, displacement 10 L + g T^2 / 2 = 21.136 m.
+TEST(Run, DivergenceBoundsFollowTheScene) {
+    json r;
+    std::string err;
+    ASSERT_EQ(runShipped("bar_sag.json", "", &r, &err), 0) << err;
+    EXPECT_NEAR(r["checks"]["wave_speed"].get<double>(), 36.6900, 1e-3);
+    EXPECT_NEAR(r["checks"]["size"].get<double>(), 1.009950, 1e-5);
+    EXPECT_NEAR(r["checks"]["max_speed"].get<double>(), 10 * 36.68997 + 9.81 * 1.5, 1e-2);
+    EXPECT_NEAR(r["checks"]["max_displacement"].get<double>(), 10 * 1.0099505 + 0.5 * 9.81 * 2.25, 1e-4);
+    EXPECT_LT(r["checks"]["speed_seen"].get<double>(), 0.1 * r["checks"]["max_speed"].get<double>());
+    EXPECT_EQ(r["status"].get<std::string>(), "ok");
+    EXPECT_EQ(r["exit_code"].get<int>(), 0);
+}
+
+// A scene in which nothing can move is refused (exit 2) before anything is written, naming the key.
+TEST(Run, RefusesAFixedRegionThatSelectsEveryNode) {
+    json j = barSag();
+    j["fixed"] = json::parse(R"([{"box": {"min": [-1, -1, -1], "max": [2, 2, 2]}}])");
+    std::string err;
+    expectRefused(writeScene(workDir(), "allfixed.json", j), "", "fixed[0]", &err);
+    EXPECT_NE(err.find("every node of the object (1025) is fixed"), std::string::npos) << err;
+}
+
+TEST(Run, RefusesAZeroDuration) {
+    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set duration=0", "duration");
+}
+
+// An object under a millimetre or over ten metres is most likely in the wrong units.
+TEST(Run, RefusesAnObjectOfImplausibleSize) {
+    std::string err;
+    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set object.scale=1e-4", "object.scale", &err);
+    EXPECT_NE(err.find("object.any_size"), std::string::npos) << err;
+    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set object.scale=20", "object.scale");
+    // unless the scene says so
+    const std::string out = workDir() + "/out";
+    EXPECT_EQ(test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                              " --no-render --quiet --set object.scale=20 --set object.any_size=true --set duration=0.01"),
+              0);
+}
+
+// A step count beyond integrator.max_steps is refused up front, with the count.
+TEST(Run, RefusesARunOfTooManySteps) {
+    std::string err;
+    expectRefused(test::source("assets/scenes/bar_sag.json"), "--set integrator.dt.fraction=1e-9",
+                  "integrator.max_steps", &err);
+    EXPECT_NE(err.find("3.29e+12 steps"), std::string::npos) << err;
 }
 
 TEST(Run, RefusesAnUnwritableOutputBeforeSimulating) {

@@ -6,6 +6,7 @@
 #include "video.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <cstdlib>
@@ -141,13 +142,51 @@ TEST(View, ToolPressesAndHoldsWhereTheMouseLeavesIt) {
     EXPECT_GT(maxForce(3, "--tool-at 0 0.125 0.008"), 0.1);
 }
 
+// `cutsim run` and `cutsim view` drive the same Simulation: a scene with scripted cuts and a
+// blade, run offscreen for N frames' time and viewed for N frames, ends with the same steps, the
+// same step after every cut and bitwise the same positions and velocities (report state_hash).
+TEST(View, RunAndViewTakeTheSameSteps) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    const int frames = 21;  // 0.7 s at 30 fps: the blade's stroke and both scripted cuts
+    const std::string sets =
+        " --threads 1 --set 'cutting.cuts=[{\"time\":0.25,\"point\":[-0.085,0.06,0.0],\"normal\":[1,0,0.15]},"
+        "{\"time\":0.6,\"point\":[-0.045,0.06,0.0],\"normal\":[1,0.1,0]}]' ";
+    std::string err;
+    int code = shell(std::string(CUTSIM_BINARY) + " run " + test::source("assets/scenes/blade.json") + " --no-render --quiet --out " +
+                         dir + "/run" + sets + "--set duration=" + std::to_string(frames / 30.0),
+                     dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") + " --frames " +
+                     std::to_string(frames) + " --width 320 --height 180 --report " + dir + "/view.json" + sets,
+                 dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    const auto run = nlohmann::json::parse(test::readText(dir + "/run/report.json"));
+    const auto view = nlohmann::json::parse(test::readText(dir + "/view.json"));
+    EXPECT_EQ(run["steps"], view["steps"]);
+    EXPECT_EQ(run["state_hash"], view["state_hash"]);
+    ASSERT_EQ(run["cuts"].size(), view["cuts"].size());
+    int scripted = 0, blade = 0;
+    for (size_t i = 0; i < run["cuts"].size(); ++i) {
+        EXPECT_EQ(run["cuts"][i]["key"], view["cuts"][i]["key"]);
+        EXPECT_EQ(run["cuts"][i]["dt_used"].get<double>(), view["cuts"][i]["dt_used"].get<double>()) << i;
+        EXPECT_EQ(run["cuts"][i]["split"], view["cuts"][i]["split"]) << i;
+        const std::string key = run["cuts"][i]["key"];
+        scripted += key.rfind("cutting.cuts", 0) == 0;
+        blade += key.rfind("tools", 0) == 0;
+    }
+    EXPECT_EQ(scripted, 2);
+    EXPECT_GT(blade, 5);
+    EXPECT_EQ(run["pieces"], view["pieces"]);
+}
+
 TEST(View, WithoutADisplayExitsWithAClearMessage) {
     const std::string dir = test::tempDir();
     std::string err;
     const int code = shell("env -u DISPLAY -u WAYLAND_DISPLAY " + std::string(CUTSIM_BINARY) + " view " +
                                test::source("assets/scenes/bar_sag.json") + " --frames 1 --screenshot " + dir + "/x.png",
                            dir, &err);
-    EXPECT_EQ(code, 4) << err;
+    EXPECT_EQ(code, 5) << err;  // ExitCode::NoDisplay
     EXPECT_NE(err.find("display"), std::string::npos) << err;
     EXPECT_NE(err.find("DISPLAY is not set"), std::string::npos) << err;
     EXPECT_FALSE(std::filesystem::exists(dir + "/x.png"));

@@ -1,9 +1,9 @@
-#include "json_reader.hpp"
+#include "sim/json_reader.hpp"
 
 #include <cmath>
 #include <sstream>
 
-namespace cutsim::app {
+namespace cutsim {
 
 ObjectReader::ObjectReader(const nlohmann::json& j, std::string file, std::string path)
     : j_(j), file_(std::move(file)), path_(std::move(path)) {
@@ -134,4 +134,4 @@ void ObjectReader::finish() const {
         if (!seen_.count(it.key())) fail(it.key(), "unknown key");
 }
 
-} // namespace cutsim::app
+} // namespace cutsim

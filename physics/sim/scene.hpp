@@ -6,6 +6,7 @@
 #include "fem/integrate.hpp"
 #include "fem/material.hpp"
 #include "fem/model.hpp"
+#include "sim/step_policy.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -14,7 +15,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim {
 
 // A set of nodes: inside a box, near a plane, inside a sphere, or listed.
 struct Region {
@@ -42,13 +43,16 @@ struct ForceLoad {
     Profile profile;
 };
 
-// Time-step policy: a fixed step, or a fraction of the exact, certified or estimated limit.
-struct DtPolicy {
-    enum class Mode { Fixed, Fraction } mode = Mode::Fraction;
-    double value = 0;                  // fixed step [s]
-    std::string of = "exact";          // exact | certified | estimate
-    double fraction = 0.9;             // of the chosen limit [-]
-    std::string onLimit = "refuse";    // refuse | clamp | damp: what a step above the exact limit does
+// Divergence checks (Simulation, sim/simulation.hpp divergenceBounds): factors of the derived
+// bounds, or bounds given outright (> 0).
+struct Checks {
+    double speedFactor = 10;         // speed bound in p-wave speeds (a strain of 10 at the wave front) [-]
+    double displacementFactor = 10;  // displacement bound in object sizes [-]
+    double maxSpeed = 0;             // > 0: the speed bound itself [m/s]
+    double maxDisplacement = 0;      // > 0: the displacement bound itself [m]
+    bool energy = true;              // check the energy when nothing does work
+    double invertedFraction = 0.05;  // inverted elements (share of all, at least 10) that fail ...
+    int invertedSteps = 100;         // ... when seen in this many steps in a row; 0: off
 };
 
 struct CameraKey {
@@ -96,6 +100,7 @@ struct Cutting {
 };
 
 CutOptions cutOptions(const Cutting& c);  // the engine's options as the scene sets them
+CutSurface cutSurfaceOf(const CutDef& cd); // the world-space surface of a scripted cut
 
 struct SceneDef {
     std::string file;             // scene file path
@@ -115,6 +120,7 @@ struct SceneDef {
     Eigen::Vector3d translate = Eigen::Vector3d::Zero();  // [m], after scale and rotation
     Eigen::Vector3d rotateDeg = Eigen::Vector3d::Zero();  // XYZ Euler angles [deg]
     bool reorient = false;        // fix inverted tets instead of refusing the mesh
+    bool anySize = false;         // object.any_size: allow an object under 1 mm or over 10 m across
     ElementModel element = ElementModel::Corotational;
 
     Material material;
@@ -128,8 +134,10 @@ struct SceneDef {
     double minStretch = 0;      // integrator.min_stretch: stretch limiting, 0 off [-]
     ImplicitSolver implicitSolver = ImplicitSolver::Direct;  // integrator.solver (backward Euler)
     ForcePrecision precision = ForcePrecision::Double;       // integrator.precision (explicit schemes)
-    DtPolicy dt;
+    StepPolicy dt;                // integrator.dt
     double duration = 1;          // [s]
+    double maxSteps = 1e8;        // integrator.max_steps: a run implying more steps is refused [-]
+    Checks checks;
 
     Cutting cutting;
     std::vector<ToolDef> tools;     // rigid tools in contact with the object; empty: no Bullet world
@@ -165,4 +173,4 @@ SceneDef parseScene(const nlohmann::json& j, const std::string& file);
 // Nodes of a mesh selected by a region (rest positions X).
 std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X);
 
-} // namespace cutsim::app
+} // namespace cutsim

@@ -1,6 +1,6 @@
-#include "scene.hpp"
+#include "sim/scene.hpp"
 
-#include "json_reader.hpp"
+#include "sim/json_reader.hpp"
 #include "mesh/io.hpp"
 
 #include "cut/xfem.hpp"
@@ -10,7 +10,7 @@
 #include <fstream>
 #include <numbers>
 
-namespace cutsim::app {
+namespace cutsim {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -251,6 +251,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.translate = o.vec3("translate", s.translate);
         s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
         s.reorient = o.boolean("reorient", false);
+        s.anySize = o.boolean("any_size", false);
         s.element = o.string("element", "corotational", {"corotational", "linear"}) == "linear"
                         ? ElementModel::Linear : ElementModel::Corotational;
         o.finish();
@@ -294,18 +295,19 @@ SceneDef parseScene(const json& j, const std::string& file) {
             ObjectReader d = in.object("dt");
             const std::string mode = d.string("mode", "fraction", {"fixed", "fraction"});
             if (mode == "fixed") {
-                s.dt.mode = DtPolicy::Mode::Fixed;
+                s.dt.fixed = true;
                 s.dt.value = d.number("value", 0, 0, 10, true);
                 if (!d.has("value")) d.fail("value", "is required for mode fixed");
             } else {
-                s.dt.mode = DtPolicy::Mode::Fraction;
-                s.dt.of = d.string("of", "exact", {"exact", "certified", "estimate"});
+                s.dt.fixed = false;
+                s.dt.of = parseLimitOf(d.string("of", "exact", {"exact", "certified", "estimate"}));
                 s.dt.fraction = d.number("fraction", 0.9, 0, 100, true);
             }
-            s.dt.onLimit = d.string("on_limit", "refuse", {"refuse", "clamp", "damp"});
+            s.dt.onLimit = parseOnLimit(d.string("on_limit", "refuse", {"refuse", "clamp", "damp"}));
             d.finish();
         }
         s.minStretch = in.number("min_stretch", 0, 0, 0.9);
+        s.maxSteps = in.number("max_steps", s.maxSteps, 1, 1e15);
         s.implicitSolver = parseImplicitSolver(in.string("solver", "direct", {"direct", "cg"}));
         if (in.has("solver") && s.integrator != Integrator::BackwardEuler)
             in.fail("solver", "applies to scheme backward_euler only");
@@ -315,6 +317,17 @@ SceneDef parseScene(const json& j, const std::string& file) {
         in.finish();
     }
     s.duration = root.number("duration", 1, 0, 1e6, true);
+    if (root.has("checks")) {
+        ObjectReader c = root.object("checks");
+        s.checks.speedFactor = c.number("speed_factor", s.checks.speedFactor, 0, 1e6, true);
+        s.checks.displacementFactor = c.number("displacement_factor", s.checks.displacementFactor, 0, 1e6, true);
+        s.checks.maxSpeed = c.number("max_speed", 0, 0, 1e300);
+        s.checks.maxDisplacement = c.number("max_displacement", 0, 0, 1e300);
+        s.checks.energy = c.boolean("energy", true);
+        s.checks.invertedFraction = c.number("inverted_fraction", s.checks.invertedFraction, 0, 1);
+        s.checks.invertedSteps = c.integer("inverted_steps", s.checks.invertedSteps, 0, 1000000000);
+        c.finish();
+    }
     if (root.has("cutting")) {
         ObjectReader c = root.object("cutting");
         s.cutting.lumping = c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"});
@@ -445,4 +458,18 @@ CutOptions cutOptions(const Cutting& c) {
     return o;
 }
 
-} // namespace cutsim::app
+CutSurface cutSurfaceOf(const CutDef& cd) {
+    CutSurface surf;
+    surf.point = cd.point;
+    surf.normal = cd.normal;
+    if (!cd.polygon.empty()) {
+        Eigen::Vector3d u, v;
+        planeAxes(cd.normal, u, v);
+        std::vector<Eigen::Vector2d> poly;
+        for (const auto& p : cd.polygon) poly.emplace_back((p - cd.point).dot(u), (p - cd.point).dot(v));
+        surf.regions.push_back(std::move(poly));
+    }
+    return surf;
+}
+
+} // namespace cutsim

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim {
 
 class ObjectReader {
 public:
@@ -51,4 +51,4 @@ private:
     std::set<std::string> seen_;
 };
 
-} // namespace cutsim::app
+} // namespace cutsim

@@ -1,0 +1,937 @@
+#include "sim/simulation.hpp"
+
+#include "cut/baselines.hpp"
+#include "embed/mi.hpp"
+#include "fem/forces.hpp"
+#include "mesh/generate.hpp"
+#include "mesh/io.hpp"
+#include "util/stopwatch.hpp"
+#include "util/union_find.hpp"
+
+#include <Eigen/Geometry>
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <limits>
+
+namespace cutsim {
+
+using nlohmann::json;
+
+namespace {
+
+constexpr double kKeepStepWarnFraction = 0.01;  // keep_step adding more of the mass than this is reported
+constexpr double kMinObjectSize = 1e-3;         // [m] below or above these the scale is most likely wrong
+constexpr double kMaxObjectSize = 10;
+constexpr long kBoundsEvery = 4;                // steps between the speed and displacement checks
+
+std::string fmt(const char* f, auto... args) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf, f, args...);
+    return buf;
+}
+
+// Connected pieces of elements joined through shared nodes: their volumes (V f), largest first [m^3].
+std::vector<double> pieceVolumes(const Model& m) {
+    UnionFind uf = elementPieces(m.tets, m.nodes());
+    std::vector<double> byRoot(static_cast<size_t>(m.nodes()), -1.0);
+    for (int e = 0; e < m.elements(); ++e) {
+        double& v = byRoot[static_cast<size_t>(uf.find(m.tets(0, e)))];
+        v = std::max(v, 0.0) + m.volume(e) * m.fraction(e);
+    }
+    std::vector<double> volumes;
+    for (double v : byRoot)
+        if (v >= 0) volumes.push_back(v);
+    std::sort(volumes.begin(), volumes.end(), std::greater<>());
+    return volumes;
+}
+
+double totalEnergy(const Model& m, const State& s) {
+    return kineticEnergy(m, s) + elasticEnergy(m, s) + gravityEnergy(m, s);
+}
+
+// cutting.compare: the scene's planes applied in order to the rest mesh with no fixed nodes by
+// XFEM and by each baseline, with the exact step after each cut (thesis sec. 5.2, Table 6.1).
+json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
+    std::vector<CutPlane> planes;
+    for (const CutDef& cd : sc.cutting.cuts) planes.push_back({cd.point, cd.normal});
+    const double dt0 = exactDtOf(rest, sc.material);
+    json out = {{"setting", "rest shape, no fixed nodes, the cut planes in scene order"}, {"uncut_exact", dt0}};
+    auto add = [&](const std::string& name, const std::vector<double>& dts, double seconds) {
+        json ratios = json::array();
+        for (double d : dts) ratios.push_back(d / dt0);
+        out[name] = {{"dt_exact", dts}, {"dt_ratio", ratios}, {"seconds", seconds}};
+    };
+    {
+        Stopwatch sw;
+        Model m = buildModel(rest, sc.material);
+        updateMasses(m);
+        State s = makeState(m);
+        CutEngine eng(cutOptions(sc.cutting));
+        std::vector<double> dts;
+        for (const CutPlane& p : planes) {
+            CutSurface cs;
+            cs.point = p.point;
+            cs.normal = p.normal;
+            eng.cut(m, s, cs);
+            dts.push_back(TimestepAnalyzer(m).exact(m).dt);
+        }
+        add("xfem", dts, sw.seconds());
+    }
+    for (const std::string& name : sc.cutting.compare) {
+        Stopwatch sw;
+        try {
+            const auto dts = dtAfterPlaneCuts(rest, planes, name == "remesh" ? CutMethod::Remesh : CutMethod::Subdivision,
+                                              sc.material);
+            add(name, dts, sw.seconds());
+        } catch (const std::exception& e) {
+            out[name] = {{"error", e.what()}};
+        }
+    }
+    return out;
+}
+
+// Diagonal of the bounding box of X (3 x n) [m].
+double boxDiagonal(const Eigen::Matrix3Xd& X) {
+    if (X.cols() == 0) return 0;
+    return (X.rowwise().maxCoeff() - X.rowwise().minCoeff()).norm();
+}
+
+} // namespace
+
+// ---- status, bounds, budget ----
+
+const char* runStatusName(RunStatus s) {
+    switch (s) {
+    case RunStatus::Running: return "running";
+    case RunStatus::Finished: return "ok";
+    case RunStatus::Diverged: return "diverged";
+    case RunStatus::Refused: return "refused";
+    }
+    return "?";
+}
+
+ExitCode exitCodeOf(RunStatus s) {
+    switch (s) {
+    case RunStatus::Diverged: return ExitCode::Diverged;
+    case RunStatus::Refused: return ExitCode::RefusedStep;
+    default: return ExitCode::Ok;
+    }
+}
+
+DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model) {
+    DivergenceBounds b;
+    b.waveSpeed = sc.material.pWaveSpeed();
+    b.size = boxDiagonal(model.X);
+    const double T = sc.duration, g = sc.gravity.norm();
+    // The largest acceleration the scene's forces give the whole object, and how far and fast
+    // the tools move (a tool can drag tissue along).
+    const double mass = std::max(model.mass.sum(), 1e-300);
+    double force = 0;
+    for (const auto& f : sc.forces) force += f.force.norm();
+    const double a = g + force / mass;
+    double toolSpeed = 0, toolTravel = 0;
+    for (const auto& t : sc.tools)
+        for (size_t k = 1; k < t.keys.size(); ++k) {
+            const double d = (t.keys[k].pose.position - t.keys[k - 1].pose.position).norm();
+            const double span = t.keys[k].time - t.keys[k - 1].time;
+            // a turn moves the tool's far end by its size per radian
+            const double turn = t.keys[k].pose.orientation.angularDistance(t.keys[k - 1].pose.orientation) *
+                                std::max({t.radius + t.length, t.size.maxCoeff(), b.size});
+            toolTravel += d + turn;
+            toolSpeed = std::max(toolSpeed, span > 0 ? (d + turn) / span : 0.0);
+        }
+    if (!sc.tools.empty()) toolSpeed = std::max(toolSpeed, toolTravel / std::max(T, 1e-300));  // a dragged tool
+    b.maxSpeed = sc.checks.maxSpeed > 0 ? sc.checks.maxSpeed
+                                        : sc.checks.speedFactor * b.waveSpeed + a * T + toolSpeed;
+    b.maxDisplacement = sc.checks.maxDisplacement > 0
+                            ? sc.checks.maxDisplacement
+                            : sc.checks.displacementFactor * b.size + 0.5 * a * T * T + toolTravel;
+    b.energyGrowth = sc.checks.energy ? mass * (g * b.size + 1e-4 * b.waveSpeed * b.waveSpeed) : 0;
+    if (sc.minStretch == 0 && sc.checks.invertedSteps > 0) {
+        b.invertedElements = std::max(10, static_cast<int>(sc.checks.invertedFraction * model.elements()));
+        b.invertedSteps = sc.checks.invertedSteps;
+    }
+    return b;
+}
+
+void checkStepBudget(const SceneDef& sc, double dt) {
+    if (!(dt > 0) || !std::isfinite(dt))
+        throw InputError(sc.file + ": integrator.dt: the step " + fmt("%g", dt) + " s cannot advance the run");
+    const double steps = sc.duration / dt;
+    if (steps > sc.maxSteps)
+        throw InputError(sc.file + ": integrator.max_steps: " +
+                         fmt("duration %g s at a step of %.4g s takes %.3g steps, above integrator.max_steps %.3g",
+                             sc.duration, dt, steps, sc.maxSteps) +
+                         "; raise integrator.max_steps to run it");
+}
+
+// ---- threads ----
+
+// Chooses between all cores and one by measuring: on a machine whose other cores are busy, a
+// parallel step waits at every barrier for a descheduled thread and can be several times slower
+// than a serial one (BENCHMARKS.md, step). Windows of steps at each count, then the faster one
+// for a long stretch, then measured again. Results do not depend on the count (the force stage
+// is bitwise the same on any number of threads), so switching changes only speed.
+struct Simulation::ThreadTuner {
+    int many = 2;               // all cores
+    int current = 0;
+    int phase = 0;              // 0: measuring many, 1: measuring one, 2: holding the choice
+    long window = 16, count = 0;
+    double seconds = 0, manySeconds = 0;
+    long hold = 0;
+    int choices = 0;
+
+    explicit ThreadTuner(int cores) : many(cores) { use(many); }
+    void use(int n) {
+        current = n;
+        setThreads(n);
+    }
+    void after(double stepSeconds) {
+        ++count;
+        seconds += stepSeconds;
+        if (phase == 2) {
+            if (count >= hold) phase = 0, count = 0, seconds = 0, use(many);
+            return;
+        }
+        if (count < window) return;
+        if (seconds < 0.01 && window < 4096) {  // too short to time: a longer window
+            window *= 2;
+            count = 0, seconds = 0;
+            return;
+        }
+        if (phase == 0) {
+            manySeconds = seconds;
+            phase = 1;
+            use(1);
+        } else {
+            use(manySeconds < seconds ? many : 1);
+            ++choices;
+            phase = 2;
+            hold = 200 * window;
+        }
+        count = 0, seconds = 0;
+    }
+};
+
+// ---- construction ----
+
+Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(opt) {
+    Stopwatch setup;
+    if (opt_.threads > 0) setThreads(opt_.threads);
+    buildObject();
+    state_ = makeState(model_);
+    bounds_ = divergenceBounds(sc_, model_);
+
+    // Time step: exact, certified and estimated limits, then the scene's policy (docs/method.md sec. 2-3).
+    Stopwatch ts;
+    ta_ = TimestepAnalyzer(model_);
+    const ExactResult exact = ta_.exact(model_);
+    limits_ = {exact.dt, ta_.certifiedDt(), ta_.minDt().r1r};
+    initial_ = limits_;
+    rec_.stages[Stage::Timestep] += ts.seconds();
+    if (!(exact.dt > 0) || !std::isfinite(exact.dt))
+        throw InputError(sc_.file + ": the exact stable step of the object is " + fmt("%g", exact.dt) +
+                         " s: check material (E, nu, rho), object.scale and fixed");
+    chooseAndApply(true);
+    checkStepBudget(sc_, choice_.dt);
+
+    setupContact();
+    // Cutting: the engine's bookkeeping exists only in scenes that cut (DESIGN.md: pay for what you use).
+    for (size_t i = 0; i < sc_.tools.size(); ++i)
+        if (sc_.tools[i].kind == ToolDef::Kind::Blade) bladeTools_.push_back(static_cast<int>(i));
+    if (!sc_.cutting.cuts.empty() || !bladeTools_.empty()) {
+        Stopwatch sw;
+        ensureCutter();
+        if (!bladeTools_.empty()) {
+            // boxes fattened by the thinnest blade: a node moving less than that per step needs no tree update
+            double margin = 1e300;
+            for (int i : bladeTools_) margin = std::min(margin, sc_.tools[static_cast<size_t>(i)].size.z());
+            bladePhase_ = std::make_unique<ElementBroadphase>(margin);
+            lastEdge_.resize(bladeTools_.size());
+        }
+        rec_.stages[Stage::Cuts] += sw.seconds();
+    }
+    energyChecked_ = bounds_.energyGrowth > 0 && sc_.tools.empty() && sc_.forces.empty();
+    energyRef_ = totalEnergy(model_, state_);
+    sampleEnergy();
+    rec_.tool.sampleDt = 1.0 / sc_.forceRate;
+    if (opt_.threads == 0) {
+        const int cores = omp_get_num_procs();
+        // small meshes gain nothing from a second thread (BENCHMARKS.md, step)
+        if (cores > 1 && model_.elements() >= 4000)
+            tuner_ = std::make_unique<ThreadTuner>(cores);
+        else
+            setThreads(1);
+    }
+    rec_.wallSetup = setup.seconds();
+}
+
+Simulation::~Simulation() = default;
+Simulation::Simulation(Simulation&&) noexcept = default;
+Simulation& Simulation::operator=(Simulation&&) noexcept = default;
+
+int Simulation::threads() const { return tuner_ ? tuner_->current : cutsim::threads(); }
+
+void Simulation::buildObject() {
+    // Object: read, place, build. Everything that can fail on bad input fails before any output.
+    const SceneDef& sc = sc_;
+    ReadOptions ro;
+    ro.scale = sc.scale;
+    ro.reorient = sc.reorient;
+    const double d2r = M_PI / 180.0;
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(sc.rotateDeg.z() * d2r, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(sc.rotateDeg.y() * d2r, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(sc.rotateDeg.x() * d2r, Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
+    // An object under a millimetre or over ten metres is most likely in the wrong units.
+    auto checkSize = [&](const Eigen::Matrix3Xd& X) {
+        const double size = boxDiagonal(X);
+        if (!sc.anySize && !(size >= kMinObjectSize && size <= kMaxObjectSize))
+            throw InputError(sc.file + ": object.scale: " +
+                             fmt("the object is %.3g m across after scale %g; cutsim works in meters: give the "
+                                 "scale that converts the file's units (0.001 for mm), or set object.any_size true",
+                                 size, sc.scale));
+    };
+    if (!sc.surface.empty()) {
+        // Mesh intersection: the placed surface in a regular lattice (thesis ch. 6).
+        Stopwatch te;
+        SurfaceMesh surf = readSurfaceMesh(sc.surface, sc.scale);
+        surf.V = (R * surf.V).colwise() + sc.translate;
+        checkSize(surf.V);
+        MiOptions mo;
+        mo.cells = sc.surfaceCells;
+        mo.h = sc.surfaceH;
+        mo.fixOutsideNodes = sc.surfaceFixOutside;
+        mo.keepLatticeStep = sc.surfaceKeepStep;
+        MiResult mi = buildMi(surf, sc.material, mo);
+        embedding_ = {{"h", mi.h},
+                      {"interface_elements", mi.count(ElementClass::Interface)},
+                      {"volume_embedded", mi.embeddedVolume()},
+                      {"volume_surface", enclosedVolume(surf)},
+                      {"closed", mi.closed},
+                      {"fix_outside", sc.surfaceFixOutside},
+                      {"seconds", te.seconds()}};
+        if (sc.surfaceKeepStep) {
+            const KeepStepResult& ks = mi.massScaling;
+            embedding_["keep_step"] = {{"dt_lattice", mi.dtLattice}, {"dt_before", ks.dtBefore},
+                                       {"dt_after", ks.dtAfter},     {"added_mass", ks.addedMass},
+                                       {"mass_fraction", ks.massFraction}, {"rounds", ks.rounds},
+                                       {"seconds", mi.seconds.keepStep}};
+            // More than a percent changes the dynamics visibly: say so (thin parts on a coarse lattice).
+            if (ks.massFraction > kKeepStepWarnFraction || !ks.reached)
+                std::fprintf(stderr,
+                             "warning: %s: object.surface.keep_step %s the lattice's step %.4g s by adding %.2f%% of "
+                             "the mass (step without it %.4g s); a finer lattice needs less, keep_step false adds none\n",
+                             sc.file.c_str(), ks.reached ? "kept" : "did not reach", mi.dtLattice,
+                             100 * ks.massFraction, ks.dtBefore);
+        }
+        model_ = std::move(mi.model);
+        model_.elementModel = sc.element;
+        embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
+    } else {
+        TetMesh mesh = sc.mesh.empty() ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(),
+                                                 sc.scale * sc.boxSize.z(), sc.boxCells.x(), sc.boxCells.y(),
+                                                 sc.boxCells.z())
+                                       : readTetMesh(sc.mesh, ro);
+        mesh.X = (R * mesh.X).colwise() + sc.translate;
+        checkSize(mesh.X);
+        model_ = buildModel(mesh, sc.material, sc.element);
+    }
+    model_.gravity = sc.gravity;
+    model_.massDamping = sc.damping;
+    model_.precision = sc.precision;
+    for (const auto& reg : sc.fixed) {
+        const auto nodes = selectNodes(reg, model_.X);
+        if (nodes.empty()) throw InputError(sc.file + ": " + reg.path + ": selects no node");
+        for (int n : nodes) model_.fixed[static_cast<size_t>(n)] = 1;
+    }
+    updateMasses(model_);
+    if (model_.freeDofs() == 0)
+        throw InputError(sc.file + ": " + (sc.fixed.empty() ? std::string("object") : sc.fixed.back().path) + ": " +
+                         fmt("every node of the object (%d) is fixed or massless: nothing can move", model_.nodes()));
+    for (const auto& f : sc.forces) {
+        loadNodes_.push_back(selectNodes(f.region, model_.X));
+        if (loadNodes_.back().empty()) throw InputError(sc.file + ": " + f.region.path + ": selects no node");
+    }
+    rec_.initial = {{"nodes", model_.nodes()},
+                    {"elements", model_.elements()},
+                    {"fixed_nodes", model_.nodes() - model_.freeDofs() / 3},
+                    {"mass", model_.mass.sum()}};
+    if (!sc.cutting.compare.empty()) rest_ = restMesh(model_);
+}
+
+// The step from the scene's policy at the current limits (sim/step_policy.hpp), with its
+// per-element damping and critical elements. Before the first step a refused step is bad input;
+// after a cut it stops the run (exit 4) and the step stays as it was.
+void Simulation::chooseAndApply(bool initial) {
+    const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
+    const StepChoice c = chooseStep(sc_.dt, limits_, explicitScheme);
+    if (c.action == LimitAction::Refused) {
+        if (initial)
+            throw InputError(sc_.file + ": integrator.dt: " +
+                             fmt("step %.6g s is above the exact stable limit %.6g s of %s", c.dt, c.limit,
+                                 integratorName(sc_.integrator)) +
+                             "; set integrator.dt.on_limit to \"clamp\" or \"damp\" to allow it");
+        fail(RunStatus::Refused,
+             fmt("stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
+                 " (integrator.dt.on_limit is \"refuse\")",
+                 c.dt, c.limit, state_.time));
+        choice_.action = LimitAction::Refused;
+        return;
+    }
+    choice_ = c;
+    // Per-element damping factor alpha_e = (dt_e / dt)^2 where dt_e < dt (thesis eq. 3.16).
+    if (c.action == LimitAction::Damped)
+        alphaElem_ = elementAlpha(ta_.estimates().r1r, c.dt);
+    else
+        alphaElem_.resize(0);
+    critical_ = 0;
+    const Eigen::VectorXd& r1r = ta_.estimates().r1r;
+    for (Eigen::Index e = 0; e < r1r.size(); ++e) critical_ += r1r(e) < sc_.capture.criticalFactor * c.dt;
+    so_ = sc_.stepOptions(c.dt, alphaElem_);
+}
+
+void Simulation::setupContact() {
+    // Contact: a Bullet world only when the scene has tools. Penalty stiffness stays below the
+    // limit that keeps this step stable (contact/contact.hpp stableStiffness).
+    if (sc_.tools.empty()) return;
+    const double dt = choice_.dt;
+    const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
+    contact_ = std::make_unique<ContactWorld>(sc_.tools);
+    ContactSettings& c = contactSettings_;
+    double spacing = sc_.contactSpacing;
+    if (spacing <= 0) {
+        // half the smallest tool feature, so a tool cannot slip between points
+        spacing = 1e300;
+        for (const auto& t : sc_.tools)
+            for (const auto& p : toolParts(t, 0))
+                spacing = std::min(spacing, 0.5 * (p.hull || p.shape == ToolShape::Kind::Box
+                                                       ? std::max({p.size.x(), p.size.y(), p.size.z()})
+                                                       : p.size.x()));
+    }
+    c.spacing = spacing;
+    // an embedded (MI) object is touched on its own fine surface, through the embedding weights;
+    // each point's penalty scaled by its effective mass (contact/contact.hpp scaleByMass)
+    ContactPoints pts = contactPoints(embedded_ ? *embedded_ : boundarySurface(model_.tets, model_.X), model_.tets,
+                                      model_.X, spacing);
+    c.massRef = referenceMass(pts, model_.invMass);
+    scaleByMass(pts, model_.invMass, c.massRef);
+    contact_->setSurface(std::move(pts));
+    // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
+    c.stiffnessLimit = explicitScheme ? stableStiffness(contact_->points(), model_,
+                                                        std::min(dt, 0.9 * limits_.exact), limits_.exact)
+                                      : std::numeric_limits<double>::infinity();
+    for (auto& t : contact_->tools()) {
+        if (t.stiffness <= 0) {
+            if (!std::isfinite(c.stiffnessLimit))
+                throw InputError(sc_.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
+            t.stiffness = kDefaultStiffnessFraction * c.stiffnessLimit;
+        } else if (t.stiffness > c.stiffnessLimit) {
+            std::fprintf(stderr,
+                         "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; "
+                         "using the limit\n",
+                         t.name.c_str(), t.stiffness, c.stiffnessLimit, dt);
+            t.stiffness = c.stiffnessLimit;
+            c.clamped.push_back(t.name);
+        }
+        // damping ratio 0.3 on every point of mass <= massRef (k and c scale alike below it);
+        // c dt / m stays below the explicit limit 2
+        if (t.damping < 0) t.damping = 0.6 * std::sqrt(t.stiffness * c.massRef);
+    }
+}
+
+void Simulation::ensureCutter() {
+    if (cutter_) return;
+    cutter_ = std::make_unique<CutEngine>(cutOptions(sc_.cutting));
+    cutter_->prepare(model_);
+}
+
+// ---- the step ----
+
+bool Simulation::finished() const { return state_.time >= sc_.duration - 1e-9 * choice_.dt; }
+
+RunStatus Simulation::step() {
+    if (status_ != RunStatus::Running) return status_;
+    if (finished()) return status_ = RunStatus::Finished;
+    Stopwatch sw, whole;
+    // 1. loads: the scene's applied forces into fExt (zeroed first when loads or tools add to it)
+    if (!sc_.forces.empty() || !sc_.tools.empty()) {
+        state_.fExt.setZero();
+        for (size_t l = 0; l < sc_.forces.size(); ++l) {
+            const Eigen::Vector3d f = sc_.forces[l].force * sc_.forces[l].profile.at(state_.time) /
+                                      static_cast<double>(loadNodes_[l].size());
+            for (int n : loadNodes_[l]) state_.fExt.col(n) += f;
+        }
+    }
+    rec_.stages[Stage::Loads] += sw.lap();
+    // 2. contact: tool forces at the state of the step's start
+    const double tStep = state_.time;
+    if (contact_) {
+        contact_->addForces(state_.x, state_.v, state_.time, choice_.dt, state_.fExt);
+        rec_.stages[Stage::Contact] += sw.lap();
+    }
+    // 3. cuts: scripted cuts due now, blade sweeps over [t, t + dt]; each is a topology change
+    if (cutter_) {
+        const double inner = rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact];
+        const bool go = applyDueCuts() && applyBlades();
+        rec_.stages[Stage::Cuts] += sw.lap() - (rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact] - inner);
+        if (!go) return status_;
+    }
+    // 4-5. forces and integration (fem/integrate.hpp; the node update may run inside the force stage)
+    stepper_.step(model_, state_, so_);
+    const double stepSeconds = sw.lap();
+    rec_.stages[Stage::Forces] += stepper_.lastForceSeconds();
+    rec_.stages[Stage::Integrate] += stepSeconds - stepper_.lastForceSeconds();
+    // 6. checks
+    if (contact_) {
+        const ContactStep& st = contact_->last();
+        Eigen::Vector3d f = Eigen::Vector3d::Zero();
+        for (const auto& r : st.reaction) f += r;
+        rec_.tool.add(tStep, f, st.maxDepth, st.contacts);
+    }
+    check();
+    if (status_ == RunStatus::Running) sampleEnergy();
+    rec_.stages[Stage::Checks] += sw.lap();
+    const double total = whole.seconds();
+    rec_.wallLoop += total;
+    if (tuner_) tuner_->after(total);
+    if (status_ == RunStatus::Running && finished()) status_ = RunStatus::Finished;
+    return status_;
+}
+
+RunStatus Simulation::advance(double until) {
+    while (status_ == RunStatus::Running && state_.time < until - 1e-12 && !finished()) step();
+    if (status_ == RunStatus::Running && finished()) status_ = RunStatus::Finished;
+    return status_;
+}
+
+std::uint64_t Simulation::stateHash() const {
+    std::uint64_t h = 1469598103934665603ull;
+    auto mix = [&](const Eigen::Matrix3Xd& m) {
+        const auto* p = reinterpret_cast<const unsigned char*>(m.data());
+        for (size_t i = 0; i < static_cast<size_t>(m.size()) * sizeof(double); ++i) h = (h ^ p[i]) * 1099511628211ull;
+    };
+    mix(state_.x);
+    mix(state_.v);
+    return h;
+}
+
+void Simulation::finish() {
+    if (status_ == RunStatus::Running && finished()) status_ = RunStatus::Finished;
+    if (status_ == RunStatus::Diverged) return;
+    nextSample_ = state_.time;  // the final state always
+    sampleEnergy();
+}
+
+void Simulation::compareCutMethods() {
+    if (!sc_.cutting.compare.empty() && status_ == RunStatus::Finished) rec_.compare = cutsim::compareCutMethods(sc_, rest_);
+}
+
+void Simulation::fail(RunStatus s, const std::string& why) {
+    status_ = s;
+    message_ = why;
+}
+
+// Numerical trouble of the last step (DESIGN.md, error tier 3), and the divergence bounds.
+void Simulation::check() {
+    const StepFlags& fl = state_.flags;
+    if (fl.inverted > 0) {
+        ++rec_.invertedSteps;
+        rec_.maxInverted = std::max(rec_.maxInverted, fl.inverted);
+    }
+    if (fl.limited > 0) {
+        ++rec_.limitedSteps;
+        rec_.maxLimited = std::max(rec_.maxLimited, fl.limited);
+    }
+    const int it = stepper_.lastSolverIterations();
+    rec_.solverIterations += it;
+    rec_.solverIterationsMax = std::max(rec_.solverIterationsMax, it);
+    auto damped = [&]() -> std::string {
+        return choice_.action == LimitAction::Damped
+            ? fmt("; integrator.dt.on_limit \"damp\" could not hold a step of %.4g s, %.3g x the exact limit %.4g s",
+                  choice_.dt, choice_.dt / choice_.limit, choice_.limit)
+            : std::string();
+    };
+    if (fl.nonFinite > 0) {
+        fail(RunStatus::Diverged, fmt("diverged: non-finite positions or velocities at step %ld (t = %.6g s)",
+                                      state_.steps, state_.time) + damped());
+        return;
+    }
+    if (bounds_.invertedSteps > 0) {
+        invertedRun_ = fl.inverted > bounds_.invertedElements ? invertedRun_ + 1 : 0;
+        if (invertedRun_ >= bounds_.invertedSteps) {
+            fail(RunStatus::Diverged,
+                 fmt("diverged: more than %d elements inverted for %d steps in a row (%d at t = %.6g s); "
+                     "integrator.min_stretch limits stretch, checks.inverted_steps sets the count",
+                     bounds_.invertedElements, invertedRun_, fl.inverted, state_.time) +
+                     damped());
+            return;
+        }
+    }
+    // Speeds and displacements against the scene's bounds, every few steps: a blow-up grows by a
+    // factor per step and is caught while still finite, at a fraction of a percent of the step.
+    if (state_.steps % kBoundsEvery != 0) return;
+    double v2 = 0, d2 = 0;
+    int vNode = -1, dNode = -1;
+    const double *x = state_.x.data(), *v0 = state_.v.data(), *X = model_.X.data();
+    for (int i = 0; i < model_.nodes(); ++i) {
+        const double* vi = v0 + 3 * i;
+        const double dx = x[3 * i] - X[3 * i], dy = x[3 * i + 1] - X[3 * i + 1], dz = x[3 * i + 2] - X[3 * i + 2];
+        const double sv = vi[0] * vi[0] + vi[1] * vi[1] + vi[2] * vi[2], sd = dx * dx + dy * dy + dz * dz;
+        if (sv > v2) v2 = sv, vNode = i;
+        if (sd > d2) d2 = sd, dNode = i;
+    }
+    const double v = std::sqrt(v2), d = std::sqrt(d2);
+    rec_.maxSpeed = std::max(rec_.maxSpeed, v);
+    rec_.maxDisplacement = std::max(rec_.maxDisplacement, d);
+    if (v > bounds_.maxSpeed) {
+        fail(RunStatus::Diverged,
+             fmt("diverged: node %d moves at %.3g m/s at step %ld (t = %.6g s), above the bound %.3g m/s "
+                 "(checks.speed_factor %g x the p-wave speed %.3g m/s, plus gravity, loads and tools)",
+                 vNode, v, state_.steps, state_.time, bounds_.maxSpeed, sc_.checks.speedFactor, bounds_.waveSpeed) +
+                 damped());
+        return;
+    }
+    if (d > bounds_.maxDisplacement) {
+        fail(RunStatus::Diverged,
+             fmt("diverged: node %d is %.3g m from its rest position at step %ld (t = %.6g s), above the bound "
+                 "%.3g m (checks.displacement_factor %g x the object's size %.3g m, plus gravity, loads and tools)",
+                 dNode, d, state_.steps, state_.time, bounds_.maxDisplacement, sc_.checks.displacementFactor,
+                 bounds_.size) +
+                 damped());
+    }
+}
+
+// Energy at the capture rate: the report's samples, and the growth check when nothing does work.
+void Simulation::sampleEnergy() {
+    if (state_.time < nextSample_ - 1e-12) return;
+    nextSample_ += 1.0 / sc_.capture.fps;
+    if (nextSample_ <= state_.time) nextSample_ = state_.time + 1.0 / sc_.capture.fps;
+    const double ek = kineticEnergy(model_, state_), ee = elasticEnergy(model_, state_),
+                 eg = gravityEnergy(model_, state_);
+    const double total = ek + ee + eg;
+    rec_.energy.push_back({{"time", state_.time}, {"kinetic", ek}, {"elastic", ee}, {"gravity", eg}, {"total", total}});
+    if (energyChecked_ && total - energyRef_ > bounds_.energyGrowth)
+        fail(RunStatus::Diverged,
+             fmt("diverged: the total energy rose by %.3g J by t = %.6g s with no work done by loads or tools "
+                 "(bound %.3g J: the object's weight lifted through its size, or a 1%% strain)",
+                 total - energyRef_, state_.time, bounds_.energyGrowth) +
+                 (choice_.action == LimitAction::Damped
+                      ? fmt("; integrator.dt.on_limit \"damp\" could not hold a step of %.4g s, %.3g x the exact "
+                            "limit %.4g s", choice_.dt, choice_.dt / choice_.limit, choice_.limit)
+                      : std::string()));
+}
+
+// ---- cuts ----
+
+bool Simulation::applyDueCuts() {
+    while (nextCut_ < sc_.cutting.cuts.size() && sc_.cutting.cuts[nextCut_].time <= state_.time + 1e-12) {
+        const CutDef& cd = sc_.cutting.cuts[nextCut_++];
+        const CutResult r = cutter_->cut(model_, state_, cutSurfaceOf(cd));
+        applyTopologyChange(r, cd.path);
+        if (status_ != RunStatus::Running) return false;
+    }
+    return true;
+}
+
+// Blade sweeps of the step [t, t + dt]: each blade's edge moves from where the last step left it
+// (a dragged blade cuts along the path it was dragged) to its pose at t + dt, and CutEngine::sweep
+// splits the elements whose cross-section the swept area has covered. Edge (world space) and
+// coverage (State::x) are both in the deformed configuration, so the broad phase is refitted on
+// state.x. The engine keeps one stroke at a time: it ends when its blade leaves the tissue (no
+// element's box meets its swept box) or another blade starts cutting.
+bool Simulation::applyBlades() {
+    if (!bladePhase_) return true;
+    bladePhase_->refit(model_.tets, state_.x);
+    const double t0 = state_.time, t1 = state_.time + choice_.dt;
+    for (size_t b = 0; b < bladeTools_.size(); ++b) {
+        const int i = bladeTools_[b];
+        const ToolDef& tool = contact_->tools()[static_cast<size_t>(i)];
+        BladeEdge from = lastEdge_[b], to;
+        if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
+        bladeEdge(tool, t1, to.a, to.b);
+        lastEdge_[b] = to;
+        Eigen::Vector3d lo, hi;
+        sweptAabb(tool, t0, t1, lo, hi);
+        for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+        bladePhase_->query(lo, hi, candidates_);
+        if (candidates_.empty()) {
+            if (stroke_ == i) cutter_->endStroke(), stroke_ = -1;
+            continue;
+        }
+        if (stroke_ != i) {
+            if (stroke_ >= 0) cutter_->endStroke();
+            stroke_ = i;
+        }
+        const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
+        if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
+        if (!r.changed()) continue;
+        bladePhase_->refit(model_.tets, state_.x);     // the new elements, for the next blade
+        ++rec_.bladeCutSteps;
+        applyTopologyChange(r, "tools[" + std::to_string(i) + "]");
+        if (status_ != RunStatus::Running) return false;
+    }
+    return true;
+}
+
+CutResult Simulation::cut(const CutSurface& surface, const std::string& key) {
+    Stopwatch sw;
+    if (!cutter_) ensureCutter();
+    const double inner = rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact];
+    const CutResult r = cutter_->cut(model_, state_, surface);
+    applyTopologyChange(r, key);
+    rec_.stages[Stage::Cuts] += sw.seconds() - (rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact] - inner);
+    return r;
+}
+
+bool Simulation::cutNextScripted() {
+    if (nextCut_ >= sc_.cutting.cuts.size() || status_ != RunStatus::Running) return false;
+    const CutDef& cd = sc_.cutting.cuts[nextCut_++];
+    cut(cutSurfaceOf(cd), cd.path);
+    return true;
+}
+
+void Simulation::applyTopologyChange(const CutResult& r, const std::string& key) {
+    if (!r.changed()) return;
+    // Local update of the estimators and the certified bound around the cut; no global solve.
+    Stopwatch sw;
+    ta_.update(model_, r.changedElements, r.changedNodes);
+    const double updateSeconds = sw.lap();
+    limits_.certified = ta_.certifiedDt();
+    limits_.estimate = ta_.minDt().r1r;
+    limits_.exact = std::numeric_limits<double>::quiet_NaN();
+    double exactSeconds = 0;
+    if (sc_.cutting.exactAfterCut) {
+        limits_.exact = ta_.exact(model_).dt;
+        exactSeconds = sw.lap();
+    }
+    rec_.stages[Stage::Timestep] += updateSeconds + exactSeconds;
+    stepper_.reset();
+    // The one after-cut rule: the scene's policy chosen again at the new limits.
+    chooseAndApply(false);
+    ++topologyVersion_;
+    // The contact points and the drawn surface follow the cut.
+    if (contact_ || opt_.renderSurface) {
+        sw.lap();
+        // an MI object keeps its own surface, split by the cuts, with cut faces only inside it
+        auto cutSurface = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
+                                                                      : cutter_->surface(model_));
+        if (contact_) {
+            ContactPoints pts = contactPoints(*cutSurface, model_.tets, model_.X, contactSettings_.spacing);
+            scaleByMass(pts, model_.invMass, contactSettings_.massRef);
+            contact_->setSurface(std::move(pts));
+        }
+        if (opt_.renderSurface) surface_ = std::move(cutSurface);
+        rec_.stages[Stage::Contact] += sw.lap();
+    }
+    if (energyChecked_) energyRef_ = totalEnergy(model_, state_);  // a cut releases energy, never adds it
+    if (r.cut != lastCutId_) ++rec_.cutsMade, lastCutId_ = r.cut;
+    const bool exactKnown = !std::isnan(limits_.exact);
+    rec_.cuts.push_back(
+        {{"time", state_.time},
+         {"key", key},
+         {"cut_id", r.cut},
+         {"crossed", r.crossed},
+         {"split", r.split},
+         {"elements_cut", r.split},
+         {"latency", r.seconds + updateSeconds},
+         {"pending", r.pending},
+         {"dropped", r.dropped},
+         {"merged_pieces", r.merged},
+         {"new_nodes", r.newNodes.size()},
+         {"new_elements", r.newElements.size()},
+         {"nodes", model_.nodes()},
+         {"elements", model_.elements()},
+         {"volume_change", r.volumeBefore > 0 ? (r.volumeAfter - r.volumeBefore) / r.volumeBefore : 0.0},
+         {"mass_change", r.massBefore > 0 ? (r.massAfter - r.massBefore) / r.massBefore : 0.0},
+         {"seconds", r.seconds},
+         {"update_seconds", updateSeconds},
+         {"exact_seconds", exactSeconds},
+         {"dt_after",
+          {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
+           {"certified", limits_.certified},
+           {"estimate", limits_.estimate}}},
+         {"dt_ratio", exactKnown ? json(limits_.exact / initial_.exact) : json(nullptr)},
+         {"dt_used", choice_.dt},
+         {"limit_action", limitActionName(status_ == RunStatus::Refused ? LimitAction::Refused : choice_.action)},
+         {"critical_elements", critical_},
+         {"pieces", pieceVolumes(model_).size()}});
+}
+
+// ---- interactive control ----
+
+void Simulation::holdTool(int i, const Eigen::Vector3d& position) {
+    if (!contact_ || i < 0 || i >= static_cast<int>(contact_->tools().size())) return;
+    ToolDef& t = contact_->tools()[static_cast<size_t>(i)];
+    ToolKey k;
+    k.pose = toolPose(t, state_.time);
+    k.opening = toolOpening(t, state_.time);
+    k.pose.position = position;
+    t.keys.assign(1, k);
+}
+
+std::string Simulation::setPolicy(Integrator integrator, const StepPolicy& policy) {
+    if (const char* why = precisionConflict(integrator, sc_.precision))
+        return sc_.file + ": integrator.precision: " + why;
+    const StepChoice c = chooseStep(policy, limits_, integrator != Integrator::BackwardEuler);
+    if (c.action == LimitAction::Refused)
+        return fmt("step %.6g s is above the exact stable limit %.6g s of %s (integrator.dt.on_limit is \"refuse\")",
+                   c.dt, c.limit, integratorName(integrator));
+    sc_.integrator = integrator;
+    sc_.dt = policy;
+    chooseAndApply(false);
+    stepper_.reset();
+    return {};
+}
+
+// ---- records and the report ----
+
+void ToolRecord::add(double t, const Eigen::Vector3d& f, double depth, int contacts) {
+    force = f;
+    const double mag = f.norm();
+    maxForce = std::max(maxForce, mag);
+    maxDepth = std::max(maxDepth, depth);
+    contactSteps += contacts > 0;
+    blockMax = std::max(blockMax, mag);
+    if (t >= nextSample - 1e-12) {
+        time.push_back(t);
+        fx.push_back(f.x());
+        fy.push_back(f.y());
+        fz.push_back(f.z());
+        blockMaxima.push_back(blockMax);
+        blockMax = 0;
+        nextSample += sampleDt;
+        history.push_back(static_cast<float>(mag));
+        if (history.size() > 200) history.erase(history.begin());
+    }
+}
+
+const char* stageName(Stage s) {
+    switch (s) {
+    case Stage::Loads: return "loads";
+    case Stage::Contact: return "contact";
+    case Stage::Cuts: return "cut";
+    case Stage::Forces: return "forces";
+    case Stage::Integrate: return "integrate";
+    case Stage::Checks: return "checks";
+    case Stage::Timestep: return "timestep";
+    case Stage::Render: return "render";
+    case Stage::Encode: return "encode";
+    case Stage::Count: break;
+    }
+    return "?";
+}
+
+json StageTimes::toJson() const {
+    json j = json::object();
+    for (int s = 0; s < kStages; ++s) j[stageName(static_cast<Stage>(s))] = seconds[static_cast<size_t>(s)];
+    return j;
+}
+
+json Simulation::report(const json& extra) const {
+    const SceneDef& sc = sc_;
+    const State& st = state_;
+    const bool exactKnown = !std::isnan(limits_.exact);
+    json report;
+    report["scene"] = sc.file;
+    report["name"] = sc.name;
+    report["status"] = status_ == RunStatus::Finished ? std::string("ok")
+                       : message_.empty()             ? std::string(runStatusName(status_))
+                                                      : message_;
+    report["exit_code"] = static_cast<int>(exitCodeOf(status_));
+    report["steps"] = st.steps;
+    report["sim_time"] = st.time;
+    report["wall_time"] = rec_.wallSetup + rec_.wallLoop;
+    report["threads"] = threads();
+    report["threads_auto"] = tuner_ != nullptr;
+    report["integrator"] = integratorName(sc.integrator);
+    report["force_precision"] = sc.precision == ForcePrecision::Single ? "single" : "double";
+    if (sc.integrator == Integrator::BackwardEuler)
+        report["implicit"] = {
+            {"solver", implicitSolverName(sc.implicitSolver)},
+            {"cg_iterations_mean", st.steps ? double(rec_.solverIterations) / double(st.steps) : 0.0},
+            {"cg_iterations_max", rec_.solverIterationsMax}};
+    report["dt"] = choice_.dt;
+    report["dt_policy"] = {{"mode", sc.dt.fixed ? "fixed" : "fraction"},
+                           {"of", limitOfName(sc.dt.of)},
+                           {"fraction", sc.dt.fraction},
+                           {"on_limit", onLimitName(sc.dt.onLimit)}};
+    report["dt_limit_action"] = limitActionName(choice_.action);
+    report["dt_initial"] = {{"exact", initial_.exact}, {"certified", initial_.certified}, {"estimate", initial_.estimate}};
+    report["critical_elements"] = critical_;
+    report["mesh"] = {{"file", !sc.surface.empty() ? sc.surface : sc.mesh.empty() ? std::string("box") : sc.mesh},
+                      {"nodes", rec_.initial.value("nodes", 0)},
+                      {"elements", rec_.initial.value("elements", 0)},
+                      {"fixed_nodes", rec_.initial.value("fixed_nodes", 0)},
+                      {"nodes_final", model_.nodes()},
+                      {"elements_final", model_.elements()}};
+    if (!embedding_.is_null()) report["embedding"] = embedding_;
+    report["cuts"] = rec_.cuts;
+    if (bladePhase_)
+        report["blade"] = {{"tools", bladeTools_},
+                           {"cut_steps", rec_.bladeCutSteps},
+                           {"pending", cutter_->pendingElements()},
+                           {"cut_seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Cuts] / double(st.steps) : 0.0}};
+    report["dt_final"] = {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)}, {"certified", limits_.certified}};
+    if (!rec_.compare.is_null()) report["compare"] = rec_.compare;
+    const std::vector<double> pieces = pieceVolumes(model_);
+    report["pieces"] = pieces.size();
+    report["piece_volumes"] = pieces;
+    report["mass"] = {{"initial", rec_.initial.value("mass", 0.0)}, {"final", model_.mass.sum()}};
+    report["energy"] = rec_.energy;
+    report["inverted"] = {{"steps", rec_.invertedSteps},
+                          {"max_elements", rec_.maxInverted},
+                          {"limited_steps", rec_.limitedSteps},
+                          {"max_limited", rec_.maxLimited}};
+    report["checks"] = {{"max_speed", bounds_.maxSpeed},
+                        {"max_displacement", bounds_.maxDisplacement},
+                        {"energy_growth", energyChecked_ ? json(bounds_.energyGrowth) : json(nullptr)},
+                        {"inverted_elements", bounds_.invertedSteps > 0 ? json(bounds_.invertedElements) : json(nullptr)},
+                        {"inverted_steps", bounds_.invertedSteps},
+                        {"wave_speed", bounds_.waveSpeed},
+                        {"size", bounds_.size},
+                        {"speed_seen", rec_.maxSpeed},
+                        {"displacement_seen", rec_.maxDisplacement}};
+    report["stages"] = rec_.stages.toJson();
+    if (contact_) {
+        json names = json::array(), k = json::array(), c = json::array();
+        for (const auto& t : contact_->tools()) {
+            names.push_back(t.name);
+            k.push_back(t.stiffness);
+            c.push_back(t.damping);
+        }
+        const ToolRecord& tr = rec_.tool;
+        const ContactSettings& cs = contactSettings_;
+        report["tool"] = {
+            {"names", names},
+            {"max_force", tr.maxForce},
+            {"contact_steps", tr.contactSteps},
+            {"max_depth", tr.maxDepth},
+            {"final_depth", contact_->last().maxDepth},
+            {"final_force", {tr.force.x(), tr.force.y(), tr.force.z()}},
+            {"stiffness", k},
+            {"damping", c},
+            {"mass_ref", cs.massRef},
+            {"stiffness_limit", std::isfinite(cs.stiffnessLimit) ? json(cs.stiffnessLimit) : json(nullptr)},
+            {"stiffness_clamped", cs.clamped},
+            {"contact_points", contact_->points().points()},
+            {"seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Contact] / double(st.steps) : 0.0},
+            {"force_rate", sc.forceRate},
+            {"series",
+             {{"time", tr.time}, {"fx", tr.fx}, {"fy", tr.fy}, {"fz", tr.fz}, {"max", tr.blockMaxima}}}};
+    }
+    char hash[20];
+    std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(stateHash()));
+    report["state_hash"] = hash;
+    report["steps_per_second"] = rec_.wallLoop > 0 ? double(st.steps) / rec_.wallLoop : 0.0;
+    report["real_time_factor"] = rec_.wallLoop > 0 ? st.time / rec_.wallLoop : 0.0;
+    for (auto& [k, v] : extra.items()) report[k] = v;
+    return report;
+}
+
+} // namespace cutsim

@@ -1,0 +1,197 @@
+// The simulation loop of a scene, one object for every driver (cutsim run, cutsim view, the
+// benchmarks, the tests, the bindings), so that its behaviour is defined once (DESIGN.md).
+//
+// Simulation::step() runs the stages of one step in this order, each timed into RunRecord::stages:
+//   1. loads      the scene's applied forces into State::fExt
+//   2. contact    tool forces through Bullet (contact/contact.hpp), added into fExt
+//   3. cuts       scripted cuts due now and blade sweeps over [t, t + dt] (cut/xfem.hpp); each
+//                 topology change goes through applyTopologyChange
+//   4. forces     internal forces (fem/forces.hpp)
+//   5. integrate  the scheme's velocity and position update (fem/integrate.hpp)
+//   6. checks     non-finite values, divergence bounds, inverted elements, energy samples
+#pragma once
+
+#include "contact/broadphase.hpp"
+#include "contact/contact.hpp"
+#include "cut/xfem.hpp"
+#include "fem/integrate.hpp"
+#include "mesh/embedding.hpp"
+#include "sim/record.hpp"
+#include "sim/scene.hpp"
+#include "sim/step_policy.hpp"
+#include "timestep/analyzer.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace cutsim {
+
+// Process exit codes of the command and the status of a run (README, docs/scene-format.md).
+enum class ExitCode : int {
+    Ok = 0,           // the run reached its end with every check passed
+    BadInput = 2,     // a bad scene, mesh or flag; nothing was simulated or written
+    Diverged = 3,     // a check found the state non-finite or outside its physical bounds
+    RefusedStep = 4,  // the step was above the stable limit and integrator.dt.on_limit is refuse
+    NoDisplay = 5,    // cutsim view found no display
+};
+
+enum class RunStatus : std::uint8_t { Running, Finished, Diverged, Refused };
+const char* runStatusName(RunStatus s);  // running | ok | diverged | refused
+ExitCode exitCodeOf(RunStatus s);
+
+// Bounds outside which a state is not physics but a blow-up (docs/scene-format.md, "checks").
+// Derived from the scene unless it sets them: see divergenceBounds.
+struct DivergenceBounds {
+    double maxSpeed = 0;          // largest node speed [m/s]
+    double maxDisplacement = 0;   // largest distance of a node from its rest position [m]
+    double energyGrowth = 0;      // largest rise of the total energy when nothing does work [J]; 0: not checked
+    int invertedElements = 0;     // inverted elements that count as a failure ...
+    int invertedSteps = 0;        // ... when seen in this many consecutive steps (0: not checked)
+    double waveSpeed = 0;         // p-wave speed of the material [m/s], for the report
+    double size = 0;              // diagonal of the object's rest bounding box [m], for the report
+};
+// The rule (docs/scene-format.md): with c_p the p-wave speed, L the object's size, T the duration,
+// g gravity, v_tool the fastest tool keyframe motion and a_load the largest acceleration the
+// scene's forces can give the whole object:
+//   speed        <= speed_factor c_p + (g + a_load) T + v_tool        (a node at strain speed_factor)
+//   displacement <= displacement_factor L + (g + a_load) T^2 / 2 + tool travel
+//   energy rise  <= M (g L + c_p^2 1e-4) when no tool or force does work (gravity moving all the
+//                   mass through the object's size, or a strain of 1% everywhere)
+//   inverted     > max(10, 5% of the elements) for 100 steps in a row, without stretch limiting
+DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model);
+
+// Work a run's step count implies, refused above SceneDef::maxSteps (exit 2).
+void checkStepBudget(const SceneDef& sc, double dt);
+
+struct SimulationOptions {
+    int threads = 0;             // worker threads; 0: chosen by measuring (ThreadTuner)
+    bool renderSurface = false;  // keep Simulation::surface() current after cuts (drivers that draw)
+};
+
+class Simulation {
+public:
+    using Options = SimulationOptions;
+
+    // Builds the scene's object, analyses its time step, chooses the step and sets up contact and
+    // cutting. Throws InputError for bad input and for scenes that cannot do anything.
+    explicit Simulation(const SceneDef& scene, Options opt = {});
+    ~Simulation();
+    Simulation(Simulation&&) noexcept;
+    Simulation& operator=(Simulation&&) noexcept;
+
+    // One step of the stages above. Returns the status after it; a run that is not Running takes
+    // no more steps.
+    RunStatus step();
+    // Steps until the scene's duration, `until` (simulated time) or a failure.
+    RunStatus advance(double until);
+    // 64-bit FNV-1a of the positions and velocities, to compare runs bitwise.
+    std::uint64_t stateHash() const;
+    // After the last step: the status and the final energy sample.
+    void finish();
+    // cutting.compare: the scene's planes cut by XFEM and the baselines on the rest mesh, for the
+    // report (after a finished run; it costs a global solve per cut and method).
+    void compareCutMethods();
+
+    // The one path after any cut (scripted, blade, or a driver's): local estimator update, the
+    // exact limit when the scene asks for it, the step policy, contact points and the drawn surface,
+    // and a report entry under `key`. May set the status to Refused.
+    void applyTopologyChange(const CutResult& r, const std::string& key);
+    // A cut by `surface` now (the engine is made on first use), then applyTopologyChange.
+    CutResult cut(const CutSurface& surface, const std::string& key);
+    // The next scripted cut (cutting.cuts) now, ahead of its time; false when none is left.
+    bool cutNextScripted();
+
+    // Interactive control: hold tool i at `position` from now on (its keyframes are dropped).
+    void holdTool(int i, const Eigen::Vector3d& position);
+    // A new scheme or policy; returns an empty string when accepted, else why it was refused
+    // (nothing changes then).
+    std::string setPolicy(Integrator integrator, const StepPolicy& policy);
+
+    // ---- what the drivers read ----
+    const SceneDef& scene() const { return sc_; }
+    const Model& model() const { return model_; }
+    const State& state() const { return state_; }
+    const TimestepAnalyzer& analyzer() const { return ta_; }
+    double dt() const { return choice_.dt; }
+    LimitAction limitAction() const { return choice_.action; }
+    const StepLimits& limits() const { return limits_; }          // current limits (exact NaN: unknown)
+    const StepLimits& initialLimits() const { return initial_; }  // of the uncut object
+    int criticalElements() const { return critical_; }
+    RunStatus status() const { return status_; }
+    const std::string& message() const { return message_; }       // why the run stopped, or ""
+    bool finished() const;                                        // the scene's duration is reached
+    const RunRecord& record() const { return rec_; }
+    RunRecord& record() { return rec_; }                          // drivers add render and encode time
+    const DivergenceBounds& bounds() const { return bounds_; }
+    ContactWorld* contact() { return contact_.get(); }
+    const ContactWorld* contact() const { return contact_.get(); }
+    const ContactSettings& contactSettings() const { return contactSettings_; }
+    const CutEngine* cutter() const { return cutter_.get(); }
+    // The surface to draw: the MI object's embedded surface or the mesh boundary, split by the cuts
+    // so far; null for a tet-mesh object before any cut (draw its boundary). Current after every
+    // topology change when Options::renderSurface is set; topologyVersion() counts the changes.
+    const EmbeddedSurface* surface() const { return surface_ ? surface_.get() : embedded_.get(); }
+    int topologyVersion() const { return topologyVersion_; }
+    size_t scriptedCutsDone() const { return nextCut_; }
+    int threads() const;
+
+    // The report of the run so far (report.json); `extra` is merged in at the top level.
+    nlohmann::json report(const nlohmann::json& extra = nlohmann::json::object()) const;
+
+private:
+    void buildObject();
+    void chooseAndApply(bool initial);
+    void setupContact();
+    void ensureCutter();
+    bool applyDueCuts();
+    bool applyBlades();
+    void check();
+    void sampleEnergy();
+    void fail(RunStatus s, const std::string& why);
+    void recordTool(double t);
+
+    SceneDef sc_;
+    Options opt_;
+    Model model_;
+    State state_;
+    Stepper stepper_;
+    StepOptions so_;
+    TimestepAnalyzer ta_;
+    StepLimits limits_, initial_;
+    StepChoice choice_;
+    Eigen::VectorXd alphaElem_;                  // per-element damping (on_limit damp), else empty
+    int critical_ = 0;
+    std::vector<std::vector<int>> loadNodes_;    // nodes of each scene load (sc.forces order)
+    std::unique_ptr<EmbeddedSurface> embedded_;  // an MI object's surface in the uncut lattice
+    nlohmann::json embedding_;                   // MI set-up for the report (null: a tet mesh object)
+    TetMesh rest_;                               // the uncut rest mesh, for cutting.compare
+    std::unique_ptr<EmbeddedSurface> surface_;   // drawn surface after cuts (see surface())
+    int topologyVersion_ = 0;
+
+    std::unique_ptr<ContactWorld> contact_;
+    ContactSettings contactSettings_;
+    std::unique_ptr<CutEngine> cutter_;
+    std::unique_ptr<ElementBroadphase> bladePhase_;
+    std::vector<int> bladeTools_;                // scene tools that cut
+    std::vector<BladeEdge> lastEdge_;            // each blade's edge at the end of the last step
+    std::vector<int> candidates_;
+    int stroke_ = -1;                            // blade whose stroke the engine holds, or -1
+    size_t nextCut_ = 0;
+    int lastCutId_ = -1;
+
+    DivergenceBounds bounds_;
+    bool energyChecked_ = false;                 // no tool or force does work
+    double energyRef_ = 0;                       // total energy the growth is measured from [J]
+    int invertedRun_ = 0;                        // consecutive steps over bounds_.invertedElements
+    double nextSample_ = 0;                      // time of the next energy sample [s]
+    RunStatus status_ = RunStatus::Running;
+    std::string message_;
+    RunRecord rec_;
+    struct ThreadTuner;
+    std::unique_ptr<ThreadTuner> tuner_;
+};
+
+} // namespace cutsim

@@ -1,0 +1,111 @@
+// The simulation loop (sim/simulation.hpp): it adds nothing to the physics, times its stages,
+// applies one step rule after every cut, and refuses or fails runs that cannot be trusted.
+#include "sim/simulation.hpp"
+
+#include "fem/forces.hpp"
+#include "mesh/generate.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace cutsim {
+namespace {
+
+using nlohmann::json;
+
+// A 10 cm x 2 cm x 2 cm cantilever of 120 tets clamped at x = 0, sagging under gravity.
+json barScene() {
+    return json::parse(R"({
+      "object": { "box": { "size": [0.1, 0.02, 0.02], "cells": [10, 2, 2] } },
+      "fixed": [ { "plane": { "point": [0, 0, 0], "normal": [1, 0, 0], "distance": 1e-6 } } ],
+      "duration": 0.02,
+      "capture": { "enabled": false }
+    })");
+}
+
+Simulation makeSim(const json& j) {
+    SimulationOptions o;
+    o.threads = 1;
+    return Simulation(parseScene(j, "bar.json"), o);
+}
+
+// The loop's positions are bitwise those of a hand-written loop over the same Model and Stepper.
+TEST(Simulation, StepsAsTheStepperAlone) {
+    Simulation sim = makeSim(barScene());
+    Model m = buildModel(boxMesh(0.1, 0.02, 0.02, 10, 2, 2), Material{});
+    m.gravity = Eigen::Vector3d(0, 0, -9.81);
+    for (int i = 0; i < m.nodes(); ++i) m.fixed[static_cast<size_t>(i)] = m.X(0, i) <= 1e-6;
+    updateMasses(m);
+    State s = makeState(m);
+    Stepper stepper;
+    const StepOptions so{Integrator::SymplecticEuler, sim.dt()};
+    EXPECT_DOUBLE_EQ(sim.dt(), 0.9 * sim.initialLimits().exact);  // the default policy
+    while (sim.step() == RunStatus::Running) stepper.step(m, s, so);
+    stepper.step(m, s, so);  // the step that finished the run
+    EXPECT_EQ(sim.status(), RunStatus::Finished);
+    EXPECT_EQ(sim.state().steps, s.steps);
+    EXPECT_EQ((sim.state().x - s.x).cwiseAbs().maxCoeff(), 0.0);
+    // Stages: forces and integration ran, no tool, no cut.
+    const StageTimes& st = sim.record().stages;
+    EXPECT_GT(st[Stage::Forces], 0.0);
+    EXPECT_EQ(st[Stage::Contact], 0.0);
+    EXPECT_EQ(st[Stage::Cuts], 0.0);
+    EXPECT_EQ(sim.report()["status"], "ok");
+}
+
+// After a cut the policy is chosen again at the new limits: 0.9 of the new exact step.
+TEST(Simulation, ACutRechoosesTheStepByThePolicy) {
+    Simulation sim = makeSim(barScene());
+    sim.advance(0.005);
+    CutSurface plane;
+    plane.point = Eigen::Vector3d(0.0525, 0, 0);
+    plane.normal = Eigen::Vector3d(1, 0.2, 0).normalized();
+    const int version = sim.topologyVersion();
+    const CutResult r = sim.cut(plane, "test");
+    ASSERT_TRUE(r.changed());
+    EXPECT_EQ(sim.topologyVersion(), version + 1);
+    const json& c = sim.record().cuts.back();
+    EXPECT_EQ(c["key"], "test");
+    EXPECT_DOUBLE_EQ(c["dt_used"].get<double>(), 0.9 * c["dt_after"]["exact"].get<double>());
+    EXPECT_DOUBLE_EQ(sim.dt(), 0.9 * sim.limits().exact);
+    EXPECT_EQ(sim.advance(1.0), RunStatus::Finished);
+    EXPECT_EQ(sim.report()["pieces"], 2);
+}
+
+// A fixed step above the limit with on_limit refuse is bad input before the first step; after a
+// cut lowers the limit below a fixed step, the run stops as refused (exit 4).
+TEST(Simulation, RefusedStepBeforeAndAfterACut) {
+    json j = barScene();
+    j["integrator"] = {{"dt", {{"mode", "fixed"}, {"value", 1.0}}}};
+    EXPECT_THROW(makeSim(j), InputError);
+    Simulation probe = makeSim(barScene());
+    j["integrator"]["dt"]["value"] = 0.999 * probe.initialLimits().exact;
+    Simulation sim = makeSim(j);
+    sim.step();
+    CutSurface sliver;  // a cut just inside the free end's last layer lowers the exact step a little
+    sliver.point = Eigen::Vector3d(0.0955, 0, 0);
+    sliver.normal = Eigen::Vector3d(1, 0.3, 0.1).normalized();
+    sim.cut(sliver, "sliver");
+    ASSERT_LT(sim.limits().exact, j["integrator"]["dt"]["value"].get<double>());
+    EXPECT_EQ(sim.status(), RunStatus::Refused);
+    EXPECT_EQ(exitCodeOf(sim.status()), ExitCode::RefusedStep);
+    EXPECT_NE(sim.message().find("after the cut"), std::string::npos) << sim.message();
+    const long steps = sim.state().steps;
+    EXPECT_EQ(sim.step(), RunStatus::Refused);  // no more steps
+    EXPECT_EQ(sim.state().steps, steps);
+}
+
+// A blow-up is caught by the speed bound while every value is still finite.
+TEST(Simulation, ABlowUpIsCaughtBeforeItIsNonFinite) {
+    json j = barScene();
+    j["integrator"] = {{"dt", {{"mode", "fraction"}, {"fraction", 1.5}, {"on_limit", "damp"}}}};
+    j["duration"] = 1.0;
+    Simulation sim = makeSim(j);
+    EXPECT_EQ(sim.limitAction(), LimitAction::Damped);
+    EXPECT_EQ(sim.advance(1.0), RunStatus::Diverged);
+    EXPECT_TRUE(sim.state().x.allFinite());
+    EXPECT_EQ(sim.message().rfind("diverged:", 0), 0u) << sim.message();
+}
+
+} // namespace
+} // namespace cutsim
