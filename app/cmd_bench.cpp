@@ -4,6 +4,7 @@
 #include "bench.hpp"
 #include "commands.hpp"
 #include "sim/simulation.hpp"
+#include "util/atomic_file.hpp"
 #include "util/stopwatch.hpp"
 #include "sim/scene.hpp"
 
@@ -44,7 +45,7 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+double secondsSince(WallClock::time_point t) { return std::chrono::duration<double>(WallClock::now() - t).count(); }
 
 struct Registry {
     std::vector<std::pair<std::string, AccuracyConfig>> configs;
@@ -55,17 +56,6 @@ Registry& registry() {
     return r;
 }
 
-// Writes text through a temporary file and a rename: never a half-written output.
-void writeFileAtomic(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary);
-        if (!out) throw InputError(path, 0, "cannot write");
-        out << text;
-        if (!out) throw InputError(path, 0, "write failed");
-    }
-    fs::rename(tmp, path);
-}
 
 // gnuplot on PATH, for the plots (Debian package gnuplot-nox).
 bool haveGnuplot() {
@@ -142,13 +132,13 @@ BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const Ste
     State s = makeState(m);
     Stepper st;
     const long n = static_cast<long>(std::ceil(ctx.bar.staticTime / opt.dt - 1e-9));
-    const auto t0 = Clock::now();
+    const auto t0 = WallClock::now();
     bool diverged = false;
     for (long k = 0; k < n && !diverged; ++k) {
         st.step(m, s, opt);
         diverged = s.flags.nonFinite != 0 || ((k & 63) == 63 && runaway(s));
     }
-    const double wall = since(t0);
+    const double wall = secondsSince(t0);
     BenchPoint p;
     p.problem = probe.problem.empty() ? "cantilever_static" : probe.problem + "_static";
     p.config = config;
@@ -177,9 +167,9 @@ double FrequencyRun::advance(double until) {
     double wall = 0;
     // the same steps in any slicing: the run's end is its step count, not a time
     while (k_ < n_ && !diverged_ && s_.time < until) {
-        const auto t0 = Clock::now();
+        const auto t0 = WallClock::now();
         st_.step(m_, s_, opt_);
-        wall += since(t0);
+        wall += secondsSince(t0);
         diverged_ = s_.flags.nonFinite != 0 || ((k_ & 63) == 63 && runaway(s_));
         ++k_;
         t_.push_back(s_.time);
@@ -527,9 +517,9 @@ std::pair<double, int> backwardEulerStepSeconds(const Model& m0, double dt, int 
     st.step(m, s, opt);
     std::vector<std::pair<double, int>> w;
     for (int k = 0; k < steps; ++k) {
-        const auto t0 = Clock::now();
+        const auto t0 = WallClock::now();
         st.step(m, s, opt);
-        w.emplace_back(since(t0), st.lastSolverIterations());
+        w.emplace_back(secondsSince(t0), st.lastSolverIterations());
     }
     std::sort(w.begin(), w.end());
     return w[w.size() / 2];
@@ -1081,7 +1071,7 @@ int runStability(const StabilityArgs& a) {
         for (const auto& [name, model] : objects) {
             // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
             for (const double limit : {0.0, 0.2}) {
-                const auto t0 = Clock::now();
+                const auto t0 = WallClock::now();
                 const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, {MassLumping::Enrichment, 0.9, limit});
                 j["random_cuts"].push_back({{"object", name}, {"min_stretch", limit}, {"runs", st.runs}, {"cuts", st.cuts},
                                             {"steps", st.steps}, {"failures", st.failures}, {"inverted_runs", st.invertedRuns},
@@ -1089,7 +1079,7 @@ int runStability(const StabilityArgs& a) {
                                             {"limited_steps", st.limitedSteps}, {"max_speed", st.maxSpeed},
                                             {"min_dt_ratio", st.minDtRatio}, {"max_volume_error", st.maxVolumeError},
                                             {"max_mass_error", st.maxMassError}, {"first_failure", st.firstFailure},
-                                            {"seconds", since(t0)}});
+                                            {"seconds", secondsSince(t0)}});
                 if (!a.json)
                     std::printf("%-10s %6.2f %6d %6d %9ld %9d %14d %15d %13d %12.4f%s%s\n", name.c_str(), limit, st.runs, st.cuts,
                                 st.steps, st.failures, st.invertedRuns, st.invertedAtEnd, st.limitedRuns, st.minDtRatio,
@@ -1180,13 +1170,13 @@ int runStep(const StepArgs& a) {
             // Whole steps for at least the measuring time (at least 3).
             long steps = 0;
             double forceSec = 0;
-            const auto t0 = Clock::now();
-            while (steps < 3 || since(t0) < a.seconds) {
+            const auto t0 = WallClock::now();
+            while (steps < 3 || secondsSince(t0) < a.seconds) {
                 st.step(m, s, opt);
                 forceSec += st.lastForceSeconds();
                 ++steps;
             }
-            const double total = since(t0);
+            const double total = secondsSince(t0);
             // The force stage split into its phases, timed in passes of their own on the same threads.
             ForceStageSeconds phases;
             const int reps = static_cast<int>(std::max<long>(1, steps / 4));

@@ -1,6 +1,7 @@
 // `cutsim dt`: the stable time step of a mesh, exact, certified and per-element estimates
 // (METHOD.md sec. 2-3, thesis ch. 4), with the shape measures' correlation to R1R.
 #include "commands.hpp"
+#include "util/stopwatch.hpp"
 
 #include "fem/model.hpp"
 #include "mesh/io.hpp"
@@ -31,8 +32,6 @@ struct DtArgs {
     bool reorient = false;
 };
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 double minOf(const Eigen::VectorXd& v) { return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity(); }
 
 int runDt(const DtArgs& a) {
@@ -47,22 +46,22 @@ int runDt(const DtArgs& a) {
         const Model m = buildModel(mesh, a.material);
 
         // Stages share the assembled rows of K; each is timed on its own.
-        auto t0 = Clock::now();
+        auto t0 = WallClock::now();
         const StiffnessRows rows = assembleStiffnessRows(m);
-        const double tRows = since(t0);
-        t0 = Clock::now();
+        const double tRows = secondsSince(t0);
+        t0 = WallClock::now();
         const double dtCert = certifiedDt(m, rows);
-        const double tCert = since(t0);
-        t0 = Clock::now();
+        const double tCert = secondsSince(t0);
+        t0 = WallClock::now();
         ElementEstimates est;
         estimateElements(m, rows, assembleStiffnessDiagonal(m), nullptr, est);
-        const double tEst = since(t0);
-        t0 = Clock::now();
+        const double tEst = secondsSince(t0);
+        t0 = WallClock::now();
         const ShapeMeasures shapes = shapeMeasures(m);
-        const double tShapes = since(t0);
-        t0 = Clock::now();
+        const double tShapes = secondsSince(t0);
+        t0 = WallClock::now();
         const ExactResult ex = exactCriticalDt(m, rows);
-        const double tExact = since(t0);
+        const double tExact = secondsSince(t0);
 
         // Worst elements by R1R.
         std::vector<int> order(m.elements());

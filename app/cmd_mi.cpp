@@ -1,6 +1,7 @@
 // `cutsim mi`: embed a surface in a regular background lattice by mesh intersection (thesis ch. 6,
 // METHOD.md sec. 5) and report counts, volumes, time steps and the cost of each stage.
 #include "commands.hpp"
+#include "util/stopwatch.hpp"
 
 #include "embed/mi.hpp"
 #include "embed/winding.hpp"
@@ -32,16 +33,14 @@ struct MiArgs {
     std::string vtu;
 };
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 int runMi(const MiArgs& a) {
     try {
         if (!a.material.valid()) throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
         if (a.refine < 0 || a.refine > 8) throw InputError("--refine: must be in [0, 8]");
-        auto t0 = Clock::now();
+        auto t0 = WallClock::now();
         const SurfaceMesh s = readSurfaceMesh(a.surface, a.scale);
-        const double tRead = since(t0);
+        const double tRead = secondsSince(t0);
         MiOptions o;
         o.cells = a.cells;
         o.h = a.h;
@@ -51,17 +50,17 @@ int runMi(const MiArgs& a) {
         const MiResult r = buildMi(s, a.material, o);
         const SurfaceCheck check = checkSurface(s);
 
-        t0 = Clock::now();
+        t0 = WallClock::now();
         const StiffnessRows rows = assembleStiffnessRows(r.model);
         const double dtCert = certifiedDt(r.model, rows);
-        const double tCert = since(t0);
-        t0 = Clock::now();
+        const double tCert = secondsSince(t0);
+        t0 = WallClock::now();
         const ExactResult ex = exactCriticalDt(r.model, rows);
-        const double tExact = since(t0);
+        const double tExact = secondsSince(t0);
         // The lattice's step: already known when the step was kept.
-        t0 = Clock::now();
+        t0 = WallClock::now();
         const double dtBg = a.keepStep ? r.dtLattice : exactCriticalDt(buildModel(r.lattice, a.material)).dt;
-        const double tBg = a.keepStep ? 0.0 : since(t0);
+        const double tBg = a.keepStep ? 0.0 : secondsSince(t0);
 
         const double vSurf = enclosedVolume(s), vEmb = r.embeddedVolume();
         nlohmann::json j;

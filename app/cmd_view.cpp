@@ -1,6 +1,7 @@
 // `cutsim view SCENE`: the scene running live in a window, with an orbit camera and a panel.
 // Same scene loading and step as `cutsim run` (run.hpp), same frame content (frames.hpp).
 #include "commands.hpp"
+#include "util/stopwatch.hpp"
 #include "frames.hpp"
 #include "fem/forces.hpp"
 #include "mesh/mesh.hpp"
@@ -45,8 +46,6 @@ struct ViewArgs {
 };
 
 #ifdef CUTSIM_HAVE_RENDER
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // A camera orbiting a target: drag rotates about the up axis and the screen's horizontal axis,
 // scroll changes the distance, right-drag moves the target in the view plane.
@@ -134,8 +133,8 @@ int runView(const ViewArgs& a) {
     std::string message;
     // Rates over the last half second of wall time.
     double rateSteps = 0, rateSim = 0, rateWall = 0, stepsPerSecond = 0, realTime = 0;
-    auto last = Clock::now();
-    const auto start = Clock::now();
+    auto last = WallClock::now();
+    const auto start = WallClock::now();
     float fraction = static_cast<float>(sc.dt.fraction);
     int integrator = static_cast<int>(std::find(std::begin(kIntegrators), std::end(kIntegrators), sc.integrator) -
                                       std::begin(kIntegrators));
@@ -222,9 +221,9 @@ int runView(const ViewArgs& a) {
         // Simulate: up to the next capture frame's time when headless (the same steps as
         // `cutsim run`), else the wall time since the last frame, stopping early to keep the
         // window responsive.
-        const double wallFrame = std::min(since(last), 0.1);
-        last = Clock::now();
-        const auto simStart = Clock::now();
+        const double wallFrame = std::min(secondsSince(last), 0.1);
+        last = WallClock::now();
+        const auto simStart = WallClock::now();
         const long steps0 = sim->state().steps;
         const double t0 = sim->state().time;
         if (sim->status() == RunStatus::Running && (!paused || stepOnce)) {
@@ -235,7 +234,7 @@ int runView(const ViewArgs& a) {
             } else {
                 const double target = sim->state().time + wallFrame;
                 while (sim->status() == RunStatus::Running && sim->state().time < target - 1e-12 &&
-                       since(simStart) < 0.05)
+                       secondsSince(simStart) < 0.05)
                     sim->step();
             }
             stepOnce = false;
@@ -325,7 +324,7 @@ int runView(const ViewArgs& a) {
         fi.dtExact = sim->limits().exact;
         fi.criticalElements = sim->criticalElements();
         fi.cuts = sim->record().cutsMade;
-        fi.wall = since(start);
+        fi.wall = secondsSince(start);
         RenderSnapshot& snap = scene.update(model, sim->state(), fi);
         snap.camera = orbit.camera();
         snap.tools.clear();
@@ -346,7 +345,7 @@ int runView(const ViewArgs& a) {
         if (lastFrame) break;
     }
     if (!a.report.empty()) {
-        const nlohmann::json report = sim->report({{"wall_time", since(start)}, {"frames", 0}, {"video", ""}});
+        const nlohmann::json report = sim->report({{"wall_time", secondsSince(start)}, {"frames", 0}, {"video", ""}});
         writeFileAtomic(a.report, report.dump(2) + "\n");
     }
     if (headless) {

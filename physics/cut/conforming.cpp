@@ -1,4 +1,5 @@
 #include "cut/conforming.hpp"
+#include "util/union_find.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -269,22 +270,12 @@ ConformingResult conformingCuts(const TetMesh& mesh, const std::vector<CutPlane>
 }
 
 int connectedPieces(const TetMesh& mesh, std::vector<int>* tetPiece) {
-    std::vector<int> parent(static_cast<size_t>(mesh.nodes()));
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](int i) {
-        while (parent[i] != i) i = parent[i] = parent[parent[i]];
-        return i;
-    };
-    for (int e = 0; e < mesh.elements(); ++e)
-        for (int a = 1; a < 4; ++a) {
-            const int r0 = find(mesh.tets(0, e)), r1 = find(mesh.tets(a, e));
-            if (r0 != r1) parent[std::max(r0, r1)] = std::min(r0, r1);
-        }
+    UnionFind uf = elementPieces(mesh.tets, mesh.nodes());
     std::vector<int> label(static_cast<size_t>(mesh.nodes()), -1);
     int pieces = 0;
     if (tetPiece) tetPiece->assign(static_cast<size_t>(mesh.elements()), -1);
     for (int e = 0; e < mesh.elements(); ++e) {
-        int& l = label[find(mesh.tets(0, e))];
+        int& l = label[static_cast<size_t>(uf.find(mesh.tets(0, e)))];
         if (l < 0) l = pieces++;
         if (tetPiece) (*tetPiece)[e] = l;
     }

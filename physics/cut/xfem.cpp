@@ -1,4 +1,5 @@
 #include "cut/xfem.hpp"
+#include "util/union_find.hpp"
 
 #include "fem/forces.hpp"
 #include "mesh/mesh.hpp"
@@ -90,19 +91,6 @@ int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
         if (tets(a, e) == node) return a;
     return -1;
 }
-
-struct UnionFind {
-    std::vector<int> p;
-    void reset(size_t n) {
-        p.resize(n);
-        std::iota(p.begin(), p.end(), 0);
-    }
-    int find(int i) {
-        while (p[i] != i) i = p[i] = p[p[i]];
-        return i;
-    }
-    void join(int a, int b) { p[find(a)] = find(b); }
-};
 
 } // namespace
 

@@ -1,4 +1,5 @@
 #include "embed/mi.hpp"
+#include "util/stopwatch.hpp"
 
 #include "embed/clip.hpp"
 #include "embed/winding.hpp"
@@ -15,8 +16,6 @@ namespace cutsim {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 } // namespace
 
@@ -50,7 +49,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     MiResult r;
 
     // 1. Lattice around the surface's box, half a cell of margin or more on every side.
-    auto t0 = Clock::now();
+    auto t0 = WallClock::now();
     const Eigen::Vector3d lo = surfaceIn.V.rowwise().minCoeff(), hi = surfaceIn.V.rowwise().maxCoeff();
     const Eigen::Vector3d ext = hi - lo;
     if (opts.latticeCells.minCoeff() > 0) {
@@ -84,12 +83,12 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     r.lattice.X.colwise() += r.origin;
     r.lattice.source = src + " (lattice)";
     const int nNodes = r.lattice.nodes(), nCubes = nx * ny * nz;
-    r.seconds.lattice = since(t0);
+    r.seconds.lattice = secondsSince(t0);
 
     // 2. A copy of the surface shifted by a tiny generic offset: no lattice node, edge or face then
     // lies exactly on it (a surface on lattice planes is the common case), so every contact in
     // clipping is transversal. The volume error is the offset times the area, ~1e-10 relative.
-    t0 = Clock::now();
+    t0 = WallClock::now();
     SurfaceMesh s = surfaceIn;
     const Eigen::Vector3d shift = hMin * 1e-10 * Eigen::Vector3d(0.5773502691896258, 0.3141592653589793, 0.7536347069560302);
     s.V.colwise() += shift;
@@ -130,11 +129,11 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     auto trisOf = [&](int c) {
         return std::vector<int>(cubeTris.begin() + cubeStart[c], cubeTris.begin() + cubeStart[c + 1]);
     };
-    r.seconds.hash = since(t0);
+    r.seconds.hash = secondsSince(t0);
 
     // 3. Nodes: inside by the generalized winding number (robust where ray parity is not);
     // boundary when within boundaryTol * h of a triangle of a cube around the node.
-    t0 = Clock::now();
+    t0 = WallClock::now();
     const WindingTree tree = buildWindingTree(s);
     r.nodeInside.assign(static_cast<size_t>(nNodes), 0);
     r.nodeClass.assign(static_cast<size_t>(nNodes), NodeClass::Outside);
@@ -162,11 +161,11 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
                 }
         r.nodeClass[n] = cls;
     }
-    r.seconds.nodes = since(t0);
+    r.seconds.nodes = secondsSince(t0);
 
     // 4. Inside share of every lattice tet. A tet whose cube no triangle touches is all in or all
     // out; the others are clipped exactly (closed surface) or refined with winding numbers (broken).
-    t0 = Clock::now();
+    t0 = WallClock::now();
     const int ne = r.lattice.elements();
     r.fractionExact = Eigen::VectorXd::Zero(ne);
     const int levels = r.closed ? opts.refineLevels : std::max(opts.refineLevels, 2);
@@ -205,8 +204,8 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
             }
         }
     }
-    r.seconds.volumes = since(t0);
-    t0 = Clock::now();
+    r.seconds.volumes = secondsSince(t0);
+    t0 = WallClock::now();
     if (levels > 0) {
 #pragma omp parallel for schedule(dynamic, 8)
         for (int ic = 0; ic < nic; ++ic) {
@@ -231,7 +230,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
             }
         }
     }
-    r.seconds.refine = since(t0);
+    r.seconds.refine = secondsSince(t0);
 
     // 5. Element classes (thesis Algorithm 3): by inside share, so a surface poking through a tet
     // between its nodes still makes it an interface element.
@@ -248,7 +247,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     // would pin the element's outside corners and stiffen the boundary layer, and dropping them is
     // impossible since the element's linear field needs all four. Nodes of no kept tet are dropped
     // (the thesis's "outside nodes are fixed and dropped": they carry no mass and no stiffness).
-    t0 = Clock::now();
+    t0 = WallClock::now();
     std::vector<int> modelNode(static_cast<size_t>(nNodes), -1);
     for (int t = 0; t < ne; ++t) {
         if (r.elementClass[t] == ElementClass::Outside) continue;
@@ -281,10 +280,10 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
             if (r.nodeClass[n] == NodeClass::Outside) r.model.fixed[i] = 1;
         }
     updateMasses(r.model);
-    r.seconds.model = since(t0);
+    r.seconds.model = secondsSince(t0);
 
     // 7. The render surface: each input vertex rides the kept element holding it (barycentric weights).
-    t0 = Clock::now();
+    t0 = WallClock::now();
     std::vector<int> modelElem(static_cast<size_t>(ne), -1);
     for (size_t e = 0; e < r.latticeElement.size(); ++e) modelElem[r.latticeElement[e]] = static_cast<int>(e);
     const int nv = surfaceIn.vertices();
@@ -339,14 +338,14 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
         r.surface.element[static_cast<size_t>(v)] = modelElem[best];
         r.surface.weights.col(v) = bestW;
     }
-    r.seconds.embed = since(t0);
+    r.seconds.embed = secondsSince(t0);
 
     // 8. Keep the lattice's step (thesis sec. 6.3 expects it; not every cut gives it exactly).
     if (opts.keepLatticeStep) {
-        t0 = Clock::now();
+        t0 = WallClock::now();
         r.dtLattice = exactCriticalDt(buildModel(r.lattice, material)).dt;
         r.massScaling = keepStep(r.model, r.dtLattice);
-        r.seconds.keepStep = since(t0);
+        r.seconds.keepStep = secondsSince(t0);
     }
     return r;
 }

@@ -1,4 +1,6 @@
 #include "fem/forces.hpp"
+#include "fem/kinematics.hpp"
+#include "util/stopwatch.hpp"
 
 #include "fem/lanes.hpp"
 
@@ -16,92 +18,6 @@ namespace cutsim {
 // Below this many elements a step is a few tens of microseconds: a fork and barrier would cost
 // more than they save, and far more on a loaded machine.
 constexpr int kParallelElements = 8192;
-
-State makeState(const Model& m) {
-    State s;
-    s.x = m.X;
-    s.v = Eigen::Matrix3Xd::Zero(3, m.nodes());
-    s.f = Eigen::Matrix3Xd::Zero(3, m.nodes());
-    s.a = Eigen::Matrix3Xd::Zero(3, m.nodes());
-    s.fExt = Eigen::Matrix3Xd::Zero(3, m.nodes());
-    resizeState(m, s);
-    return s;
-}
-
-void resizeState(const Model& m, State& s) {
-    const Eigen::Index old = s.rot.cols();
-    s.rot.conservativeResize(9, m.elements());
-    for (Eigen::Index e = old; e < m.elements(); ++e) s.rot.col(e) << 1, 0, 0, 0, 1, 0, 0, 0, 1;
-    s.fe.resize(12, m.elements());
-    const Eigen::Index oldN = s.x.cols();
-    if (oldN != m.nodes()) {
-        for (auto* mat : {&s.x, &s.v, &s.f, &s.a, &s.fExt}) mat->conservativeResize(3, m.nodes());
-        for (Eigen::Index i = oldN; i < m.nodes(); ++i) {
-            s.x.col(i) = m.X.col(i);
-            s.v.col(i).setZero();
-            s.f.col(i).setZero();
-            s.a.col(i).setZero();
-            s.fExt.col(i).setZero();
-        }
-    }
-}
-
-namespace {
-
-// Rotation of an inverted or degenerate F by the diagonalisation of Irving, Teran, Fedkiw 2004,
-// "Invertible finite elements for robust simulation of large deformation" (sec. 4): F = U S V^T
-// with U, V proper rotations and the smallest singular value negated when det F < 0. R = U V^T is
-// then the rotation maximising tr(R^T F), R^T F = V S V^T is symmetric, and the linear stress of
-// S - I pushes an inverted element back through its flat state. When the two smallest singular
-// values tie, either may take the sign; the choice nearest the last rotation keeps R continuous.
-Eigen::Matrix3d invertibleRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Matrix3d U = svd.matrixU();
-    const Eigen::Matrix3d& V = svd.matrixV();
-    if ((U * V.transpose()).determinant() > 0) return U * V.transpose();
-    // det(U V^T) = -1: negate the column of the smallest singular value (sorted descending)
-    const Eigen::Vector3d sv = svd.singularValues();
-    U.col(2) = -U.col(2);
-    Eigen::Matrix3d R = U * V.transpose();
-    if (sv[1] - sv[2] <= 1e-9 * sv[0]) {
-        U.col(2) = -U.col(2);
-        U.col(1) = -U.col(1);
-        const Eigen::Matrix3d R2 = U * V.transpose();
-        if ((R2 - Rprev).squaredNorm() < (R - Rprev).squaredNorm()) R = R2;
-    }
-    return R;
-}
-
-} // namespace
-
-namespace {
-
-// extractRotation with det F already known (the force loop needs it for the inverted count).
-inline Eigen::Matrix3d polarRotation(const Eigen::Matrix3d& F, double detF, const Eigen::Matrix3d& Rprev) {
-    // Newton needs det F well away from 0: its first step divides by it.
-    const double scale = F.squaredNorm() / 3.0;
-    if (!(detF > 1e-6 * scale * std::sqrt(scale))) return invertibleRotation(F, Rprev);
-    Eigen::Matrix3d X = F;
-    for (int it = 0; it < 30; ++it) {
-        // X^-T = cof(X) / det X, with the cofactor columns as cross products of X's columns
-        Eigen::Matrix3d C;
-        C.col(0) = X.col(1).cross(X.col(2));
-        C.col(1) = X.col(2).cross(X.col(0));
-        C.col(2) = X.col(0).cross(X.col(1));
-        const double halfInvDet = 0.5 / X.col(0).dot(C.col(0));
-        const Eigen::Matrix3d Xn = 0.5 * X + halfInvDet * C;
-        const double d = (Xn - X).squaredNorm();
-        X = Xn;
-        if (d < 1e-12) break;  // quadratic convergence: the error of X is now ~d/2 <= 1e-12
-    }
-    return X;
-}
-
-} // namespace
-
-Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
-    return polarRotation(F, F.determinant(), Rprev);
-}
 
 namespace {
 
@@ -431,15 +347,13 @@ void gatherForces(const Model& m, State& s, int begin, int end) {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Inside the force stage's region, once nodes [begin, end) hold their sums: their NodeUpdate (if
 // any), the first thread closing the node phase on its clock. Returns how many are not finite.
 int updateNodes(const Model& m, State& s, const NodeUpdate* up, int begin, int end, int t, ForceStageSeconds* times,
-                Clock::time_point& t0) {
+                WallClock::time_point& t0) {
     if (!up) return 0;
-    if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
+    if (times && t == 0) { times->nodes += secondsSince(t0); t0 = WallClock::now(); }
     const NodeUpdate& u = *up;
     int bad = 0;
     for (int i = begin; i < end; ++i) {
@@ -465,7 +379,7 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
                     ForceStageSeconds* times, NodeUpdate* up, int& inverted, int& nearFlat) {
     const int ne = m.elements(), nn = m.nodes();
     const ForceOut out{nullptr, nullptr, allRotations};
-    Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
+    WallClock::time_point t0 = times ? WallClock::now() : WallClock::time_point{};
     int inv = 0, near = 0, bad = 0;
 #pragma omp parallel reduction(+ : inv, near, bad) if (ne >= kParallelElements)
     {
@@ -473,11 +387,11 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
         const Split split{omp_get_num_threads()};
         elementBlocks(m, s, alpha, split(ne, t), split(ne, t + 1), &inv, watch, &near, out);
 #pragma omp barrier
-        if (times && t == 0) { times->elements += since(t0); t0 = Clock::now(); }
+        if (times && t == 0) { times->elements += secondsSince(t0); t0 = WallClock::now(); }
         gatherForces(m, s, split(nn, t), split(nn, t + 1));
         bad += updateNodes(m, s, up, split(nn, t), split(nn, t + 1), t, times, t0);
     }
-    if (times) (up ? times->update : times->nodes) += since(t0);
+    if (times) (up ? times->update : times->nodes) += secondsSince(t0);
     if (up) up->nonFinite = bad;
     inverted = inv;
     nearFlat = near;
@@ -489,7 +403,7 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
                  ForceStageSeconds* times, NodeUpdate* up, int& inverted, int& nearFlat) {
     const int ne = m.elements(), nn = m.nodes();
     s.sharedNode.resize(static_cast<size_t>(nn));
-    Clock::time_point t0 = times ? Clock::now() : Clock::time_point{};
+    WallClock::time_point t0 = times ? WallClock::now() : WallClock::time_point{};
     int inv = 0, near = 0, bad = 0;
 #pragma omp parallel reduction(+ : inv, near, bad) if (ne >= kParallelElements)
     {
@@ -507,18 +421,18 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
         }
 #pragma omp barrier
         // phase times: the first thread's clock at the barriers that end the phases
-        if (times && t == 0) { times->nodes += since(t0); t0 = Clock::now(); }
+        if (times && t == 0) { times->nodes += secondsSince(t0); t0 = WallClock::now(); }
         // one thread shares no node: no flags to read
         const ForceOut out{s.f.data(), nt > 1 ? s.sharedNode.data() : nullptr, allRotations};
         elementBlocks(m, s, alpha, split(ne, t), split(ne, t + 1), &inv, watch, &near, out);
 #pragma omp barrier
-        if (times && t == 0) { times->elements += since(t0); t0 = Clock::now(); }
+        if (times && t == 0) { times->elements += secondsSince(t0); t0 = WallClock::now(); }
         for (int i = split(nn, t); i < split(nn, t + 1) && nt > 1; ++i)
             if (s.sharedNode[static_cast<size_t>(i)]) gatherNode(m, s, i);
         // this thread's nodes now hold their sums: the other threads add only into their own
         bad += updateNodes(m, s, up, split(nn, t), split(nn, t + 1), t, times, t0);
     }
-    if (times) (up ? times->update : times->nodes) += since(t0);
+    if (times) (up ? times->update : times->nodes) += secondsSince(t0);
     if (up) up->nonFinite = bad;
     inverted = inv;
     nearFlat = near;
@@ -547,233 +461,7 @@ void computeForces(const Model& m, State& s, const double* alpha, double watch, 
     }
 }
 
-namespace {
-
-// F of element e at the current positions.
-Eigen::Matrix3d deformationGradient(const Model& m, const State& s, int e) {
-    const int* n = m.tets.col(e).data();
-    const Eigen::Vector3d x0 = s.x.col(n[0]);
-    Eigen::Matrix3d Ds;
-    Ds << s.x.col(n[1]) - x0, s.x.col(n[2]) - x0, s.x.col(n[3]) - x0;
-    return Ds * m.dmInv(e);
-}
-
-// A lower bound of the smallest singular value: sigma1 sigma2 <= |F|^2 / 2, so
-// sigma3 = det F / (sigma1 sigma2) >= 2 det F / |F|^2 (negative when inverted).
-double smallestStretchBound(const Eigen::Matrix3d& F) { return 2 * F.determinant() / F.squaredNorm(); }
-
-// The smallest principal stretch of F and its gradient with respect to the four nodes:
-// sigma3 = u3^T Ds DmInv v3 (U, V rotations), so d sigma3 / d x_a = (DmInv v3)_a u3 for a = 1..3,
-// node 0 minus their sum. For det F <= 0, det F itself and its gradient (below).
-double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<double, 3, 4>& g) {
-    const Eigen::Matrix3d F = deformationGradient(m, s, e);
-    if (!(F.determinant() > 0)) {
-        // Inverted or flat: the sign of invertible FEM sits on the smallest singular value, which
-        // need not be the direction that went through (F = diag(1, 1, -3) negates a 1). det F and
-        // its gradient (the cofactor of Ds times det DmInv) always point back; the stretch
-        // constraint takes over once det F > 0.
-        const int* n = m.tets.col(e).data();
-        const Eigen::Vector3d x0 = s.x.col(n[0]);
-        const Eigen::Vector3d a = s.x.col(n[1]) - x0, b = s.x.col(n[2]) - x0, c = s.x.col(n[3]) - x0;
-        const double d = m.dmInv(e).determinant();
-        g.col(1) = d * b.cross(c);
-        g.col(2) = d * c.cross(a);
-        g.col(3) = d * a.cross(b);
-        g.col(0) = -(g.col(1) + g.col(2) + g.col(3));
-        return F.determinant();
-    }
-    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
-    Eigen::Vector3d u3 = svd.matrixU().col(2), v3 = svd.matrixV().col(2);
-    if (svd.matrixU().determinant() < 0) u3 = -u3;
-    if (svd.matrixV().determinant() < 0) v3 = -v3;
-    const Eigen::Vector3d w = m.dmInv(e) * v3;
-    for (int a = 0; a < 3; ++a) g.col(a + 1) = w[a] * u3;
-    g.col(0) = -(w[0] + w[1] + w[2]) * u3;
-    return u3.dot(F * v3);
-}
-
-} // namespace
-
-int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratch) {
-    // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
-    // is linear in x along its gradient while the singular vectors hold, so a few sweeps suffice.
-    // A correction can push a neighbour below the limit: the next round scans the elements around
-    // the nodes this one moved, a few rounds at most.
-    constexpr int kRounds = 4, kSweeps = 8;
-    constexpr double kTol = 1e-9;
-    Eigen::Matrix<double, 3, 4> g;
-    auto below = [&](int e) {
-        return smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
-               smallestStretch(m, s, e, g) < sMin * (1 - kTol);
-    };
-    std::vector<int> around;
-    int corrected = 0;
-    for (int round = 0; round < kRounds; ++round) {
-        if (round == 0) {
-            scratch.clear();
-            for (int e = 0; e < m.elements(); ++e)
-                if (below(e)) scratch.push_back(e);
-        } else {
-            around.clear();
-            for (const int e : scratch)
-                for (int a = 0; a < 4; ++a) {
-                    const int i = m.tets(a, e);
-                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) around.push_back(m.nodeSlots[k] >> 2);
-                }
-            std::sort(around.begin(), around.end());
-            around.erase(std::unique(around.begin(), around.end()), around.end());
-            scratch.clear();
-            for (const int e : around)
-                if (below(e)) scratch.push_back(e);
-        }
-        if (scratch.empty()) break;
-        corrected = std::max(corrected, static_cast<int>(scratch.size()));
-        for (int sweep = 0; sweep < kSweeps; ++sweep) {
-            bool moved = false;
-            for (const int e : scratch) {
-                const double C = smallestStretch(m, s, e, g) - sMin;
-                if (C >= -kTol * sMin) continue;
-                const int* n = m.tets.col(e).data();
-                // Weights: the inverse node mass, capped at the inverse of the element's mean free-node
-                // mass. Pure 1/m moves the light control points of a small cut share by up to half an
-                // element per step and rings them; the cap keeps the correction geometric there.
-                double mean = 0;
-                int free = 0;
-                for (int a = 0; a < 4; ++a)
-                    if (m.invMass(n[a]) > 0) {
-                        mean += m.mass(n[a]);
-                        ++free;
-                    }
-                if (free == 0) continue;  // all four nodes prescribed
-                mean /= free;
-                double w[4], denom = 0;
-                for (int a = 0; a < 4; ++a) {
-                    w[a] = m.invMass(n[a]) > 0 ? 1.0 / std::max(m.mass(n[a]), mean) : 0.0;
-                    denom += w[a] * g.col(a).squaredNorm();
-                }
-                if (!(denom > 0)) continue;
-                const double lambda = -C / denom;
-                // the rate of sigma3, g . v; a closing one is removed (an inelastic stop), an opening one kept
-                double rate = 0;
-                for (int a = 0; a < 4; ++a) rate += g.col(a).dot(s.v.col(n[a]));
-                const double mu = std::min(rate, 0.0) / denom;
-                for (int a = 0; a < 4; ++a) {
-                    s.x.col(n[a]) += lambda * w[a] * g.col(a);
-                    s.v.col(n[a]) -= mu * w[a] * g.col(a);
-                }
-                moved = true;
-            }
-            if (!moved) break;
-        }
-    }
-    return corrected;
-}
-
-void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int iterations) {
-    const double mu = m.material.mu(), lambda = m.material.lambda();
-    std::vector<double> floorDet;  // per incident element: half its det F before the move (at most 1/2)
-    for (int it = 0; it < iterations; ++it)
-        for (int n : nodes) {
-            Eigen::Vector3d f = Eigen::Vector3d::Zero();
-            Eigen::Matrix3d K = Eigen::Matrix3d::Zero();
-            double size = 1e300;
-            floorDet.clear();
-            for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1]; ++sl) {
-                const int e = m.nodeSlots[static_cast<size_t>(sl)] / 4, a = m.nodeSlots[static_cast<size_t>(sl)] % 4;
-                const Eigen::Matrix3d F = deformationGradient(m, s, e);
-                floorDet.push_back(0.5 * std::min(F.determinant(), 1.0));
-                const double vf = m.volume(e) * m.fraction(e);
-                if (vf <= 0) continue;
-                const Eigen::Matrix3d Di = m.dmInv(e);
-                const Eigen::Matrix3d R = extractRotation(F, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()));
-                // Linear stress of the corotated strain; forces H = -V P Dm^-T (corners 1..3).
-                const Eigen::Matrix3d eps = 0.5 * (R.transpose() * F + F.transpose() * R) - Eigen::Matrix3d::Identity();
-                const Eigen::Matrix3d P = R * (2 * mu * eps + lambda * eps.trace() * Eigen::Matrix3d::Identity());
-                const Eigen::Matrix3d H = -vf * P * Di.transpose();
-                const Eigen::Vector3d g = a == 0 ? Eigen::Vector3d(-Di.row(0).transpose() - Di.row(1).transpose() - Di.row(2).transpose())
-                                                 : Eigen::Vector3d(Di.row(a - 1).transpose());
-                f += a == 0 ? Eigen::Vector3d(-H.rowwise().sum()) : Eigen::Vector3d(H.col(a - 1));
-                const Eigen::Vector3d rg = R * g;
-                K += vf * (mu * g.squaredNorm() * Eigen::Matrix3d::Identity() + (mu + lambda) * rg * rg.transpose());
-                size = std::min(size, std::cbrt(m.volume(e)));
-            }
-            if (size == 1e300) continue;
-            Eigen::Vector3d dx = K.ldlt().solve(f);
-            const double len = dx.norm(), cap = 0.25 * size;
-            if (!(len < 1e300)) continue;
-            if (len > cap) dx *= cap / len;
-            // Backtrack so that no element around the node flattens below half its det F.
-            const Eigen::Vector3d x0 = s.x.col(n);
-            for (int tries = 0; tries < 6; ++tries, dx *= 0.5) {
-                s.x.col(n) = x0 + dx;
-                bool ok = true;
-                for (int sl = m.nodeSlotStart[n], k = 0; sl < m.nodeSlotStart[n + 1] && ok; ++sl, ++k)
-                    ok = deformationGradient(m, s, m.nodeSlots[static_cast<size_t>(sl)] / 4).determinant() >=
-                         floorDet[static_cast<size_t>(k)];
-                if (ok) break;
-                s.x.col(n) = x0;
-            }
-        }
-}
-
-double elasticEnergy(const Model& m, const State& s) {
-    const double lam = m.material.lambda(), mu = m.material.mu();
-    double E = 0;
-    for (int e = 0; e < m.elements(); ++e) {
-        const int* n = m.tets.col(e).data();
-        Eigen::Matrix3d Ds;
-        Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
-        const Eigen::Matrix3d F = Ds * m.dmInv(e);
-        Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-        if (m.elementModel == ElementModel::Corotational) {
-            R = extractRotation(F, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()));
-        }
-        const Eigen::Matrix3d H = R.transpose() * F - Eigen::Matrix3d::Identity();
-        const Eigen::Matrix3d eps = 0.5 * (H + H.transpose());
-        E += 0.5 * m.volume(e) * m.fraction(e) * (lam * eps.trace() * eps.trace() + 2 * mu * eps.squaredNorm());
-    }
-    return E;
-}
-
-double kineticEnergy(const Model& m, const State& s) {
-    double E = 0;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.invMass(i) > 0) E += 0.5 * m.mass(i) * s.v.col(i).squaredNorm();
-    return E;
-}
-
-double gravityEnergy(const Model& m, const State& s) {
-    double E = 0;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.invMass(i) > 0) E -= m.mass(i) * m.gravity.dot(s.x.col(i));
-    return E;
-}
-
 void setThreads(int n) { omp_set_num_threads(n > 0 ? n : omp_get_num_procs()); }
 int threads() { return omp_get_max_threads(); }
-
-} // namespace cutsim
-
-namespace cutsim {
-
-Eigen::VectorXd vonMisesStress(const Model& m, const State& s) {
-    const double lam = m.material.lambda(), mu = m.material.mu();
-    Eigen::VectorXd out(m.elements());
-    for (int e = 0; e < m.elements(); ++e) {
-        const int* n = m.tets.col(e).data();
-        Eigen::Matrix3d Ds;
-        Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
-        const Eigen::Matrix3d F = Ds * m.dmInv(e);
-        const Eigen::Matrix3d R = m.elementModel == ElementModel::Corotational
-                                      ? extractRotation(F, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()))
-                                      : Eigen::Matrix3d::Identity();
-        const Eigen::Matrix3d H = R.transpose() * F - Eigen::Matrix3d::Identity();
-        Eigen::Matrix3d sig = mu * (H + H.transpose());
-        sig.diagonal().array() += lam * H.trace();
-        const Eigen::Matrix3d dev = sig - sig.trace() / 3.0 * Eigen::Matrix3d::Identity();
-        out(e) = std::sqrt(1.5 * dev.squaredNorm());
-    }
-    return out;
-}
 
 } // namespace cutsim

@@ -3,6 +3,7 @@
 // thread alone touches (computeForces); no locks, no atomics.
 #pragma once
 
+#include "fem/kinematics.hpp"
 #include "fem/state.hpp"
 
 #include <vector>
@@ -66,12 +67,6 @@ int limitStretch(const Model& model, State& state, double sMin, std::vector<int>
 // of a cut, which inherit the stress of the element they came from.
 void relaxNodes(const Model& model, State& state, const std::vector<int>& nodes, int iterations);
 
-// Rotation of the polar decomposition F = R S. Newton's iteration X <- (X + X^-T) / 2 (Higham
-// 1986) converges quadratically for det F > 0; a degenerate or inverted F goes to the SVD of
-// invertible FEM (Irving, Teran, Fedkiw 2004): the proper rotation maximising tr(R^T F), with
-// Rprev deciding a tie between two equal smallest singular values.
-Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev);
-
 // Elastic energy 1/2 V (lambda tr(e)^2 + 2 mu e:e) with e = sym(R^T F) - I [J].
 double elasticEnergy(const Model& model, const State& state);
 // 1/2 sum m v^2 [J] (free nodes).
@@ -83,9 +78,6 @@ double gravityEnergy(const Model& model, const State& state);
 void setThreads(int n);
 int threads();
 
-} // namespace cutsim
-
-namespace cutsim {
 // Von Mises stress of each element from the corotated linear stress (nElems) [Pa].
 Eigen::VectorXd vonMisesStress(const Model& model, const State& state);
 } // namespace cutsim

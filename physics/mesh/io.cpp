@@ -1,5 +1,6 @@
 // Reader dispatch, the shared token cursor and checks, and the writers.
 #include "mesh/io.hpp"
+#include "util/atomic_file.hpp"
 #include "mesh/io_detail.hpp"
 
 #include <algorithm>
@@ -234,27 +235,6 @@ void appendNumber(std::string& out, long v) {
     out.append(buf, ec == std::errc() ? p : buf);
 }
 
-// Whole output through a temporary file so a failure never leaves half a mesh behind.
-void writeAtomically(const std::string& path, const std::string& content) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        if (!f) throw InputError(path, 0, "cannot write (folder missing or not writable)");
-        f.write(content.data(), static_cast<std::streamsize>(content.size()));
-        f.close();
-        if (!f) {
-            std::error_code ec;
-            std::filesystem::remove(tmp, ec);
-            throw InputError(path, 0, "write failed (disk full?)");
-        }
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::filesystem::remove(tmp, ec);
-        throw InputError(path, 0, "cannot replace file: " + ec.message());
-    }
-}
 
 void checkWritable(const std::string& path, const TetMesh& mesh) {
     for (long i = 0; i < mesh.tets.size(); ++i)
@@ -382,7 +362,7 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Fi
         if (e % 32 == 31 || e + 1 == mesh.elements()) out += '\n';
     }
     out += "        </DataArray>\n      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
-    writeAtomically(path, out);
+    writeFileAtomic(path, out);  // never half a mesh
 }
 
 void writeMsh22(const std::string& path, const TetMesh& mesh) {
@@ -409,7 +389,7 @@ void writeMsh22(const std::string& path, const TetMesh& mesh) {
         out += '\n';
     }
     out += "$EndElements\n";
-    writeAtomically(path, out);
+    writeFileAtomic(path, out);  // never half a mesh
 }
 
 } // namespace cutsim

@@ -1,6 +1,7 @@
 // XFEM virtual elements: exact pieces, conservation, separation, degenerate cuts, the time step.
 #include "cut/polyhedron.hpp"
 #include "cut/xfem.hpp"
+#include "util/union_find.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/embedding.hpp"
@@ -19,16 +20,10 @@ namespace {
 
 // Piece label of each node: connected components of elements joined through shared nodes.
 std::vector<int> pieceOfNode(const Model& m) {
-    std::vector<int> parent(m.nodes());
-    std::iota(parent.begin(), parent.end(), 0);
-    auto find = [&](int i) {
-        while (parent[i] != i) i = parent[i] = parent[parent[i]];
-        return i;
-    };
-    for (int e = 0; e < m.elements(); ++e)
-        for (int a = 1; a < 4; ++a) parent[find(m.tets(a, e))] = find(m.tets(0, e));
-    for (int i = 0; i < m.nodes(); ++i) parent[i] = find(i);
-    return parent;
+    UnionFind uf = elementPieces(m.tets, m.nodes());
+    std::vector<int> piece(static_cast<size_t>(m.nodes()));
+    for (int i = 0; i < m.nodes(); ++i) piece[static_cast<size_t>(i)] = uf.find(i);
+    return piece;
 }
 
 // Volume (V f) of each piece, ascending.

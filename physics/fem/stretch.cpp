@@ -1,0 +1,125 @@
+// Stretch limiting: elements below the smallest principal stretch projected back to it.
+#include "fem/forces.hpp"
+#include "fem/kinematics.hpp"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+
+namespace cutsim {
+
+namespace {
+
+// A lower bound of the smallest singular value: sigma1 sigma2 <= |F|^2 / 2, so
+// sigma3 = det F / (sigma1 sigma2) >= 2 det F / |F|^2 (negative when inverted).
+double smallestStretchBound(const Eigen::Matrix3d& F) { return 2 * F.determinant() / F.squaredNorm(); }
+
+// The smallest principal stretch of F and its gradient with respect to the four nodes:
+// sigma3 = u3^T Ds DmInv v3 (U, V rotations), so d sigma3 / d x_a = (DmInv v3)_a u3 for a = 1..3,
+// node 0 minus their sum. For det F <= 0, det F itself and its gradient (below).
+double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<double, 3, 4>& g) {
+    const Eigen::Matrix3d F = deformationGradient(m, s, e);
+    if (!(F.determinant() > 0)) {
+        // Inverted or flat: the sign of invertible FEM sits on the smallest singular value, which
+        // need not be the direction that went through (F = diag(1, 1, -3) negates a 1). det F and
+        // its gradient (the cofactor of Ds times det DmInv) always point back; the stretch
+        // constraint takes over once det F > 0.
+        const int* n = m.tets.col(e).data();
+        const Eigen::Vector3d x0 = s.x.col(n[0]);
+        const Eigen::Vector3d a = s.x.col(n[1]) - x0, b = s.x.col(n[2]) - x0, c = s.x.col(n[3]) - x0;
+        const double d = m.dmInv(e).determinant();
+        g.col(1) = d * b.cross(c);
+        g.col(2) = d * c.cross(a);
+        g.col(3) = d * a.cross(b);
+        g.col(0) = -(g.col(1) + g.col(2) + g.col(3));
+        return F.determinant();
+    }
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Eigen::Vector3d u3 = svd.matrixU().col(2), v3 = svd.matrixV().col(2);
+    if (svd.matrixU().determinant() < 0) u3 = -u3;
+    if (svd.matrixV().determinant() < 0) v3 = -v3;
+    const Eigen::Vector3d w = m.dmInv(e) * v3;
+    for (int a = 0; a < 3; ++a) g.col(a + 1) = w[a] * u3;
+    g.col(0) = -(w[0] + w[1] + w[2]) * u3;
+    return u3.dot(F * v3);
+}
+
+} // namespace
+
+int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratch) {
+    // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
+    // is linear in x along its gradient while the singular vectors hold, so a few sweeps suffice.
+    // A correction can push a neighbour below the limit: the next round scans the elements around
+    // the nodes this one moved, a few rounds at most.
+    constexpr int kRounds = 4, kSweeps = 8;
+    constexpr double kTol = 1e-9;
+    Eigen::Matrix<double, 3, 4> g;
+    auto below = [&](int e) {
+        return smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
+               smallestStretch(m, s, e, g) < sMin * (1 - kTol);
+    };
+    std::vector<int> around;
+    int corrected = 0;
+    for (int round = 0; round < kRounds; ++round) {
+        if (round == 0) {
+            scratch.clear();
+            for (int e = 0; e < m.elements(); ++e)
+                if (below(e)) scratch.push_back(e);
+        } else {
+            around.clear();
+            for (const int e : scratch)
+                for (int a = 0; a < 4; ++a) {
+                    const int i = m.tets(a, e);
+                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) around.push_back(m.nodeSlots[k] >> 2);
+                }
+            std::sort(around.begin(), around.end());
+            around.erase(std::unique(around.begin(), around.end()), around.end());
+            scratch.clear();
+            for (const int e : around)
+                if (below(e)) scratch.push_back(e);
+        }
+        if (scratch.empty()) break;
+        corrected = std::max(corrected, static_cast<int>(scratch.size()));
+        for (int sweep = 0; sweep < kSweeps; ++sweep) {
+            bool moved = false;
+            for (const int e : scratch) {
+                const double C = smallestStretch(m, s, e, g) - sMin;
+                if (C >= -kTol * sMin) continue;
+                const int* n = m.tets.col(e).data();
+                // Weights: the inverse node mass, capped at the inverse of the element's mean free-node
+                // mass. Pure 1/m moves the light control points of a small cut share by up to half an
+                // element per step and rings them; the cap keeps the correction geometric there.
+                double mean = 0;
+                int free = 0;
+                for (int a = 0; a < 4; ++a)
+                    if (m.invMass(n[a]) > 0) {
+                        mean += m.mass(n[a]);
+                        ++free;
+                    }
+                if (free == 0) continue;  // all four nodes prescribed
+                mean /= free;
+                double w[4], denom = 0;
+                for (int a = 0; a < 4; ++a) {
+                    w[a] = m.invMass(n[a]) > 0 ? 1.0 / std::max(m.mass(n[a]), mean) : 0.0;
+                    denom += w[a] * g.col(a).squaredNorm();
+                }
+                if (!(denom > 0)) continue;
+                const double lambda = -C / denom;
+                // the rate of sigma3, g . v; a closing one is removed (an inelastic stop), an opening one kept
+                double rate = 0;
+                for (int a = 0; a < 4; ++a) rate += g.col(a).dot(s.v.col(n[a]));
+                const double mu = std::min(rate, 0.0) / denom;
+                for (int a = 0; a < 4; ++a) {
+                    s.x.col(n[a]) += lambda * w[a] * g.col(a);
+                    s.v.col(n[a]) -= mu * w[a] * g.col(a);
+                }
+                moved = true;
+            }
+            if (!moved) break;
+        }
+    }
+    return corrected;
+}
+
+} // namespace cutsim
