@@ -6,7 +6,7 @@
 
 #include "fem/integrate.hpp"
 #include "fem/model.hpp"
-#include "fem/oscillation.hpp"
+#include "bench/oscillation.hpp"
 #include "fem/state.hpp"
 #include "mesh/generate.hpp"
 
@@ -142,8 +142,6 @@ double linearStaticTip(const Model& m, const TipFn& tip = {});
 // First bending frequency in z with the lumped mass (the low mode whose tip face moves most along
 // z, shift-invert Lanczos) [Hz].
 double firstBendingFrequency(const Model& m);
-// Lowest frequency of a model with fixed nodes [Hz] (shift-invert Lanczos).
-double lowestFrequency(const Model& m);
 // Richardson extrapolation of values on meshes h and h / ratio for an O(h^2) method.
 double richardson(double coarse, double fine, double ratio = 2);
 // The convergence order p that the last three of values on meshes of `levels` elements across

@@ -4,11 +4,12 @@
 #include "bench.hpp"
 #include "commands.hpp"
 #include "sim/simulation.hpp"
+#include "timestep/modes.hpp"
 #include "util/atomic_file.hpp"
 #include "util/stopwatch.hpp"
 #include "sim/scene.hpp"
 
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
@@ -17,8 +18,6 @@
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
-#include <Spectra/MatOp/SparseSymShiftSolve.h>
-#include <Spectra/SymEigsShiftSolver.h>
 #include <nlohmann/json.hpp>
 #include <omp.h>
 
@@ -258,17 +257,10 @@ double linearStaticTip(const Model& m, const TipFn& tip) {
 // (y_j . M^1/2 e_z) (mean tip z of M^-1/2 y_j) / lambda_j. (On a mesh whose bending stiffness has
 // skew principal axes, two modes share a z load; this picks the one that carries more of it.)
 double firstBendingFrequency(const Model& m) {
-    int nf = 0;
-    const auto map = freeDofMap(m, &nf);
-    const Eigen::SparseMatrix<double> A = scaledFreeStiffness(m, map, nf);
-    Spectra::SparseSymShiftSolve<double> op(A);
-    const int nev = 4;
-    Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, nev, std::min(nf, 20), 0.0);
-    eigs.init();
-    eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10);
-    if (eigs.info() != Spectra::CompInfo::Successful) throw EigenSolveError("bending frequency: Lanczos did not converge");
-    const Eigen::VectorXd lam = eigs.eigenvalues();
-    const Eigen::MatrixXd vec = eigs.eigenvectors();
+    const Modes modes = lowestModes(m, 4);
+    const Eigen::VectorXd& lam = modes.lambda;
+    const Eigen::MatrixXd& vec = modes.vectors;
+    const std::vector<int>& map = modes.dofMap;
     const double L = m.X.row(0).maxCoeff();
     double best = -1, lambda = 0;
     for (int j = 0; j < lam.size(); ++j) {
@@ -285,18 +277,6 @@ double firstBendingFrequency(const Model& m) {
         if (share > best) { best = share; lambda = lam(j); }
     }
     return std::sqrt(lambda) / (2 * M_PI);
-}
-
-double lowestFrequency(const Model& m) {
-    int nf = 0;
-    const auto map = freeDofMap(m, &nf);
-    const Eigen::SparseMatrix<double> A = scaledFreeStiffness(m, map, nf);
-    Spectra::SparseSymShiftSolve<double> op(A);
-    Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, 1, std::min(nf, 12), 0.0);
-    eigs.init();
-    eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10);
-    if (eigs.info() != Spectra::CompInfo::Successful) throw EigenSolveError("lowest frequency: Lanczos did not converge");
-    return std::sqrt(eigs.eigenvalues()(0)) / (2 * M_PI);
 }
 
 // Richardson extrapolation of values on meshes h and h / ratio for an O(h^2) method.

@@ -9,12 +9,13 @@
 #include "bench.hpp"
 #include "util/stopwatch.hpp"
 
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 #include "cut/xfem.hpp"
 #include "embed/mi.hpp"
 #include "mesh/embedding.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "timestep/modes.hpp"
 #include "timestep/timestep.hpp"
 
 #include <nlohmann/json.hpp>

@@ -13,7 +13,7 @@
 // runs its loops in parallel above 256 items: OMP_NUM_THREADS=1 measures it serially.
 // Run: build/tests/cutsim_bench --benchmark_filter=Cut
 // No main here: cutsim_bench's main lives in another file of this folder.
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 #include "cut/xfem.hpp"
 #include "fem/model.hpp"
 #include "fem/state.hpp"

@@ -2,7 +2,7 @@
 // two objects by name, and the conservation checks every cut must pass.
 #pragma once
 
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"

@@ -17,17 +17,6 @@ using namespace cutsim;
 
 namespace {
 
-TetMesh unitTet() {
-    TetMesh m;
-    m.X.resize(3, 4);
-    m.X << 0, 1, 0, 0,
-           0, 0, 1, 0,
-           0, 0, 0, 1;
-    m.tets.resize(4, 1);
-    m.tets << 0, 1, 2, 3;
-    return m;
-}
-
 Eigen::VectorXd flat(const Eigen::Matrix3Xd& x) { return Eigen::Map<const Eigen::VectorXd>(x.data(), x.size()); }
 
 // Exact critical step over free DOFs, independent of physics/timestep.
@@ -42,7 +31,7 @@ TEST(Tet, StiffnessOfUnitTetByHand) {
     Material mat{2.5, 0.25, 1.0};
     ASSERT_NEAR(mat.lambda(), 1.0, 1e-14);
     ASSERT_NEAR(mat.mu(), 1.0, 1e-14);
-    const TetMesh t = unitTet();
+    const TetMesh t = test::unitTet();
     const Mat34 g = shapeGradients(restShapeMatrix(t.X).inverse());
     const Mat12 K = elementStiffness(g, 1.0 / 6.0, mat);
     const double V = 1.0 / 6.0;
@@ -62,7 +51,7 @@ TEST(Tet, StiffnessOfUnitTetByHand) {
 
 // For small displacements the corotational force is -K u; the linear force is -K u exactly.
 TEST(Forces, MatchStiffnessTimesDisplacement) {
-    TetMesh t = unitTet();
+    TetMesh t = test::unitTet();
     t.X.col(3) << 0.2, 0.1, 0.9;
     for (auto em : {ElementModel::Linear, ElementModel::Corotational}) {
         Model m = buildModel(t, Material{}, em);
@@ -307,35 +296,12 @@ TEST(Forces, ForceStageIsBitwiseTheGatherOnAnyThreads) {
     setThreads(0);
 }
 
-// The rotation of an inverted F is the invertible-FEM one (Irving et al. 2004): a proper rotation
-// with R^T F symmetric (a stationary point of tr(R^T F)) whose one negative eigenvalue is the
-// smallest in magnitude (the maximum, not one of the saddles where a larger one is negated).
-// Mueller's iteration from the identity missed this for about 40% of random inverted F.
-TEST(Forces, InvertedRotationIsTheInvertibleFemOne) {
-    std::mt19937 rng(3);
-    std::uniform_real_distribution<double> u(-1, 1);
-    for (int k = 0; k < 500; ++k) {
-        Eigen::Matrix3d F;
-        for (int i = 0; i < 9; ++i) F(i % 3, i / 3) = u(rng);
-        if (F.determinant() > 0) F.col(0) *= -1;
-        const Eigen::Matrix3d R = extractRotation(F, Eigen::Matrix3d::Identity());
-        EXPECT_LT((R.transpose() * R - Eigen::Matrix3d::Identity()).norm(), 1e-12);
-        EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
-        const Eigen::Matrix3d S = R.transpose() * F;
-        ASSERT_LT((S - S.transpose()).norm(), 1e-9 * F.norm()) << "not stationary, F =\n" << F;
-        const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(0.5 * (S + S.transpose())).eigenvalues();
-        EXPECT_LT(ev[0], 0);  // ascending: det F < 0 leaves exactly one negative
-        EXPECT_GT(ev[1], 0);
-        EXPECT_LE(-ev[0], ev[1] + 1e-12) << "a saddle of tr(R^T F), F =\n" << F;
-    }
-}
-
 // A tet with three clamped corners and the fourth pushed through the opposite face is pushed
 // back to its rest shape by the corotational force (it would stay inverted with R = polar(F) of
 // the wrong sign, or with no rotation that reflects it).
 TEST(Forces, InvertedTetRecovers) {
     for (const double depth : {0.3, 1.0, 2.0}) {
-        TetMesh t = unitTet();
+        TetMesh t = test::unitTet();
         t.X *= 0.01;
         Model m = buildModel(t, Material{});
         m.massDamping = 200;   // [1/s]: decays e^-20 over the 0.2 s run
@@ -354,75 +320,11 @@ TEST(Forces, InvertedTetRecovers) {
     }
 }
 
-// The smallest principal stretch of a tet's F, signed like the limiter's (negative when inverted).
-double smallestStretchOf(const Model& m, const State& s, int e) {
-    const Eigen::Vector3d x0 = s.x.col(m.tets(0, e));
-    Eigen::Matrix3d Ds;
-    Ds << s.x.col(m.tets(1, e)) - x0, s.x.col(m.tets(2, e)) - x0, s.x.col(m.tets(3, e)) - x0;
-    const Eigen::Matrix3d F = Ds * m.dmInv(e);
-    const double s3 = Eigen::JacobiSVD<Eigen::Matrix3d>(F).singularValues()[2];
-    return F.determinant() < 0 ? -s3 : s3;
-}
-
-// Stretch limiting by hand: three corners clamped on z = 0, the fourth pushed straight down
-// through the face to z = -0.3 h. F = diag(1, 1, z / h). Inverted, det F = z / h is projected to
-// 0 first (its gradient for node 3 is e_z / h); then sigma3 = z / h along e_z, gradient e_z / h
-// again, so node 3 ends at z = 0.2 h exactly, x and y unchanged, its closing velocity stopped.
-TEST(Forces, StretchLimitProjectsByHand) {
-    TetMesh t = unitTet();
-    t.X *= 0.01;
-    Model m = buildModel(t, Material{});
-    fixNodes(m, {0, 1, 2});
-    State s = makeState(m);
-    s.x.col(3) << 0, 0, -0.003;
-    s.v.col(3) << 0.5, -0.25, -2.0;
-    std::vector<int> scratch;
-    EXPECT_EQ(limitStretch(m, s, 0.2, scratch), 1);
-    EXPECT_NEAR(s.x(0, 3), 0.0, 1e-15);
-    EXPECT_NEAR(s.x(1, 3), 0.0, 1e-15);
-    EXPECT_NEAR(s.x(2, 3), 0.002, 1e-15);
-    EXPECT_NEAR(s.v(0, 3), 0.5, 1e-15);
-    EXPECT_NEAR(s.v(1, 3), -0.25, 1e-15);
-    EXPECT_NEAR(s.v(2, 3), 0.0, 1e-15);
-    for (int i = 0; i < 3; ++i) EXPECT_EQ(s.x.col(i), m.X.col(i));
-    // an opening element below the limit keeps its opening velocity; one above is left alone
-    s.v.col(3) << 0, 0, 1.0;
-    s.x(2, 3) = 0.001;
-    limitStretch(m, s, 0.2, scratch);
-    EXPECT_NEAR(s.v(2, 3), 1.0, 1e-15);
-    EXPECT_NEAR(s.x(2, 3), 0.002, 1e-15);
-    EXPECT_EQ(limitStretch(m, s, 0.1, scratch), 0);
-}
-
-// One free node of a clamped tet, displaced: its equilibrium is the rest position (no load), and
-// one corotated Newton step on its own diagonal block finds it exactly when it moved without
-// rotating the element (small moves: the block is the exact stiffness of that node).
-TEST(Forces, RelaxNodesReturnsAFreeNodeToRest) {
-    TetMesh t = unitTet();
-    t.X *= 0.01;
-    Model m = buildModel(t, Material{});
-    fixNodes(m, {0, 1, 2});
-    buildIncidence(m);
-    State s = makeState(m);
-    const Eigen::Vector3d d(0.0003, -0.0002, 0.0004);
-    s.x.col(3) += d;
-    const double e0 = elasticEnergy(m, s);
-    relaxNodes(m, s, {3}, 1);
-    EXPECT_LT(elasticEnergy(m, s), 0.05 * e0);  // one sweep: the rotation is not known yet
-    relaxNodes(m, s, {3}, 6);
-    EXPECT_LT((s.x.col(3) - m.X.col(3)).norm(), 1e-9);
-    for (int i = 0; i < 3; ++i) EXPECT_EQ(s.x.col(i), m.X.col(i));
-    // a move is capped at a quarter of the element's size, and never flattens the element
-    s.x.col(3) = m.X.col(3) + Eigen::Vector3d(0, 0, -0.0099);  // det F = 0.01
-    relaxNodes(m, s, {3}, 1);
-    EXPECT_NEAR(s.x(2, 3), m.X(2, 3) - 0.0099 + 0.25 * std::cbrt(m.volume(0)), 1e-12);
-}
-
 // A light node (Model::lightNodes) moving alone from rest positions: the force is zero, its
 // neighbours are at rest, so one symplectic Euler step keeps 1 / (1 + c dt) = 2/3 of its velocity
 // and moves it by dt times that; an ordinary node keeps all of it.
 TEST(Integrate, LightNodeVelocityIsDampedImplicitly) {
-    TetMesh t = unitTet();
+    TetMesh t = test::unitTet();
     t.X *= 0.01;
     for (const bool light : {true, false}) {
         Model m = buildModel(t, Material{});
@@ -442,61 +344,6 @@ TEST(Integrate, LightNodeVelocityIsDampedImplicitly) {
     }
 }
 
-// On a free tet with equal node masses the correction keeps momentum and the centre of mass, and
-// leaves the smallest stretch at the limit (a little above: the singular vectors turn).
-TEST(Forces, StretchLimitKeepsMomentum) {
-    TetMesh t = unitTet();
-    t.X *= 0.01;
-    Model m = buildModel(t, Material{});
-    State s = makeState(m);
-    std::mt19937 rng(7);
-    std::uniform_real_distribution<double> u(-1, 1);
-    for (int i = 0; i < 4; ++i) s.v.col(i) << u(rng), u(rng), u(rng);
-    s.x.col(3) << 0.004, 0.001, -0.002;
-    ASSERT_LT(smallestStretchOf(m, s, 0), 0);
-    const Eigen::Vector3d p0 = s.v * m.mass, c0 = s.x * m.mass;
-    std::vector<int> scratch;
-    ASSERT_EQ(limitStretch(m, s, 0.3, scratch), 1);
-    EXPECT_LT((s.v * m.mass - p0).norm(), 1e-15);
-    EXPECT_LT((s.x * m.mass - c0).norm(), 1e-17);
-    EXPECT_GE(smallestStretchOf(m, s, 0), 0.3 - 1e-9);
-    EXPECT_LT(smallestStretchOf(m, s, 0), 0.35);
-}
-
-// A clamped tet loaded through its face, the load ramped to 5 N (far beyond what E = 30 kPa on
-// 1 cm holds; near the end one step carries the node past the face): without limiting it
-// inverts, with it the smallest stretch after each step is at the limit or above.
-TEST(Forces, StretchLimitStopsInversion) {
-    for (const double limit : {0.0, 0.2}) {
-        TetMesh t = unitTet();
-        t.X *= 0.01;
-        Model m = buildModel(t, Material{});
-        m.massDamping = 20;
-        fixNodes(m, {0, 1, 2});
-        State s = makeState(m);
-        Stepper st;
-        StepOptions opt;
-        opt.dt = 1.0 / std::sqrt(test::denseLambdaMax(m));
-        opt.minStretch = limit;
-        int inverted = 0, limited = 0;
-        double smallest = 1;
-        for (int k = 0; k < 4000; ++k) {
-            s.fExt.col(3) << 0, 0, -5.0 * std::min(1.0, k / 2000.0);   // [N]
-            st.step(m, s, opt);
-            inverted += s.flags.inverted > 0;
-            limited += s.flags.limited > 0;
-            smallest = std::min(smallest, smallestStretchOf(m, s, 0));
-        }
-        if (limit == 0) {
-            EXPECT_GT(inverted, 0);
-        } else {
-            EXPECT_LT(inverted, 10);  // seen by the force stage before the projection, never after
-            EXPECT_GT(limited, 0);
-            EXPECT_GT(smallest, limit - 1e-9);
-        }
-    }
-}
-
 // Row-sum lumping: every tet gives rho V / 4 to its nodes; gravity gives total weight.
 TEST(Model, LumpedMassAndGravity) {
     const TetMesh box = test::boxMesh(0.2, 0.1, 0.1, 4, 2, 2);
@@ -511,7 +358,7 @@ TEST(Model, LumpedMassAndGravity) {
 
 // Zero and inverted elements are refused by index.
 TEST(Model, RejectsDegenerateElements) {
-    TetMesh t = unitTet();
+    TetMesh t = test::unitTet();
     t.X.col(3) << 0.3, 0.3, 0.0;  // flat
     try {
         buildModel(t, Material{});
@@ -519,7 +366,7 @@ TEST(Model, RejectsDegenerateElements) {
     } catch (const InputError& e) {
         EXPECT_NE(std::string(e.what()).find("element 0 has zero volume"), std::string::npos) << e.what();
     }
-    EXPECT_THROW(buildModel(unitTet(), Material{30e3, 0.5, 1000}), InputError);
+    EXPECT_THROW(buildModel(test::unitTet(), Material{30e3, 0.5, 1000}), InputError);
 }
 
 // The explicit schemes are stable below 2/sqrt(lambda_max(M^-1 K)) and unstable above it:

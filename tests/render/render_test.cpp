@@ -4,7 +4,7 @@
 #include "golden.hpp"
 #include "renderer.hpp"
 #include "snapshot/snapshot.hpp"
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"

@@ -30,6 +30,17 @@ std::string tempDir() {
     return dir.string();
 }
 
+TetMesh unitTet() {
+    TetMesh m;
+    m.X.resize(3, 4);
+    m.X << 0, 1, 0, 0,
+           0, 0, 1, 0,
+           0, 0, 0, 1;
+    m.tets.resize(4, 1);
+    m.tets << 0, 1, 2, 3;
+    return m;
+}
+
 TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz) {
     return cutsim::boxMesh(lx, ly, lz, nx, ny, nz);
 }

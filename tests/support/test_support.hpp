@@ -15,6 +15,9 @@ std::string source(const std::string& rel);
 // A fresh empty temporary directory for this test.
 std::string tempDir();
 
+// The unit right tet: corners 0, e_x, e_y, e_z.
+TetMesh unitTet();
+
 // Regular box [0,lx]x[0,ly]x[0,lz] split into nx*ny*nz cubes of 6 tets each (Kuhn split,
 // conforming across cubes), all positively oriented.
 TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz);

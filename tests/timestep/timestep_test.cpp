@@ -2,7 +2,7 @@
 // GCC 12 flags Eigen's AVX-512 max reduction (a system header) as uninitialized: a false positive.
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 #include "fem/model.hpp"
 #include "fem/tet.hpp"
 #include "mesh/io.hpp"

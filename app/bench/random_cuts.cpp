@@ -1,4 +1,4 @@
-#include "cut/random_cuts.hpp"
+#include "bench/random_cuts.hpp"
 
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"

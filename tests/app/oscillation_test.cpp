@@ -1,6 +1,6 @@
 // Measured and predicted oscillation of a mode: the signal fit on signals known in closed form,
 // the integrators' mode formulas by hand, and both against real runs of the integrators.
-#include "fem/oscillation.hpp"
+#include "bench/oscillation.hpp"
 #include "fem/tet.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -64,13 +64,8 @@ TEST(Oscillation, BackwardEulerDtForErrorMeetsTheTarget) {
 // corner is off the axes. Started along the lowest one, the corner oscillates in it alone; the
 // run's fitted frequency and decay are the formula's.
 TEST(Oscillation, IntegratorRunsFollowTheirModeFormulas) {
-    TetMesh tet;
-    tet.X.resize(3, 4);
-    tet.X << 0, 1, 0, 0.3,
-             0, 0, 1, 0.2,
-             0, 0, 0, 1;
-    tet.tets.resize(4, 1);
-    tet.tets << 0, 1, 2, 3;
+    TetMesh tet = test::unitTet();
+    tet.X.col(3) << 0.3, 0.2, 1;  // off the axes
     Model m0 = buildModel(tet, Material{1e4, 0.3, 1000}, ElementModel::Linear);
     fixNodes(m0, {0, 1, 2});
     m0.gravity.setZero();

@@ -1,5 +1,5 @@
 // Measured and predicted oscillation of a mode (see oscillation.hpp).
-#include "fem/oscillation.hpp"
+#include "bench/oscillation.hpp"
 
 #include <Eigen/Dense>
 
