@@ -1,6 +1,7 @@
 // Measured and predicted oscillation of a mode: the signal fit on signals known in closed form,
 // the integrators' mode formulas by hand, and both against real runs of the integrators.
 #include "bench/oscillation.hpp"
+#include "test_support.hpp"
 #include "fem/tet.hpp"
 
 #include <Eigen/Eigenvalues>
