@@ -235,48 +235,43 @@ CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const Blad
     return r;
 }
 
-CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId,
-                           const std::vector<int>* candidates, std::vector<int>* watchOut,
-                           std::unordered_map<int, double>& nodeS) {
-    const auto t0 = Clock::now();
-    prepare(m);
-    CutResult r;
-    r.cut = cutId;
-    r.volumeBefore = m.volume.dot(m.fraction);
-    r.massBefore = m.mass.sum();
-    if (opts_.lumping != MassLumping::Enrichment && m.massShare.cols() != m.elements()) {
-        m.massShare.resize(4, m.elements());
-        for (int e = 0; e < m.elements(); ++e) m.massShare.col(e).setConstant(m.fraction(e) / 4.0);
-    }
+// One application of a cut surface: the plane's frame, the node distances frozen for the stroke,
+// and what the pass found so far.
+struct CutEngine::Pass {
+    Pass(const CutSurface& surf, int id, std::unordered_map<int, double>& distances, std::vector<int>* watch,
+         CutResult& result)
+        : surface(surf), cutId(id), nodeS(distances), watchOut(watch), r(result) {}
+    const CutSurface& surface;
+    int cutId;
+    std::unordered_map<int, double>& nodeS;  // signed distance of each node met so far [m]
+    std::vector<int>* watchOut;              // elements met but not yet covered (a stroke's), or null
+    CutResult& r;
+    Eigen::Vector3d n = Eigen::Vector3d::Zero(), u = n, v = n;  // plane normal and in-plane axes
+    double d = 0;                            // plane offset n.x = d [m]
+    double tol = 1e-9;                       // in-polygon tolerance [m]
+    int E0 = 0;                              // elements before the pass
+    struct NewElem {
+        int src;
+        Virtual virt;
+    };
+    std::vector<NewElem> fresh;              // the second sides of split elements, to append
+    std::vector<int> parents, splitNow;      // parents cut and elements split by this pass
 
-    const Eigen::Vector3d n = surface.normal.normalized();
-    const double d = n.dot(surface.point);
-    Eigen::Vector3d u, v;
-    planeAxes(n, u, v);
     // Signed distance of a node, frozen for the whole cut (a blade stroke) so that elements cut at
     // different sweeps see the same values at their shared nodes.
-    auto sAt = [&](int node) {
+    double sAt(const State& s, int node) {
         auto it = nodeS.find(node);
         if (it != nodeS.end()) return it->second;
         const double val = n.dot(s.x.col(node)) - d;
         nodeS.emplace(node, val);
         return val;
-    };
-
-    struct NewElem {
-        int src;
-        Virtual virt;
-    };
-    std::vector<NewElem> fresh;
-    std::vector<int> parents, splitNow;
-    const int E0 = m.elements();
-    const double tol = 1e-9;
+    }
 
     // A blade step's plane meets elements all across the body, but only those near the swept area
     // can be covered. The cross-section's points are convex combinations of the element's nodes,
     // so when all four nodes, projected, lie beyond one edge line of a region by more than twice
     // insideConvex's tolerance, no point of the section is in that region: skip the two clips.
-    auto outsideRegions = [&](int e) {
+    bool outsideRegions(const Model& m, const State& s, int e) const {
         Eigen::Vector2d q[4];
         for (int a = 0; a < 4; ++a) {
             const Eigen::Vector3d dx = s.x.col(m.tets(a, e)) - surface.point;
@@ -303,155 +298,192 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
             if (!separated) return false;
         }
         return true;
-    };
-    auto visit = [&](int e) {
-        if (fusedTo_.count(e)) return;  // follows its sibling (mergeDebris)
-        auto it = virt_.find(e);
-        if (it != virt_.end())
-            for (const Halfspace& h : it->second.hs)
-                if (h.cut == cutId) return;  // done by an earlier sweep of this stroke
-        Halfspace h;
-        h.cut = cutId;
-        bool anyPos = false, anyNeg = false;
-        for (int a = 0; a < 4; ++a) {
-            h.s[a] = sAt(m.tets(a, e));
-            (h.s[a] >= 0 ? anyPos : anyNeg) = true;  // ties go to the positive side
+    }
+
+    // Coverage: every point of the side's cross-section (its faces on this cut) lies in the cut area.
+    // Returns the points inside and the total.
+    std::pair<int, int> covered(const Model& m, const State& s, int e, const ConvexPiece& side) const {
+        int total = 0, inside = 0;
+        for (const PolyFace& f : side.faces) {
+            if (f.tag != 4 + cutId) continue;
+            for (int vi : f.v) {
+                const Eigen::Vector4d w = weightsOf(side.xi[vi]);
+                Eigen::Vector3d x = Eigen::Vector3d::Zero();
+                for (int a = 0; a < 4; ++a) x += w[a] * s.x.col(m.tets(a, e));
+                const Eigen::Vector3d dx = x - surface.point;
+                const Eigen::Vector2d p(dx.dot(u), dx.dot(v));
+                ++total;
+                for (const auto& poly : surface.regions)
+                    if (insideConvex(poly, p, tol)) {
+                        ++inside;
+                        break;
+                    }
+            }
         }
-        if (!(anyPos && anyNeg)) return;
-        if (!surface.regions.empty() && outsideRegions(e)) {  // the coverage test below would find nothing
-            if (watchOut) watchOut->push_back(e);
+        return {inside, total};
+    }
+};
+
+// Element e against the pass's surface: split into two virtual elements when the surface crosses
+// it completely (a sliver side merged into the other, CutOptions::minFraction), else left, and
+// watched when a bounded surface covers its section only in part.
+void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
+    if (fusedTo_.count(e)) return;  // follows its sibling (mergeDebris)
+    CutResult& r = pass.r;
+    auto it = virt_.find(e);
+    if (it != virt_.end())
+        for (const Halfspace& h : it->second.hs)
+            if (h.cut == pass.cutId) return;  // done by an earlier sweep of this stroke
+    Halfspace h;
+    h.cut = pass.cutId;
+    bool anyPos = false, anyNeg = false;
+    for (int a = 0; a < 4; ++a) {
+        h.s[a] = pass.sAt(s, m.tets(a, e));
+        (h.s[a] >= 0 ? anyPos : anyNeg) = true;  // ties go to the positive side
+    }
+    if (!(anyPos && anyNeg)) return;
+    const bool bounded = !pass.surface.regions.empty();
+    if (bounded && pass.outsideRegions(m, s, e)) {  // the coverage test below would find nothing
+        if (pass.watchOut) pass.watchOut->push_back(e);
+        return;
+    }
+    const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
+    Halfspace hn = h, hp = h;
+    hn.positive = false;
+    hp.positive = true;
+    ConvexPiece neg = clip(piece, hn), pos = clip(piece, hp);
+    if (neg.empty() && pos.empty()) return;
+    if (bounded) {
+        const auto [inside, total] = pass.covered(m, s, e, neg.empty() ? pos : neg);
+        if (inside < total || total == 0) {
+            if (pass.watchOut) pass.watchOut->push_back(e);
+            r.pending += inside > 0;
             return;
         }
-        const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
-        Halfspace hn = h, hp = h;
-        hn.positive = false;
-        hp.positive = true;
-        ConvexPiece neg = clip(piece, hn), pos = clip(piece, hp);
-        if (neg.empty() && pos.empty()) return;
+    }
 
-        if (!surface.regions.empty()) {
-            // Coverage: every point of the element's cross-section must lie in the cut area.
-            const ConvexPiece& side = neg.empty() ? pos : neg;
-            int total = 0, inside = 0;
-            for (const PolyFace& f : side.faces) {
-                if (f.tag != 4 + cutId) continue;
-                for (int vi : f.v) {
-                    const Eigen::Vector4d w = weightsOf(side.xi[vi]);
-                    Eigen::Vector3d x = Eigen::Vector3d::Zero();
-                    for (int a = 0; a < 4; ++a) x += w[a] * s.x.col(m.tets(a, e));
-                    const Eigen::Vector3d dx = x - surface.point;
-                    const Eigen::Vector2d p(dx.dot(u), dx.dot(v));
-                    ++total;
-                    for (const auto& poly : surface.regions)
-                        if (insideConvex(poly, p, tol)) {
-                            ++inside;
-                            break;
-                        }
-                }
-            }
-            if (inside < total || total == 0) {
-                if (watchOut) watchOut->push_back(e);
-                r.pending += inside > 0;
-                return;
-            }
-        }
+    ++r.crossed;
+    const int p = parent_[static_cast<size_t>(e)];
+    const double fneg = volumeFraction(neg), fpos = volumeFraction(pos);
+    Virtual base;
+    if (it != virt_.end()) base = it->second;
+    else base.share = volumeFraction(piece);
+    // Shares of the two sides; a sliver side is merged into the other (see CutOptions).
+    const double total = base.share, sum = fneg + fpos;
+    double sneg = sum > 0 ? total * fneg / sum : 0, spos = total - sneg;
+    bool keepNeg = !neg.empty() && sneg >= opts_.minFraction, keepPos = !pos.empty() && spos >= opts_.minFraction;
+    if (!keepNeg && !keepPos) (fneg >= fpos ? keepNeg : keepPos) = true;  // never lose a whole element
+    r.dropped += (!keepNeg && fneg > 0) + (!keepPos && fpos > 0);
+    if (!keepNeg) spos = total;
+    if (!keepPos) sneg = total;
 
-        ++r.crossed;
-        const int p = parent_[static_cast<size_t>(e)];
-        const double fneg = volumeFraction(neg), fpos = volumeFraction(pos);
-        Virtual base;
-        if (it != virt_.end()) base = it->second;
-        else base.share = volumeFraction(piece);
-        // Shares of the two sides; a sliver side is merged into the other (see CutOptions).
-        const double total = base.share, sum = fneg + fpos;
-        double sneg = sum > 0 ? total * fneg / sum : 0, spos = total - sneg;
-        bool keepNeg = !neg.empty() && sneg >= opts_.minFraction, keepPos = !pos.empty() && spos >= opts_.minFraction;
-        if (!keepNeg && !keepPos) (fneg >= fpos ? keepNeg : keepPos) = true;  // never lose a whole element
-        r.dropped += (!keepNeg && fneg > 0) + (!keepPos && fpos > 0);
-        if (!keepNeg) spos = total;
-        if (!keepPos) sneg = total;
+    const double f0 = fraction0_[p];
+    if (keepNeg && keepPos) {
+        ++r.split;
+        Pass::NewElem ne{e, base};
+        ne.virt.piece = std::move(pos);
+        ne.virt.share = spos;
+        ne.virt.hs.push_back(hp);
+        pass.fresh.push_back(std::move(ne));
+    }
+    Virtual& mine = virt_[e];
+    mine = std::move(base);
+    mine.hs.push_back(keepNeg ? hn : hp);
+    mine.piece = keepNeg ? std::move(neg) : std::move(pos);
+    mine.share = keepNeg ? sneg : spos;
+    m.fraction(e) = f0 * mine.share;
+    pass.parents.push_back(p);
+    pass.splitNow.push_back(e);
+}
 
-        const double f0 = fraction0_[p];
-        if (keepNeg && keepPos) {
-            ++r.split;
-            NewElem ne{e, base};
-            ne.virt.piece = std::move(pos);
-            ne.virt.share = spos;
-            ne.virt.hs.push_back(hp);
-            fresh.push_back(std::move(ne));
-        }
-        Virtual& mine = virt_[e];
-        mine = std::move(base);
-        mine.hs.push_back(keepNeg ? hn : hp);
-        mine.piece = keepNeg ? std::move(neg) : std::move(pos);
-        mine.share = keepNeg ? sneg : spos;
-        m.fraction(e) = f0 * mine.share;
-        parents.push_back(p);
-        splitNow.push_back(e);
+// The candidates, and each split element's face neighbours in turn until no more split: the cut
+// spreads over the covered part of the plane however the body has moved away from the blade. A
+// neighbour counts when it shares the face's three nodes (still one body there).
+void CutEngine::visitFromCandidates(Model& m, State& s, Pass& pass, const std::vector<int>& candidates) {
+    std::vector<int> queue;
+    std::unordered_set<int> queued;
+    auto enqueue = [&](int e) {
+        if (e >= 0 && e < pass.E0 && queued.insert(e).second) queue.push_back(e);
     };
-    if (candidates) {
-        // Each split element's face neighbours are tested too, until no more split: the cut spreads
-        // over the covered part of the plane however the body has moved away from the blade.
-        // A neighbour counts when it shares the face's three nodes (still one body there).
-        std::vector<int> queue;
-        std::unordered_set<int> queued;
-        auto enqueue = [&](int e) {
-            if (e >= 0 && e < E0 && queued.insert(e).second) queue.push_back(e);
-        };
-        for (int e : *candidates) enqueue(e);
-        size_t done = 0;
-        for (size_t head = 0; head < queue.size(); ++head) {
-            visit(queue[head]);
-            for (; done < splitNow.size(); ++done) {
-                const int e = splitNow[done], p = parent_[static_cast<size_t>(e)];
-                for (int k = 0; k < 4; ++k) {
-                    const int q = adj_(k, p);
-                    if (q < 0) continue;
-                    for (int g : virtualsOf(q)) {
-                        int shared = 0;
-                        for (int a = 0; a < 4; ++a)
-                            for (int b = 0; b < 4; ++b) shared += m.tets(a, e) == m.tets(b, g);
-                        if (shared >= 3) enqueue(g);
-                    }
+    for (int e : candidates) enqueue(e);
+    size_t done = 0;
+    for (size_t head = 0; head < queue.size(); ++head) {
+        visitElement(m, s, pass, queue[head]);
+        for (; done < pass.splitNow.size(); ++done) {
+            const int e = pass.splitNow[done], p = parent_[static_cast<size_t>(e)];
+            for (int k = 0; k < 4; ++k) {
+                const int q = adj_(k, p);
+                if (q < 0) continue;
+                for (int g : virtualsOf(q)) {
+                    int shared = 0;
+                    for (int a = 0; a < 4; ++a)
+                        for (int b = 0; b < 4; ++b) shared += m.tets(a, e) == m.tets(b, g);
+                    if (shared >= 3) enqueue(g);
                 }
             }
         }
-        if (watchOut) {
-            std::sort(watchOut->begin(), watchOut->end());
-            watchOut->erase(std::unique(watchOut->begin(), watchOut->end()), watchOut->end());
-        }
-    } else {
-        for (int e = 0; e < E0; ++e) visit(e);
     }
-
-    if (!fresh.empty()) {
-        // Append the new virtual elements in one go: the parent's rest data, its rotation as warm start.
-        const int E1 = E0 + static_cast<int>(fresh.size());
-        m.tets.conservativeResize(4, E1);
-        m.DmInv.conservativeResize(9, E1);
-        m.volume.conservativeResize(E1);
-        m.fraction.conservativeResize(E1);
-        if (m.massShare.cols() == E0) m.massShare.conservativeResize(4, E1);
-        s.rot.conservativeResize(9, E1);
-        s.fe.resize(12, E1);
-        for (size_t k = 0; k < fresh.size(); ++k) {
-            const int e = E0 + static_cast<int>(k), src = fresh[k].src;
-            const int p = parent_[static_cast<size_t>(src)];
-            m.tets.col(e) = m.tets.col(src);
-            m.DmInv.col(e) = m.DmInv.col(src);
-            m.volume(e) = m.volume(src);
-            m.fraction(e) = fraction0_[p] * fresh[k].virt.share;
-            s.rot.col(e) = s.rot.col(src);
-            parent_.push_back(p);
-            auto ch = children_.find(p);
-            if (ch == children_.end()) ch = children_.emplace(p, std::vector<int>{p}).first;
-            ch->second.push_back(e);
-            virt_[e] = std::move(fresh[k].virt);
-            r.newElements.push_back(e);
-            r.elementSource.push_back(src);
-        }
+    if (pass.watchOut) {
+        std::sort(pass.watchOut->begin(), pass.watchOut->end());
+        pass.watchOut->erase(std::unique(pass.watchOut->begin(), pass.watchOut->end()), pass.watchOut->end());
     }
+}
 
+// Appends the new virtual elements in one go: the parent's rest data, its rotation as warm start.
+void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
+    if (pass.fresh.empty()) return;
+    const int E0 = pass.E0, E1 = E0 + static_cast<int>(pass.fresh.size());
+    m.tets.conservativeResize(4, E1);
+    m.DmInv.conservativeResize(9, E1);
+    m.volume.conservativeResize(E1);
+    m.fraction.conservativeResize(E1);
+    if (m.massShare.cols() == E0) m.massShare.conservativeResize(4, E1);
+    s.rot.conservativeResize(9, E1);
+    s.fe.resize(12, E1);
+    for (size_t k = 0; k < pass.fresh.size(); ++k) {
+        const int e = E0 + static_cast<int>(k), src = pass.fresh[k].src;
+        const int p = parent_[static_cast<size_t>(src)];
+        m.tets.col(e) = m.tets.col(src);
+        m.DmInv.col(e) = m.DmInv.col(src);
+        m.volume(e) = m.volume(src);
+        m.fraction(e) = fraction0_[p] * pass.fresh[k].virt.share;
+        s.rot.col(e) = s.rot.col(src);
+        parent_.push_back(p);
+        auto ch = children_.find(p);
+        if (ch == children_.end()) ch = children_.emplace(p, std::vector<int>{p}).first;
+        ch->second.push_back(e);
+        virt_[e] = std::move(pass.fresh[k].virt);
+        pass.r.newElements.push_back(e);
+        pass.r.elementSource.push_back(src);
+    }
+}
+
+CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId,
+                           const std::vector<int>* candidates, std::vector<int>* watchOut,
+                           std::unordered_map<int, double>& nodeS) {
+    const auto t0 = Clock::now();
+    prepare(m);
+    CutResult r;
+    r.cut = cutId;
+    r.volumeBefore = m.volume.dot(m.fraction);
+    r.massBefore = m.mass.sum();
+    if (opts_.lumping != MassLumping::Enrichment && m.massShare.cols() != m.elements()) {
+        m.massShare.resize(4, m.elements());
+        for (int e = 0; e < m.elements(); ++e) m.massShare.col(e).setConstant(m.fraction(e) / 4.0);
+    }
+    Pass pass(surface, cutId, nodeS, watchOut, r);
+    pass.n = surface.normal.normalized();
+    pass.d = pass.n.dot(surface.point);
+    planeAxes(pass.n, pass.u, pass.v);
+    pass.E0 = m.elements();
+
+    // Split what the surface crosses, append the second sides, then relink the control points.
+    if (candidates)
+        visitFromCandidates(m, s, pass, *candidates);
+    else
+        for (int e = 0; e < pass.E0; ++e) visitElement(m, s, pass, e);
+    appendVirtuals(m, s, pass);
+    std::vector<int>& parents = pass.parents;
     std::sort(parents.begin(), parents.end());
     parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
     if (!parents.empty()) relink(m, s, parents, r, nodeS);

@@ -184,6 +184,10 @@ private:
 
     CutResult apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
                     std::vector<int>* watchOut, std::unordered_map<int, double>& nodeS);
+    struct Pass;
+    void visitElement(Model& m, State& s, Pass& pass, int e);
+    void visitFromCandidates(Model& m, State& s, Pass& pass, const std::vector<int>& candidates);
+    void appendVirtuals(Model& m, State& s, Pass& pass);
     void relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
                 std::unordered_map<int, double>& nodeS);
     void mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r);
