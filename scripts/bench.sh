@@ -33,7 +33,8 @@ gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plo
 # stable steps: Table 4.3 (liver and armadillo), stability sweeps and random cuts
 { "$B/cutsim" dt assets/meshes/liver.msh --scale 0.0254 --worst 5
   echo
-  "$B/cutsim" dt "$data/tet/sofa_Armadillo_Tetra_4406.gmsh22.msh" --scale 0.01 --worst 5; } > "$D/dt_table43.txt"
+  bin=$(cd "$B" && pwd)/cutsim  # run from the data folder, so the output names the mesh only
+  (cd "$data/tet" && "$bin" dt sofa_Armadillo_Tetra_4406.gmsh22.msh --scale 0.01 --worst 5); } > "$D/dt_table43.txt"
 "$B/cutsim" bench stability > "$D/stability.txt"
 
 # Table 6.1 (mesh intersection against conforming cuts), and the cut moved through its cell
