@@ -96,9 +96,9 @@ public:
     // (Re)builds the contact points, e.g. after a cut changed the surface.
     void setSurface(ContactPoints pts);
     // Tool `tool` no longer touches the faces cut `cut` made (-1: touches all). A blade slides in
-    // its own cut: its faces lie in the blade's mid-plane, within its thickness, and pressing them
-    // apart by half that thickness put spikes of up to 344 N on a 0.6 kg liver (blade.json). Their
-    // points that also lie on other faces (the cut's rim) are still touched.
+    // its own cut: those faces lie within its thickness, and pressing them apart puts force
+    // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still
+    // touched.
     void ignoreCut(int tool, int cut);
     const ContactPoints& points() const;
 
