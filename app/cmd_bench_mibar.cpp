@@ -1,4 +1,4 @@
-// `cutsim bench mi-bar`: Table 6.1 of the thesis (METHOD.md sec. 5). The bar 1 x 1 x 10 cm is cut
+// `cutsim bench mi-bar`: Table 6.1 of the thesis (docs/method.md sec. 5). The bar 1 x 1 x 10 cm is cut
 // by the plane z = 10 (1 - kept) cm and its top part kept, by mesh intersection (embed/mi.hpp), by
 // conforming subdivision and by TetGen remeshing (cut/baselines.hpp); each row reports the kept
 // model's size and its exact critical step. All three start from the same mesh, the bar as

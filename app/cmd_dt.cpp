@@ -1,5 +1,5 @@
 // `cutsim dt`: the stable time step of a mesh, exact, certified and per-element estimates
-// (METHOD.md sec. 2-3, thesis ch. 4), with the shape measures' correlation to R1R.
+// (docs/method.md sec. 2-3, thesis ch. 4), with the shape measures' correlation to R1R.
 #include "commands.hpp"
 #include "util/stopwatch.hpp"
 

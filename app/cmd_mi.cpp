@@ -1,5 +1,5 @@
 // `cutsim mi`: embed a surface in a regular background lattice by mesh intersection (thesis ch. 6,
-// METHOD.md sec. 5) and report counts, volumes, time steps and the cost of each stage.
+// docs/method.md sec. 5) and report counts, volumes, time steps and the cost of each stage.
 #include "commands.hpp"
 #include "util/stopwatch.hpp"
 

@@ -54,9 +54,8 @@ struct RandomCutRun {
 // The liver's clamp in the shipped scenes (demo.json, liver_cuts.json) and the benchmarks that
 // follow them: the 10 nodes behind this plane.
 inline constexpr double kSceneLiverClampZ = -0.028;  // [m]
-// The liver's clamp for the stress: its back quarter (28 nodes). A clamp on the 10 nodes behind
-// z = -0.028 m (the scenes') is a point support: it leaves the uncut liver at a smallest principal
-// stretch of 0.63 and caused most inversions of the stress run; over this region 0.885.
+// The liver's clamp for the stress: its back quarter (28 nodes). The scenes' clamp of 10 nodes is
+// nearly a point support, which strains the hanging liver far more and inverts elements.
 inline constexpr double kStressLiverClampZ = -0.015;  // [m]
 
 // The SOFA liver (inches, scaled to m; fixed behind z = clampZ, gravity -y) and the bar

@@ -1,17 +1,14 @@
-// Tool-tissue contact through Bullet. Created only when a scene has tools (DESIGN.md: no Bullet
-// world without a tool).
+// Tool-tissue contact through Bullet. Created only when a scene has tools: no Bullet world
+// without a tool.
 //
-// Representation, chosen by measured cost (tests/bench/contact_bench.cpp: the liver, 5494 contact
-// points, one probe 3 mm deep; CPU time per step on a shared 2-core machine): the surface is a
-// cloud of contact points (its vertices plus points on its edges and faces, at most `spacing`
-// apart). A btDbvt over triangle boxes, refitted every step with a fat margin, is queried with
-// each tool part's box (from the btCollisionWorld's broad phase); the candidate triangles' points
-// get their signed distance to the tool's convex core from Bullet's GJK/EPA
-// (btGjkEpaSolver2::SignedDistance, as Bullet's soft-body nodes do against rigid bodies). Only
-// vertices are interpolated every step, other points when their triangle is a candidate:
-// ~12 us. Every point a collision object in the btCollisionWorld costs ~190 ms (the pair cache
-// over thousands of proxies), and a refitted btBvhTriangleMeshShape ~50 us for at most 4
-// manifold points and no depth for points already inside the tool.
+// Representation: the surface is a cloud of contact points (its vertices plus points on its edges
+// and faces, at most `spacing` apart). A btDbvt over triangle boxes, refitted every step with a fat
+// margin, is queried with each tool part's box (from the btCollisionWorld's broad phase); the
+// candidate triangles' points get their signed distance to the tool's convex core from Bullet's
+// GJK/EPA (btGjkEpaSolver2::SignedDistance, as Bullet's soft-body nodes do against rigid bodies).
+// Only vertices are interpolated every step, other points when their triangle is a candidate.
+// This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
+// collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.
 //
 // Forces: penalty f = s_p max(0, k d - c v_n) n per point inside a tool (s_p its mass scale,
 // scaleByMass; d depth, n the way out, v_n the separating speed relative to the tool), spread to
@@ -58,35 +55,28 @@ ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& te
 // stiffness k and damping c act in full on points of mass >= mRef and as k m_p / mRef below, the
 // same contact frequency sqrt(k / mRef) everywhere (the idea of explicit codes' soft-constraint
 // contact, penalty from nodal mass). Light points, e.g. on the small inside shares of MI interface
-// elements, no longer set the limit for all: on the demo liver at dt = 0.9 dtCrit the stiffness
-// under the probe (sum of k scale_p over the points within 1 cm of its first touch) rises from 245
-// to 902 N/m on MI (8 cells) and from 3.5e3 to 1.55e4 N/m conforming.
+// elements, then no longer set the stiffness limit for all (BENCHMARKS.md, Contact).
 void scaleByMass(ContactPoints& pts, const Eigen::VectorXd& invMass, double mRef);
 // mRef of a surface: the 90th percentile of its points' effective masses (finite ones) [kg].
 double referenceMass(const ContactPoints& pts, const Eigen::VectorXd& invMass);
 
 // Largest penalty stiffness per contact point [N/m] that keeps an explicit step dt stable on
-// `model`, whose exact limit is dtCrit (METHOD.md sec. 2: lambda_max(M^-1 K_total) <= (2/dt)^2).
-// Contact adds K_p = sum_p k s_p w_p w_p^T (x) n_p n_p^T for the points in contact (s_p = pts.scale),
-// and K_p <= k C with C = sum_p s_p w_p w_p^T (x) I over ALL points (every point in contact, any normal), so the step stays
-// stable while lambda_max(M^-1/2 (K + k C) M^-1/2) <= (2/dt)^2, i.e. k <= 1 / nu_max of the pencil
-// C x = nu ((2/dt)^2 I - M^-1/2 K M^-1/2) x (positive definite for dt < dtCrit), solved exactly by
-// Lanczos (Spectra, Cholesky mode) on the rest stiffness as the exact step is.
-// Why exact and joint, measured on the demo liver at dt = 0.9 dtCrit, unscaled points: the
-// former bound, Weyl's lambda_max(M^-1 K) + ||M^-1/2 k C M^-1/2|| with block Gershgorin on the
-// second term, gave 43.4 N/m conforming and 1.31 N/m MI (8 cells); the exact C-norm in Weyl's sum
-// 48.5 / 2.61; the joint value 92.1 / 6.41: the contact's top modes sit on light embedded nodes
-// whose elastic stiffness is as small as their mass, not on the top elastic mode. Restricting C to
-// the patch one tool can touch gained another ~2x on MI but needs the touched set in rest
-// coordinates, which deformation does not bound, so it is not used.
+// `model`, whose exact limit is dtCrit (docs/method.md sec. 2: lambda_max(M^-1 K_total) <= (2/dt)^2).
+// Contact adds K_p = sum_p k s_p w_p w_p^T (x) n_p n_p^T for the points in contact
+// (s_p = pts.scale), and K_p <= k C with C = sum_p s_p w_p w_p^T (x) I over ALL points (every point
+// in contact, any normal), so the step stays stable while
+// lambda_max(M^-1/2 (K + k C) M^-1/2) <= (2/dt)^2, i.e. k <= 1 / nu_max of the pencil
+// C x = nu ((2/dt)^2 I - M^-1/2 K M^-1/2) x (positive definite for dt < dtCrit), solved exactly
+// by Lanczos (Spectra, Cholesky mode) on the rest stiffness as the exact step is.
+// Exact and joint, because the contact's top modes sit on light embedded nodes whose elastic
+// stiffness is as small as their mass, not on the top elastic mode: Weyl's sum of the two
+// eigenvalues is several times too pessimistic there (BENCHMARKS.md, Contact).
 // Returns 0 when dt >= dtCrit (no headroom left), infinity when no point moves a free node.
 // Throws EigenSolveError when Lanczos does not converge.
 double stableStiffness(const ContactPoints& pts, const Model& model, double dt, double dtCrit);
 // A tool's default stiffness as a fraction of that limit. The limit certifies the linearised
-// (bilateral) penalty; real contact switches on and off, and when its mode is near the limit a
-// point entering and leaving the tool on alternate steps gains energy: on an MI slab pressed over
-// its whole face (tests/contact/contact_test.cpp) the points stay within 3.1 mm of a 1 mm press
-// at 0.5 x the limit, 9.5 mm at 0.6 x, 0.54 m at 1.0 x (1500 steps).
+// (bilateral) penalty; real contact switches on and off, and a point entering and leaving the
+// tool on alternate steps gains energy near the limit (tests/contact/contact_test.cpp).
 inline constexpr double kDefaultStiffnessFraction = 0.5;
 
 // What contact did in the last step.
@@ -106,9 +96,9 @@ public:
     // (Re)builds the contact points, e.g. after a cut changed the surface.
     void setSurface(ContactPoints pts);
     // Tool `tool` no longer touches the faces cut `cut` made (-1: touches all). A blade slides in
-    // its own cut: its faces lie in the blade's mid-plane, within its thickness, and pressing them
-    // apart by half that thickness put spikes of up to 344 N on a 0.6 kg liver (blade.json). Their
-    // points that also lie on other faces (the cut's rim) are still touched.
+    // its own cut: those faces lie within its thickness, and pressing them apart puts force
+    // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still
+    // touched.
     void ignoreCut(int tool, int cut);
     const ContactPoints& points() const;
 

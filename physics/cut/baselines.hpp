@@ -1,5 +1,5 @@
 // The two cut baselines the XFEM/MI path is compared against, measured by the exact critical time
-// step (thesis sec. 5.2 and Table 6.1, METHOD.md sec. 5): conforming subdivision with node
+// step (thesis sec. 5.2 and Table 6.1, docs/method.md sec. 5): conforming subdivision with node
 // snapping (cut/conforming.hpp) and remeshing with TetGen (cut/remesh.hpp).
 #pragma once
 

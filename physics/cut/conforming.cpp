@@ -83,7 +83,7 @@ ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const
     std::vector<std::int8_t> sign(static_cast<size_t>(nn));
     for (int i = 0; i < nn; ++i) sign[i] = std::abs(dist[i]) <= tol ? 0 : (dist[i] > 0 ? 1 : -1);
 
-    // ---- (a) node snapping (thesis sec. 6.2, METHOD.md sec. 5) ----
+    // ---- (a) node snapping (thesis sec. 6.2, docs/method.md sec. 5) ----
     if (opts.snapFraction > 0 && ne > 0) {
         // Unique edges give each node's mean incident edge length.
         std::vector<std::pair<int, int>> edges;

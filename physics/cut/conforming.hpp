@@ -1,5 +1,5 @@
 // Conforming plane cut with node snapping: the subdivision baseline the XFEM cut is compared
-// against (thesis sec. 5.2 and Table 6.1, METHOD.md sec. 5). Nodes near the plane are snapped onto
+// against (thesis sec. 5.2 and Table 6.1, docs/method.md sec. 5). Nodes near the plane are snapped onto
 // it, crossed tets are split into tets that share the edge intersection points with their
 // neighbours, and the nodes on the plane are duplicated so the two sides come apart.
 #pragma once

@@ -1,5 +1,5 @@
 // The drawn and touched surface of a cut object given by its surface (mesh intersection, thesis
-// ch. 6, with XFEM cuts, sec. 2.3; METHOD.md sec. 5). The lattice faces of a cut element are not
+// ch. 6, with XFEM cuts, sec. 2.3; docs/method.md sec. 5). The lattice faces of a cut element are not
 // the object's boundary: the embedded surface is, split where the cuts separate it, plus the cut
 // faces inside the original surface.
 #include "cut/xfem.hpp"

@@ -1,4 +1,4 @@
-// Cutting with XFEM virtual elements (thesis sec. 2.3 and Algorithm 5; METHOD.md sec. 5).
+// Cutting with XFEM virtual elements (thesis sec. 2.3 and Algorithm 5; docs/method.md sec. 5).
 //
 // With the shifted Heaviside enrichment, each side of a cut element behaves as a copy of the
 // element: same rest shape (DmInv), its own four control points (the original nodes on its side,
@@ -37,50 +37,30 @@ MassLumping parseLumping(const std::string& name);  // row_sum | weighted_diagon
 const char* lumpingName(MassLumping l);
 
 struct CutOptions {
-    // Enrichment lumping is the default because it keeps the time step: an isolated virtual
-    // element then has exactly its parent's eigenvalues (K and M both scale by the fraction), so a
-    // sliver cannot shrink dt. Row sum and weighted diagonal give a far control point of a sliver
-    // a vanishing mass against a finite stiffness row (measured: tests/cut, bench stability).
+    // Enrichment keeps the step: K and M of a virtual element scale alike, so a sliver keeps its
+    // parent's eigenvalues; the other lumpings give a sliver's far control point a vanishing mass.
     MassLumping lumping = MassLumping::Enrichment;
-    // A side below this share of its parent's volume is not made an element: its volume goes to
-    // the other side (mass and volume are kept exactly), while the cut still separates the nodes.
-    // Slivers of XFEM keep dt with enrichment lumping, but a virtual element hanging on a few
-    // virtual nodes of tiny mass oscillates violently under the stress it inherits (random-cut
-    // stress test: at 1% the bar blew up in 3 of 250 sequences and inverted an element in 13,
-    // nearly all of share 1-3%; at 5%, none blew up and 5 inverted). Merging costs at most this
-    // share of one element's volume moving across the cut; the drawn cut surface stays exact.
-    double minFraction = 5e-2;   // [-]
-    // A piece a cut severs with less volume than one of its elements and no prescribed node is
-    // fused back: each of its virtual elements takes, for good, the nodes of a sibling (another
-    // side of the same parent at the same place, or the nearest within one element size when a
-    // blade stroke severed it from a side that has moved since) outside the piece, so the pair acts as the
-    // uncut parent (K and M add by share; mass and volume are kept exactly). A mesh cannot
-    // resolve the motion of a piece smaller than its elements, and such a piece, hanging on a few
-    // control points with the stress of the element it came from, is what blew up in the
-    // random-cut stress (bar: 2 of 500 sequences with stretch limiting, a free piece of 0.13 of
-    // one element). Fused elements are drawn, follow their sibling, and are not cut again; the
-    // nodes they left keep no mass and stop. Pieces of an embedded object's interface elements
-    // (mesh intersection) are left alone: they carry its surface.
+    // A side below this share of its parent's volume is merged into the other side (mass and volume
+    // kept; the nodes still separate): a virtual element on a few tiny control points rings under
+    // the stress it inherits. [-]
+    double minFraction = 5e-2;
+    // A severed piece with no prescribed node and less volume than one of its elements is fused
+    // back: each of its virtual elements takes the nodes of a sibling outside the piece, so the pair
+    // acts as the uncut parent. A mesh cannot resolve a piece smaller than its elements. Fused
+    // elements are drawn and not cut again; pieces of an embedded object's interface elements are
+    // left alone (they carry its surface).
     bool mergeDebris = true;
-    // How far a debris element's sibling may have moved from it, in element sizes (cbrt of the
-    // parent's volume), and still take it in. 0: only a sibling at the same place (this cut's other
-    // side). A side split off by an earlier cut has moved with the body since: on the random-cut
-    // bar, reaching one element size raises the smallest exact dt after a cut from 0.737 to 0.766
-    // of the uncut one. [-]
+    // How far a debris element's sibling may have moved from it and still take it in, in element
+    // sizes (cbrt of the parent's volume); 0: only a sibling at the same place. [-]
     double fuseReach = 1.0;
-    // Gauss-Seidel sweeps of quasi-static relaxation (relaxNodes) of the control points only cut
-    // elements hold, after each cut. They are copies of nodes in a loaded body, so the element
-    // they now hang on starts with its parent's stress on a few percent of the mass; released in
-    // one step, such a node overshoots to stretches of 4-7 in a few steps, where the corotational
-    // tangent stiffness outgrows the step (random-cut stress, bar run 136). Relaxed, the cut
-    // gapes as prestressed tissue does. 0: off.
+    // Gauss-Seidel sweeps of relaxNodes on the control points only cut elements hold, after each
+    // cut: they inherit their element's stress on a few percent of the mass and would overshoot.
+    // 0: off.
     int relaxIterations = 4;
     // A free control point with less than this share of its node's uncut mass is light
-    // (Model::lightNodes): its motion relative to its neighbours is damped every step (see
-    // Stepper::dampLight in fem/integrate.cpp). It removes the last random-cut blow-up (bench
-    // stability, bar run 57: a 2.3e-6 kg node ringing at stretches up to 4.5) and lowers the
-    // largest speeds of the stress runs from 13-14 to 5-9 m/s. 0: off.
-    double lightShare = 0.05;  // [-]
+    // (Model::lightNodes): its motion relative to its neighbours is damped every step
+    // (Stepper::dampLight). 0: off. [-]
+    double lightShare = 0.05;
 };
 
 // A cutting surface in world space: the plane through `point` with unit `normal`, restricted to

@@ -1,14 +1,13 @@
-// Mesh intersection, MI (thesis ch. 6, Algorithms 1-4; METHOD.md sec. 5): an object given only by
+// Mesh intersection, MI (thesis ch. 6, Algorithms 1-4; docs/method.md sec. 5): an object given only by
 // its closed surface is simulated on a regular background tet lattice, whose time step is the best
 // a mesh of that resolution can have. Lattice tets cut by the surface become virtual elements
 // (XFEM, thesis 2.3) with stiffness and mass scaled by their inside volume share, so an isolated one
 // keeps the parent's eigenvalues; the assembled model can still fall a little below the lattice's
 // step, which keepLatticeStep restores by adding mass (timestep.hpp keepStep).
 //
-// Lattice: cubes split into 6 Kuhn tets (mesh/generate.hpp boxMesh). Measured at equal cell size
-// (E = 30 kPa, h = 1 cm, 6^3 and 10^3 cubes): exact dt 1.055 ms against 0.884 ms for the 5-tet
-// split with alternating parity, i.e. 19% larger, and every tet is congruent, so no cube parity
-// has to follow the object. (A body-centred cubic lattice was not measured.)
+// Lattice: cubes split into 6 Kuhn tets (mesh/generate.hpp boxMesh): at equal cell size its exact
+// dt is 19% larger than the alternating 5-tet split's, and every tet is congruent, so no cube
+// parity has to follow the object.
 #pragma once
 
 #include "fem/model.hpp"

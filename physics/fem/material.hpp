@@ -1,4 +1,4 @@
-// Isotropic linear elastic material (METHOD.md sec. 1). SI units.
+// Isotropic linear elastic material (docs/method.md sec. 1). SI units.
 #pragma once
 
 #include <cmath>

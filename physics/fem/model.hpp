@@ -19,7 +19,7 @@ enum class ElementModel : std::uint8_t { Linear, Corotational };
 // every other stage stay double; Single runs the element's F, rotation and stress in float on
 // twice the lanes. Its force error relative to the element's stress is ~6e-8 / strain (float's
 // rounding of F ~ I). Meant for the explicit schemes: a backward-Euler step spends under 2% of its
-// time in this kernel (BENCHMARKS.md), so it would gain nothing there.
+// time in this kernel, so it would gain nothing there.
 enum class ForcePrecision : std::uint8_t { Double, Single };
 
 struct Model {

@@ -9,7 +9,7 @@
 
 namespace cutsim {
 
-// Numerical trouble seen in the last step (DESIGN.md, error tier 3). Reset at every step.
+// Numerical trouble seen in the last step, which the run reports and acts on. Reset at every step.
 struct StepFlags {
     int nonFinite = 0;          // nodes with a non-finite position or velocity
     int inverted = 0;           // elements with det F <= 0

@@ -1,4 +1,4 @@
-// Geometry and stiffness of one linear tetrahedron (METHOD.md sec. 1, thesis eqs. 2.20-2.30, 4.3-4.10).
+// Geometry and stiffness of one linear tetrahedron (docs/method.md sec. 1, thesis eqs. 2.20-2.30, 4.3-4.10).
 #pragma once
 
 #include "fem/material.hpp"

@@ -9,7 +9,7 @@
 namespace cutsim {
 
 struct ReadOptions {
-    double scale = 1.0;        // multiplies every coordinate (thesis meshes need it, METHOD.md sec. 3)
+    double scale = 1.0;        // multiplies every coordinate (thesis meshes need it, docs/method.md sec. 3)
     bool reorient = false;     // swap two nodes of inverted tets instead of rejecting them
     double minVolume = 0.0;    // |V| <= minVolume * (mean |V|) counts as zero volume: rejected
 };

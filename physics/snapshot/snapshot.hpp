@@ -1,5 +1,5 @@
 // What the renderer sees of a simulation at one capture frame: plain data filled by physics, no GL.
-// render/ reads only this struct, so physics and render stay independent (DESIGN.md, data flow).
+// render/ reads only this struct, so physics and render stay independent (README.md, data flow).
 #pragma once
 
 #include "mesh/embedding.hpp"

@@ -1,5 +1,5 @@
 // Time-step analysis of a model kept up to date locally: computed once, then after a cut or a
-// mesh improvement only the elements whose one-ring changed are recomputed (DESIGN.md data flow).
+// mesh improvement only the elements whose one-ring changed are recomputed (docs/method.md sec. 3).
 #pragma once
 
 #include "fem/model.hpp"

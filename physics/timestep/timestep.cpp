@@ -53,7 +53,7 @@ void assembleStiffnessRow(const Model& m, int i, std::vector<int>& nbr, std::vec
         const Eigen::Vector3d la = V * lam * g.col(a), ma = V * mu * g.col(a);
         for (int b = 0; b < 4; ++b) {
             // Block (a,b) of the element stiffness, V [lambda g_a g_b^T + mu g_b g_a^T + mu (g_a.g_b) I]
-            // (METHOD.md sec. 1).
+            // (docs/method.md sec. 1).
             const Eigen::Vector3d gb = g.col(b);
             Eigen::Matrix3d& K = block[static_cast<size_t>(place[static_cast<size_t>(4 * (s - s0) + b)])];
             const double d = ma.dot(gb);
@@ -342,7 +342,7 @@ void largestEigenvalues(const Mat12* A, int n, double* lambda) {
     }
 }
 
-// ---- per-element estimators (thesis ch. 4, METHOD.md sec. 3) ----
+// ---- per-element estimators (thesis ch. 4, docs/method.md sec. 3) ----
 
 namespace {
 
@@ -455,8 +455,8 @@ void heuristicBlock(const Model& m, const Eigen::Matrix3Xd& diag, const int* ele
             const Lane hi = D[k] > D[k + 1] ? D[k] : D[k + 1], lo = D[k] > D[k + 1] ? D[k + 1] : D[k];
             D[k] = hi, D[k + 1] = lo;
         }
-    // Hs: lambda ~ max D_r (the thesis's scalar read as 1, METHOD.md sec. 3).
-    // Hp (thesis sec. 4.3, reading of METHOD.md sec. 3): j is the first index whose PRECEDING
+    // Hs: lambda ~ max D_r (the thesis's scalar read as 1, docs/method.md sec. 3).
+    // Hp (thesis sec. 4.3, reading of docs/method.md sec. 3): j is the first index whose PRECEDING
     // running sum D_r[0] + ... + D_r[j-1] exceeds half of the total; then lambda ~ D_r[0] + D_r[j].
     // Fixed DOFs count as 0 and sort last, so they never change j; all zero gives D_r[0] = 0.
     Lane total = D[0];

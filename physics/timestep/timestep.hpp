@@ -1,4 +1,4 @@
-// Stable time step of explicit FEM (METHOD.md sec. 2-3, thesis ch. 3-4): the exact global value,
+// Stable time step of explicit FEM (docs/method.md sec. 2-3, thesis ch. 3-4): the exact global value,
 // a certified lower bound and the per-element estimators. Times in seconds, lambdas in 1/s^2.
 #pragma once
 
@@ -67,9 +67,8 @@ struct KeepStepOptions {
     int maxRounds = 60;      // eigen-solves at most
     double margin = 1e-4;    // once scaling, aim at lambda_target (1 - margin): the modes slowed
                              // gather there, and a cluster just under the top would stall the
-                             // full-tolerance Lanczos (measured: knight, 64 cells, 0.9 s at 1e-4,
-                             // 16.5 s at 1e-5, no convergence at 1e-7). Nothing is added when the
-                             // step already reaches the target to exact.tol (relative in lambda) [-]
+                             // full-tolerance Lanczos. Nothing is added when the step already
+                             // reaches the target to exact.tol (relative in lambda) [-]
     ExactOptions exact;
 };
 struct KeepStepResult {
@@ -89,7 +88,7 @@ KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts =
 // Gershgorin bound on row i of M^-1/2 K M^-1/2 (max over its 3 free DOFs; 0 for a fixed node):
 // sum_j |K_ij| / sqrt(m_i m_j), free j only. max_i of it bounds lambda_max from above.
 double gershgorinNodeBound(const Model& m, const StiffnessRows& rows, int i);
-// Certified step 2 / sqrt(max_i bound_i) <= exact dt (not in the thesis; METHOD.md sec. 3).
+// Certified step 2 / sqrt(max_i bound_i) <= exact dt (not in the thesis; docs/method.md sec. 3).
 double certifiedDt(const Model& m, const StiffnessRows& rows);
 double certifiedDt(const Model& m);
 
@@ -100,7 +99,7 @@ double largestEigenvalue(const Mat12& A);
 // largestEigenvalue to rounding.
 void largestEigenvalues(const Mat12* A, int n, double* lambda);
 
-// Per-element estimates of the critical step [s] (METHOD.md sec. 3; +inf when nothing is free).
+// Per-element estimates of the critical step [s] (docs/method.md sec. 3; +inf when nothing is free).
 struct ElementEstimates {
     Eigen::VectorXd r1r;      // reduced one ring, Fierz et al. 2012
     Eigen::VectorXd hs;       // scalar heuristic, 2 / sqrt(max D_r)

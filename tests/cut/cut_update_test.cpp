@@ -1,6 +1,6 @@
 // What a cut reports as changed is enough for the local time-step update: after blade steps and
 // plane cuts, TimestepAnalyzer::update(changedElements, changedNodes) equals a full recompute
-// (DESIGN.md data flow; a missed element or node would keep a stale estimate or bound).
+// (a missed element or node would keep a stale estimate or bound).
 #include "random_cuts.hpp"
 
 namespace cutsim {

@@ -1,4 +1,4 @@
-// Element, force and integrator tests with values derived by hand (DESIGN.md convention 7).
+// Element, force and integrator tests with values derived by hand.
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "fem/tet.hpp"

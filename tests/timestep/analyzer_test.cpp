@@ -1,4 +1,4 @@
-// Local update of the time-step analysis equals a full recompute (METHOD.md sec. 5, DESIGN.md).
+// Local update of the time-step analysis equals a full recompute (docs/method.md sec. 5).
 #include "fem/model.hpp"
 #include "test_support.hpp"
 #include "timestep/analyzer.hpp"

@@ -1,4 +1,4 @@
-// Exact, certified and per-element time steps (METHOD.md sec. 2-3, thesis ch. 4).
+// Exact, certified and per-element time steps (docs/method.md sec. 2-3, thesis ch. 4).
 // GCC 12 flags Eigen's AVX-512 max reduction (a system header) as uninitialized: a false positive.
 #pragma GCC diagnostic ignored "-Wuninitialized"
 
@@ -298,7 +298,7 @@ TEST(Estimators, HsUsesTheDiagonalOfTheAssembledStiffness) {
                 mx = std::max(mx, D.back());
             }
         EXPECT_NEAR(hsLambda(m, diag, e), mx, 1e-9 * mx);
-        // Hp reading (METHOD.md sec. 3): j is the first index whose preceding sum exceeds half.
+        // Hp reading (docs/method.md sec. 3): j is the first index whose preceding sum exceeds half.
         std::sort(D.rbegin(), D.rend());
         double total = 0, run = 0, hp = -1;
         for (double d : D) total += d;
@@ -374,7 +374,7 @@ TEST(Bounds, HoldOnEveryDataMesh) {
     EXPECT_GE(seen, 5);
 }
 
-// Thesis Table 4.3 (ms), as restated in METHOD.md sec. 3: exact, R1R, Hp, Hs, Le.
+// Thesis Table 4.3 (ms), as restated in docs/method.md sec. 3: exact, R1R, Hp, Hs, Le.
 struct Table43 {
     const char* file;
     double scale, exact, r1r, hp, hs, le;

@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# Regenerates the raw outputs in docs/bench with the commands BENCHMARKS.md quotes.
+#   scripts/bench.sh               the short benchmarks (about 15 minutes on 2 cores)
+#   scripts/bench.sh --accuracy    and the default accuracy run (about 3 minutes more)
+#   scripts/bench.sh --long        and the two 1% accuracy runs (about 2 hours more)
+# Needs a Release build with the benchmarks (scripts/build.sh, or CUTSIM_BUILD=DIR for another
+# build folder). Run it on an otherwise idle machine: every number is a wall time.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+B=${CUTSIM_BUILD:-build}
+D=docs/bench
+accuracy=0
+long=0
+for arg in "$@"; do
+  case "$arg" in
+    --accuracy) accuracy=1 ;;
+    --long) accuracy=1; long=1 ;;
+    *) echo "usage: scripts/bench.sh [--accuracy | --long]" >&2; exit 2 ;;
+  esac
+done
+# the third-party meshes' folder, as configured for the build
+data=$(sed -n 's/^CUTSIM_DATA_DIR:PATH=//p' "$B/CMakeCache.txt")
+cmake --build "$B" --target cutsim cutsim_bench cutsim_bullet_bench -j"$(nproc)"
+
+# step throughput, and beside Bullet's deformable-body solver (one thread, taking turns)
+"$B/cutsim" bench step --seconds 2 > "$D/step.txt"
+{ "$B/tests/cutsim_bullet_bench" --seconds 1 --rounds 5
+  echo
+  echo "# --unrotated: started at the rest shape"
+  "$B/tests/cutsim_bullet_bench" --seconds 1 --rounds 3 --unrotated; } > "$D/bullet_step.txt"
+gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plot.gp
+
+# stable steps: Table 4.3 (liver and armadillo), stability sweeps and random cuts
+{ "$B/cutsim" dt assets/meshes/liver.msh --scale 0.0254 --worst 5
+  echo
+  bin=$(cd "$B" && pwd)/cutsim  # run from the data folder, so the output names the mesh only
+  (cd "$data/tet" && "$bin" dt sofa_Armadillo_Tetra_4406.gmsh22.msh --scale 0.01 --worst 5); } > "$D/dt_table43.txt"
+"$B/cutsim" bench stability > "$D/stability.txt"
+
+# Table 6.1 (mesh intersection against conforming cuts), and the cut moved through its cell
+"$B/cutsim" bench mi-bar > "$D/mi_bar.txt"
+"$B/cutsim" bench mi-bar --sweep 12 > "$D/mi_bar_sweep.txt"
+
+# per-stage cost of a scene
+"$B/cutsim" bench cost assets/scenes/bar_sag.json --set duration=0.5 > "$D/cost.txt"
+
+# cut latency, time-step estimators, contact (Google Benchmark)
+"$B/tests/cutsim_bench" --benchmark_filter='Cut|Timestep|Contact' --benchmark_repetitions=5 \
+  --benchmark_report_aggregates_only=true > "$D/cutsim_bench.txt"
+
+if [ "$accuracy" = 1 ]; then
+  "$B/cutsim" bench accuracy --json --csv "$D/accuracy.csv" --plot "$D/accuracy.png" > "$D/accuracy.json"
+  "$B/cutsim" bench accuracy --from "$D/accuracy.csv" > "$D/accuracy.txt"
+fi
+if [ "$long" = 1 ]; then
+  # the 1% sweep: finer bars and references, backward Euler (LDL^T) in full up to N = 8 (45 min)
+  "$B/cutsim" bench accuracy --res 2,4,6,8,12,14 --implicit-max-res 8 --ref-levels 8,12,16 --only cantilever \
+    --json --csv "$D/accuracy_1pct.csv" > "$D/accuracy_1pct.json"
+  "$B/cutsim" bench accuracy --from "$D/accuracy_1pct.csv" --plot "$D/accuracy_1pct.png" > "$D/accuracy_1pct.txt"
+  # the 1% comparison against backward Euler with CG, the two sides taking turns (61 min)
+  "$B/cutsim" bench accuracy --res 12 --implicit-max-res 0 --cg-max-res 12 --ref-levels 8,12,16 --only cantilever \
+    --json --csv "$D/accuracy_1pct_paired.csv" > "$D/accuracy_1pct_paired.json"
+  "$B/cutsim" bench accuracy --from "$D/accuracy_1pct_paired.csv" > "$D/accuracy_1pct_paired.txt"
+fi
+echo "docs/bench regenerated"
