@@ -236,6 +236,8 @@ struct Renderer::Gl {
     GLuint vao = 0, vbo = 0;
     ImGuiContext* imgui = nullptr;
     std::vector<MeshVertex> verts; // reused between frames
+    std::vector<MeshVertex> critTris;  // critical elements' faces and edges, this frame
+    std::vector<float> critLines;
     std::vector<float> lines;
     // Uniform locations.
     GLint mView = -1, mProj = -1, mUseMap = -1, mMap = -1, mMapN = -1, mMin = -1, mMax = -1, mColour = -1,
@@ -392,73 +394,21 @@ PixelRect Renderer::legendRect() const {
     return r;
 }
 
-void Renderer::draw(const RenderSnapshot& snap) {
-    makeCurrent();
-    Gl& g = *gl_;
+// The camera and the scene's extent for one frame.
+struct Renderer::View {
+    Mat4f view, proj;
+    Vec3d centre = Vec3d::Zero(), up = Vec3d::UnitZ();
+    double radius = 1;
+    Vec3f bg = Vec3f::Zero();
+};
+
+namespace {
+
+// The surface's triangle corners with their normals: given per vertex, or from the area-weighted
+// normals of the faces around the vertex that meet this face at less than the crease angle, so
+// box edges and cut rims stay sharp while curved surfaces shade smoothly.
+void surfaceVertices(const RenderSnapshot& snap, bool useMap, std::vector<MeshVertex>& verts) {
     const int n = snap.vertices();
-    const bool useMap = snap.scalar.size() == n && n > 0;
-
-    // Scene bounds: surface, critical tets and tools.
-    Eigen::AlignedBox3d box;
-    for (int v = 0; v < n; ++v) box.extend(snap.positions.col(v));
-    for (int v = 0; v < snap.criticalTets.cols(); ++v) box.extend(snap.criticalTets.col(v));
-    for (const auto& t : snap.tools) {
-        box.extend(t.position + Vec3d::Constant(t.size.norm() * 1.8));
-        box.extend(t.position - Vec3d::Constant(t.size.norm() * 1.8));
-    }
-    if (box.isEmpty()) box.extend(snap.camera.target);
-    const Vec3d centre = box.center();
-    const double radius = std::max(0.5 * box.diagonal().norm(), 1e-6);
-    const Vec3d up = snap.camera.up.normalized();
-
-    // Camera: near and far planes hug the scene and the floor around it.
-    const double dist = (snap.camera.eye - centre).norm();
-    const double zFar = dist + 3.0 * radius;
-    const double zNear = std::max(dist - 3.0 * radius, zFar * 1e-3);
-    const Mat4f view = lookAt(snap.camera.eye, snap.camera.target, up);
-    const Mat4f proj = perspective(snap.camera.fovY, double(opts_.width) / opts_.height, zNear, zFar);
-
-    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
-    glViewport(0, 0, opts_.width, opts_.height);
-    const Vec3f bg = rgb(opts_.background);
-    glClearColor(bg.x(), bg.y(), bg.z(), 1.0f);
-    glClearDepth(1.0);
-    glDepthMask(GL_TRUE);
-    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LEQUAL);
-    glDisable(GL_CULL_FACE);
-    glDisable(GL_BLEND);
-    glDisable(GL_SCISSOR_TEST);
-    glBindVertexArray(g.vao);
-
-    // ---- surface ----
-    glUseProgram(g.meshProg);
-    glUniformMatrix4fv(g.mView, 1, GL_FALSE, view.data());
-    glUniformMatrix4fv(g.mProj, 1, GL_FALSE, proj.data());
-    {
-        auto table = colorMapTable(snap.diverging ? ColorMapKind::Diverging : ColorMapKind::Sequential);
-        float map[16 * 3] = {};
-        for (size_t i = 0; i < table.size() && i < 16; ++i) {
-            map[3 * i] = table[i].r / 255.0f;
-            map[3 * i + 1] = table[i].g / 255.0f;
-            map[3 * i + 2] = table[i].b / 255.0f;
-        }
-        glUniform3fv(g.mMap, 16, map);
-        glUniform1i(g.mMapN, static_cast<GLint>(std::min<size_t>(table.size(), 16)));
-    }
-    glUniform1f(g.mMin, static_cast<float>(snap.scalarMin));
-    glUniform1f(g.mMax, static_cast<float>(snap.scalarMax));
-    glUniform1i(g.mUseMap, useMap ? 1 : 0);
-    const Vec3f surf = rgb(opts_.surfaceColour), cut = rgb(opts_.cutColour);
-    glUniform3f(g.mColour, surf.x(), surf.y(), surf.z());
-    glUniform3f(g.mCutColour, cut.x(), cut.y(), cut.z());
-    glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
-    glUniform1f(g.mAlpha, 1.0f);
-
-    // Normals: given per vertex, or per triangle corner from the area-weighted normals of the
-    // faces around the vertex that meet this face at less than the crease angle, so box edges
-    // and cut rims stay sharp while curved surfaces shade smoothly.
     const bool hasCut = snap.cutFace.size() == static_cast<size_t>(snap.faces());
     const bool given = snap.normals.cols() == n;
     const int nf = snap.faces();
@@ -480,8 +430,8 @@ void Renderer::draw(const RenderSnapshot& snap) {
             for (int k = 0; k < 3; ++k) vertexFaces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
     }
     constexpr float kCosCrease = 0.64f; // about 50 degrees
-    g.verts.clear();
-    g.verts.reserve(3 * static_cast<size_t>(nf));
+    verts.clear();
+    verts.reserve(3 * static_cast<size_t>(nf));
     for (int f = 0; f < nf; ++f) {
         const float c = hasCut && snap.cutFace[static_cast<size_t>(f)] ? 1.0f : 0.0f;
         const Vec3f own = given ? Vec3f::Zero() : Vec3f(faceN.col(f).normalized());
@@ -499,51 +449,108 @@ void Renderer::draw(const RenderSnapshot& snap) {
                 q = q.squaredNorm() > 0 ? Vec3f(q.normalized()) : own;
             }
             const Vec3f p = snap.positions.col(v).cast<float>();
-            g.verts.push_back({{p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z()}, useMap ? float(snap.scalar[v]) : 0.0f, c});
+            verts.push_back({{p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z()}, useMap ? float(snap.scalar[v]) : 0.0f, c});
         }
     }
+}
+
+// The critical elements' faces and edges.
+void criticalGeometry(const RenderSnapshot& snap, std::vector<MeshVertex>& tris, std::vector<float>& lines) {
+    static constexpr int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+    static constexpr int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+    const int nCrit = static_cast<int>(snap.criticalTets.cols() / 4);
+    for (int e = 0; e < nCrit; ++e) {
+        auto c = [&](int a) { return Vec3d(snap.criticalTets.col(4 * e + a)); };
+        for (const auto& f : faces) pushTriangle(tris, c(f[0]), c(f[1]), c(f[2]));
+        for (const auto& ed : edges)
+            for (int a : {ed[0], ed[1]}) {
+                Vec3f p = c(a).cast<float>();
+                lines.insert(lines.end(), {p.x(), p.y(), p.z()});
+            }
+    }
+}
+
+} // namespace
+
+// Scene bounds (surface, critical tets and tools) and a camera whose near and far planes hug the
+// scene and the floor around it.
+Renderer::View Renderer::viewOf(const RenderSnapshot& snap) const {
+    Eigen::AlignedBox3d box;
+    for (int v = 0; v < snap.vertices(); ++v) box.extend(snap.positions.col(v));
+    for (int v = 0; v < snap.criticalTets.cols(); ++v) box.extend(snap.criticalTets.col(v));
+    for (const auto& t : snap.tools) {
+        box.extend(t.position + Vec3d::Constant(t.size.norm() * 1.8));
+        box.extend(t.position - Vec3d::Constant(t.size.norm() * 1.8));
+    }
+    if (box.isEmpty()) box.extend(snap.camera.target);
+    View v;
+    v.centre = box.center();
+    v.radius = std::max(0.5 * box.diagonal().norm(), 1e-6);
+    v.up = snap.camera.up.normalized();
+    const double dist = (snap.camera.eye - v.centre).norm();
+    const double zFar = dist + 3.0 * v.radius;
+    const double zNear = std::max(dist - 3.0 * v.radius, zFar * 1e-3);
+    v.view = lookAt(snap.camera.eye, snap.camera.target, v.up);
+    v.proj = perspective(snap.camera.fovY, double(opts_.width) / opts_.height, zNear, zFar);
+    v.bg = rgb(opts_.background);
+    return v;
+}
+
+void Renderer::drawSurface(const RenderSnapshot& snap, const View& v) {
+    Gl& g = *gl_;
+    const int n = snap.vertices();
+    const bool useMap = snap.scalar.size() == n && n > 0;
+    glUseProgram(g.meshProg);
+    glUniformMatrix4fv(g.mView, 1, GL_FALSE, v.view.data());
+    glUniformMatrix4fv(g.mProj, 1, GL_FALSE, v.proj.data());
+    {
+        auto table = colorMapTable(snap.diverging ? ColorMapKind::Diverging : ColorMapKind::Sequential);
+        float map[16 * 3] = {};
+        for (size_t i = 0; i < table.size() && i < 16; ++i) {
+            map[3 * i] = table[i].r / 255.0f;
+            map[3 * i + 1] = table[i].g / 255.0f;
+            map[3 * i + 2] = table[i].b / 255.0f;
+        }
+        glUniform3fv(g.mMap, 16, map);
+        glUniform1i(g.mMapN, static_cast<GLint>(std::min<size_t>(table.size(), 16)));
+    }
+    glUniform1f(g.mMin, static_cast<float>(snap.scalarMin));
+    glUniform1f(g.mMax, static_cast<float>(snap.scalarMax));
+    glUniform1i(g.mUseMap, useMap ? 1 : 0);
+    const Vec3f surf = rgb(opts_.surfaceColour), cut = rgb(opts_.cutColour);
+    glUniform3f(g.mColour, surf.x(), surf.y(), surf.z());
+    glUniform3f(g.mCutColour, cut.x(), cut.y(), cut.z());
+    glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
+    glUniform1f(g.mAlpha, 1.0f);
+
+    surfaceVertices(snap, useMap, g.verts);
     // Pushed back a little so wireframe lines on it win the depth test.
     glEnable(GL_POLYGON_OFFSET_FILL);
     glPolygonOffset(1.0f, 1.0f);
     g.drawMesh(g.verts);
     glDisable(GL_POLYGON_OFFSET_FILL);
+}
 
-    // ---- tools ----
-    if (!snap.tools.empty()) {
-        g.verts.clear();
-        for (const auto& t : snap.tools) toolTriangles(t, g.verts);
-        const Vec3f tc = rgb(opts_.toolColour);
-        glUniform1i(g.mUseMap, 0);
-        glUniform3f(g.mColour, tc.x(), tc.y(), tc.z());
-        g.drawMesh(g.verts);
-    }
+void Renderer::drawTools(const RenderSnapshot& snap) {
+    if (snap.tools.empty()) return;
+    Gl& g = *gl_;
+    g.verts.clear();
+    for (const auto& t : snap.tools) toolTriangles(t, g.verts);
+    const Vec3f tc = rgb(opts_.toolColour);
+    glUniform1i(g.mUseMap, 0);
+    glUniform3f(g.mColour, tc.x(), tc.y(), tc.z());
+    g.drawMesh(g.verts);
+}
 
-    // ---- critical elements, first where visible ----
-    const int nCrit = static_cast<int>(snap.criticalTets.cols() / 4);
-    std::vector<MeshVertex> critTris;
-    std::vector<float> critLines;
-    if (opts_.xray && nCrit > 0) {
-        static constexpr int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-        static constexpr int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-        for (int e = 0; e < nCrit; ++e) {
-            auto c = [&](int a) { return Vec3d(snap.criticalTets.col(4 * e + a)); };
-            for (const auto& f : faces) pushTriangle(critTris, c(f[0]), c(f[1]), c(f[2]));
-            for (const auto& ed : edges)
-                for (int a : {ed[0], ed[1]}) {
-                    Vec3f p = c(a).cast<float>();
-                    critLines.insert(critLines.end(), {p.x(), p.y(), p.z()});
-                }
-        }
-        const Vec3f cc = rgb(opts_.criticalColour);
-        glUniform1i(g.mUseMap, 0);
-        glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
-        g.drawMesh(critTris);
-    }
-
-    // ---- lines: wireframe and floor grid ----
+// Wireframe and the floor grid.
+void Renderer::drawLines(const RenderSnapshot& snap, const View& v) {
+    Gl& g = *gl_;
+    const int n = snap.vertices();
+    const Vec3d& up = v.up;
+    const Vec3f& bg = v.bg;
     glUseProgram(g.lineProg);
-    glUniformMatrix4fv(g.lView, 1, GL_FALSE, view.data());
-    glUniformMatrix4fv(g.lProj, 1, GL_FALSE, proj.data());
+    glUniformMatrix4fv(g.lView, 1, GL_FALSE, v.view.data());
+    glUniformMatrix4fv(g.lProj, 1, GL_FALSE, v.proj.data());
     if (opts_.wireframe && snap.edges.cols() >= 2) {
         g.lines.resize(3 * static_cast<size_t>(snap.edges.cols()));
         Eigen::Map<Eigen::Matrix3Xf>(g.lines.data(), 3, snap.edges.cols()) = snap.edges.cast<float>();
@@ -553,10 +560,10 @@ void Renderer::draw(const RenderSnapshot& snap) {
     if (opts_.floor && n > 0) {
         // Grid in the plane normal to up, just under the lowest surface point.
         double low = snap.positions.col(0).dot(up);
-        for (int v = 1; v < n; ++v) low = std::min(low, snap.positions.col(v).dot(up));
+        for (int i = 1; i < n; ++i) low = std::min(low, snap.positions.col(i).dot(up));
         const Vec3d e1 = up.unitOrthogonal(), e2 = up.cross(e1);
-        const Vec3d origin = centre + (low - 0.02 * radius - centre.dot(up)) * up;
-        const double step = niceStep(radius / 4), half = std::ceil(2.0 * radius / step) * step;
+        const Vec3d origin = v.centre + (low - 0.02 * v.radius - v.centre.dot(up)) * up;
+        const double step = niceStep(v.radius / 4), half = std::ceil(2.0 * v.radius / step) * step;
         g.lines.clear();
         for (double s = -half; s <= half + 0.5 * step; s += step)
             for (int axis = 0; axis < 2; ++axis) {
@@ -569,28 +576,64 @@ void Renderer::draw(const RenderSnapshot& snap) {
         glUniform4f(g.lColour, bg.x() + 0.12f, bg.y() + 0.12f, bg.z() + 0.12f, 1.0f);
         g.drawLines(g.lines);
     }
+}
 
-    // ---- critical elements through the surface (x-ray): no depth test, blended ----
-    if (opts_.xray && nCrit > 0) {
+// The critical elements through the surface (x-ray): no depth test, blended.
+void Renderer::drawCriticalXray() {
+    Gl& g = *gl_;
+    const Vec3f cc = rgb(opts_.criticalColour);
+    glDisable(GL_DEPTH_TEST);
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    glUseProgram(g.meshProg);
+    glUniform1i(g.mUseMap, 0);
+    glUniform1i(g.mLit, 0);
+    glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
+    glUniform1f(g.mAlpha, 0.35f);
+    g.drawMesh(g.critTris);
+    glUseProgram(g.lineProg);
+    glUniform4f(g.lColour, cc.x(), cc.y(), cc.z(), 0.9f);
+    g.drawLines(g.critLines);
+    glDisable(GL_BLEND);
+    glEnable(GL_DEPTH_TEST);
+}
+
+void Renderer::draw(const RenderSnapshot& snap) {
+    makeCurrent();
+    Gl& g = *gl_;
+    const View v = viewOf(snap);
+    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
+    glViewport(0, 0, opts_.width, opts_.height);
+    glClearColor(v.bg.x(), v.bg.y(), v.bg.z(), 1.0f);
+    glClearDepth(1.0);
+    glDepthMask(GL_TRUE);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+    glEnable(GL_DEPTH_TEST);
+    glDepthFunc(GL_LEQUAL);
+    glDisable(GL_CULL_FACE);
+    glDisable(GL_BLEND);
+    glDisable(GL_SCISSOR_TEST);
+    glBindVertexArray(g.vao);
+
+    // The surface, the tools, the critical elements where visible, the lines, then the critical
+    // elements through the surface.
+    drawSurface(snap, v);
+    drawTools(snap);
+    const bool xray = opts_.xray && snap.criticalTets.cols() >= 4;
+    if (xray) {
+        g.critTris.clear();
+        g.critLines.clear();
+        criticalGeometry(snap, g.critTris, g.critLines);
         const Vec3f cc = rgb(opts_.criticalColour);
-        glDisable(GL_DEPTH_TEST);
-        glEnable(GL_BLEND);
-        glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
-        glUseProgram(g.meshProg);
         glUniform1i(g.mUseMap, 0);
-        glUniform1i(g.mLit, 0);
         glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
-        glUniform1f(g.mAlpha, 0.35f);
-        g.drawMesh(critTris);
-        glUseProgram(g.lineProg);
-        glUniform4f(g.lColour, cc.x(), cc.y(), cc.z(), 0.9f);
-        g.drawLines(critLines);
-        glDisable(GL_BLEND);
-        glEnable(GL_DEPTH_TEST);
+        g.drawMesh(g.critTris);
     }
+    drawLines(snap, v);
+    if (xray) drawCriticalXray();
     glBindVertexArray(0);
 
-    // ---- 2D: legend and HUD (ImGui draws into the bound framebuffer) ----
+    // 2D: legend and HUD (ImGui draws into the bound framebuffer).
     drawHudAndLegend(snap);
 
     // Resolve the samples into the read-back target.

@@ -79,6 +79,12 @@ public:
 
 private:
     struct Gl;
+    struct View;
+    View viewOf(const RenderSnapshot& snap) const;
+    void drawSurface(const RenderSnapshot& snap, const View& v);
+    void drawTools(const RenderSnapshot& snap);
+    void drawLines(const RenderSnapshot& snap, const View& v);
+    void drawCriticalXray();
     void drawHudAndLegend(const RenderSnapshot& snap);
     void makeCurrent() const;
     void allocateTargets(); // framebuffers at opts_ size

@@ -1,4 +1,4 @@
-// Internal forces of linear and corotational tets (METHOD.md sec. 1, thesis eq. 2.41).
+// Internal forces of linear and corotational tets (docs/method.md sec. 1, thesis eq. 2.41).
 // Hot loops are free functions over an index range: gather, compute, scatter into the nodes the
 // thread alone touches (computeForces); no locks, no atomics.
 #pragma once

@@ -1,4 +1,5 @@
-// Time integration. The stages of one step, in this order (DESIGN.md convention 3):
+// Time integration. The stages of one step, in this order (the force and integrate stages of
+// Simulation::step, sim/simulation.hpp):
 //   1. contact   (tools; applied as fExt by the caller before step())
 //   2. forces    computeForces: node loads, element stage adding into each thread's own nodes,
 //                then the nodes two threads share
@@ -17,8 +18,8 @@
 namespace cutsim {
 
 enum class Integrator {
-    SymplecticEuler,    // v += dt a(x); x += dt v                         (METHOD.md sec. 2)
-    CentralDifference,  // half-step velocities, centred damping            (METHOD.md sec. 2)
+    SymplecticEuler,    // v += dt a(x); x += dt v                         (docs/method.md sec. 2)
+    CentralDifference,  // half-step velocities, centred damping            (docs/method.md sec. 2)
     Newmark,            // explicit Newmark beta=0, gamma=1/2, damping factor alpha (eqs. 3.11-3.12)
     BackwardEuler,      // implicit reference, linearised corotational (solver: ImplicitSolver)
 };

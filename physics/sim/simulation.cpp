@@ -241,7 +241,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
     checkStepBudget(sc_, choice_.dt);
 
     setupContact();
-    // Cutting: the engine's bookkeeping exists only in scenes that cut (DESIGN.md: pay for what you use).
+    // Cutting: the engine's bookkeeping exists only in scenes that cut (a scene pays for what it uses).
     for (size_t i = 0; i < sc_.tools.size(); ++i)
         if (sc_.tools[i].kind == ToolDef::Kind::Blade) bladeTools_.push_back(static_cast<int>(i));
     if (!sc_.cutting.cuts.empty() || !bladeTools_.empty()) {
@@ -537,7 +537,7 @@ void Simulation::fail(RunStatus s, const std::string& why) {
     message_ = why;
 }
 
-// Numerical trouble of the last step (DESIGN.md, error tier 3), and the divergence bounds.
+// Numerical trouble of the last step (State::flags), and the divergence bounds.
 void Simulation::check() {
     const StepFlags& fl = state_.flags;
     if (fl.inverted > 0) {

@@ -1,5 +1,5 @@
 // The simulation loop of a scene, one object for every driver (cutsim run, cutsim view, the
-// benchmarks, the tests, the bindings), so that its behaviour is defined once (DESIGN.md).
+// benchmarks, the tests, the bindings), so that its behaviour is defined once.
 //
 // Simulation::step() runs the stages of one step in this order, each timed into RunRecord::stages:
 //   1. loads      the scene's applied forces into State::fExt
