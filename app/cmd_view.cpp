@@ -378,7 +378,7 @@ void addViewCommand(CLI::App& app) {
                     "Draw N frames of 1/fps simulated seconds each, write --screenshot, exit (for scripts and tests)")
         ->check(CLI::Range(1, 1000000));
     cmd->add_option("--screenshot", args->screenshot, "PNG that p (and the end of --frames) writes (default view_NNN.png)");
-    cmd->add_option("--threads", args->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
+    cmd->add_option("--threads", args->threads, "Worker threads (0: chosen by measuring one thread against all cores as the run goes)")->check(CLI::Range(0, 1024));
     cmd->add_option("--report", args->report, "Write the session's report.json (as `cutsim run` writes) here at exit");
     cmd->add_option("--tool-at", args->toolAt, "x y z: hold the scene's first tool there from the start, as shift-drag leaves it [m]")
         ->expected(3);

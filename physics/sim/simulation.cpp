@@ -174,47 +174,53 @@ void checkStepBudget(const SceneDef& sc, double dt) {
 
 // Chooses between all cores and one by measuring: on a machine whose other cores are busy, a
 // parallel step waits at every barrier for a descheduled thread and can be several times slower
-// than a serial one (BENCHMARKS.md, step). Windows of steps at each count, then the faster one
-// for a long stretch, then measured again. Results do not depend on the count (the force stage
-// is bitwise the same on any number of threads), so switching changes only speed.
+// than a serial one (BENCHMARKS.md, step). The two counts take turns in chunks of steps (a step's
+// cost drifts as the body deforms, so back-to-back windows would be biased) until each has run
+// kMinSteps steps and kWindowSeconds have passed; then the faster per step is held for
+// kHoldFactor times as many steps and measured again. All cores must win by kMargin: one thread
+// is the choice that cannot collapse. Results do not depend on the count (the force stage is
+// bitwise the same on any number of threads).
 struct Simulation::ThreadTuner {
-    int many = 2;               // all cores
-    int current = 0;
-    int phase = 0;              // 0: measuring many, 1: measuring one, 2: holding the choice
-    long window = 16, count = 0;
-    double seconds = 0, manySeconds = 0;
-    long hold = 0;
-    int choices = 0;
+    static constexpr double kWindowSeconds = 0.03, kMargin = 0.9;
+    static constexpr long kChunk = 16, kMinSteps = 64, kHoldFactor = 30;
+    static constexpr int kSettle = 2;  // steps after a switch that are not timed (threads waking up)
+    int many = 2;                      // all cores
+    int current = 1;
+    bool measuring = true;
+    long inChunk = 0, hold = 0, held = 0;
+    int settle = 0;
+    long steps[2] = {0, 0};            // timed steps on one thread [0] and on all cores [1]
+    double seconds[2] = {0, 0};
 
-    explicit ThreadTuner(int cores) : many(cores) { use(many); }
+    explicit ThreadTuner(int cores) : many(cores) { setThreads(1); }
     void use(int n) {
+        if (n != current) settle = kSettle;
         current = n;
         setThreads(n);
     }
     void after(double stepSeconds) {
-        ++count;
-        seconds += stepSeconds;
-        if (phase == 2) {
-            if (count >= hold) phase = 0, count = 0, seconds = 0, use(many);
+        if (!measuring) {
+            if (++held >= hold) measuring = true, inChunk = 0, steps[0] = steps[1] = 0, seconds[0] = seconds[1] = 0;
             return;
         }
-        if (count < window) return;
-        if (seconds < 0.01 && window < 4096) {  // too short to time: a longer window
-            window *= 2;
-            count = 0, seconds = 0;
+        if (settle > 0) {
+            --settle;
             return;
         }
-        if (phase == 0) {
-            manySeconds = seconds;
-            phase = 1;
-            use(1);
-        } else {
-            use(manySeconds < seconds ? many : 1);
-            ++choices;
-            phase = 2;
-            hold = 200 * window;
+        const int k = current == 1 ? 0 : 1;
+        ++steps[k];
+        seconds[k] += stepSeconds;
+        if (++inChunk < kChunk) return;
+        inChunk = 0;
+        if (steps[0] >= kMinSteps && steps[1] >= kMinSteps && seconds[0] + seconds[1] >= kWindowSeconds) {
+            const bool manyWins = seconds[1] / double(steps[1]) < kMargin * seconds[0] / double(steps[0]);
+            use(manyWins ? many : 1);
+            measuring = false;
+            held = 0;
+            hold = kHoldFactor * (steps[0] + steps[1]);
+            return;
         }
-        count = 0, seconds = 0;
+        use(current == 1 ? many : 1);
     }
 };
 

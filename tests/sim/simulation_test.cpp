@@ -107,5 +107,24 @@ TEST(Simulation, ABlowUpIsCaughtBeforeItIsNonFinite) {
     EXPECT_EQ(sim.message().rfind("diverged:", 0), 0u) << sim.message();
 }
 
+// The thread count changes only speed: one thread, two, and the measured choice (which switches
+// between them as the run goes) give bitwise the same state on a mesh above the parallel threshold.
+TEST(Simulation, ThreadCountDoesNotChangeTheState) {
+    json j = barScene();
+    j["object"]["box"] = {{"size", {0.1, 0.02, 0.02}}, {"cells", {36, 8, 6}}};  // 10,368 tets
+    j["duration"] = 0.1;  // ~400 steps: the measured choice switches between 1 and 2 threads
+    std::vector<std::uint64_t> hashes;
+    for (int threads : {1, 2, 0}) {
+        SimulationOptions o;
+        o.threads = threads;
+        Simulation sim(parseScene(j, "bar.json"), o);
+        EXPECT_EQ(sim.advance(1.0), RunStatus::Finished);
+        EXPECT_GT(sim.state().steps, 300);
+        hashes.push_back(sim.stateHash());
+    }
+    EXPECT_EQ(hashes[0], hashes[1]);
+    EXPECT_EQ(hashes[0], hashes[2]);
+}
+
 } // namespace
 } // namespace cutsim
