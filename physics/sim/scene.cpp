@@ -330,7 +330,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
     }
     if (root.has("cutting")) {
         ObjectReader c = root.object("cutting");
-        s.cutting.lumping = c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"});
+        s.cutting.lumping = parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
         s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
         s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
         const Cutting dflt;
@@ -450,7 +450,7 @@ SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets
 
 CutOptions cutOptions(const Cutting& c) {
     CutOptions o;
-    o.lumping = parseLumping(c.lumping);
+    o.lumping = c.lumping;
     o.minFraction = c.minFraction;
     o.mergeDebris = c.mergeDebris;
     o.relaxIterations = c.relaxIterations;

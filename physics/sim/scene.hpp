@@ -88,7 +88,7 @@ struct CutDef {
 
 // How the object is cut (physics/cut/xfem.hpp).
 struct Cutting {
-    std::string lumping = "enrichment";     // row_sum | weighted_diagonal | enrichment
+    MassLumping lumping = MassLumping::Enrichment; // cutting.lumping: row_sum | weighted_diagonal | enrichment
     double minFraction = CutOptions{}.minFraction; // sides below this share of their element merge into the other [-]
     bool exactAfterCut = true;              // exact dt (global eigen-solve) after every cut, for the report
     bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
