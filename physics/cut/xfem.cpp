@@ -496,6 +496,73 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     return r;
 }
 
+// Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
+// across the face when their sides leave part of it to both (Molino et al. 2004).
+bool CutEngine::gluedAcross(int e, int p, int k, int g, int q, std::vector<FaceSide>& sides) const {
+    const auto ie = virt_.find(e), ig = virt_.find(g);
+    if (ie == virt_.end() && ig == virt_.end()) return true;
+    int cp[3], cq[3];
+    for (int a = 0, j = 0; a < 4; ++a)
+        if (a != k) {
+            cp[j] = a;
+            cq[j] = localIndex(tets0_, q, tets0_(a, p));
+            ++j;
+        }
+    sides.clear();
+    if (ie != virt_.end())
+        for (const Halfspace& h : ie->second.hs) sides.push_back({{h.s[cp[0]], h.s[cp[1]], h.s[cp[2]]}, h.positive});
+    if (ig != virt_.end())
+        for (const Halfspace& h : ig->second.hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
+    return faceAreaFraction(sides) > 1e-9;
+}
+
+// New nodes: copies of the node they split from, at its rest and current position and velocity.
+void CutEngine::appendNodeCopies(Model& m, State& s, const std::vector<NodeCopy>& copies) {
+    if (copies.empty()) return;
+    const int N0 = m.nodes(), N1 = N0 + static_cast<int>(copies.size());
+    m.X.conservativeResize(3, N1);
+    for (auto* mat : {&s.x, &s.v, &s.f, &s.a, &s.fExt}) mat->conservativeResize(3, N1);
+    m.fixed.resize(static_cast<size_t>(N1), 0);
+    // Added mass stays with the node it was put on; a copy starts without.
+    if (m.addedMass.size() == N0) {
+        m.addedMass.conservativeResize(N1);
+        m.addedMass.tail(N1 - N0).setZero();
+    }
+    for (int k = 0; k < N1 - N0; ++k) {
+        const int id = N0 + k, src = copies[static_cast<size_t>(k)].src;
+        m.X.col(id) = m.X.col(src);
+        s.x.col(id) = s.x.col(src);
+        s.v.col(id) = s.v.col(src);
+        s.a.col(id) = s.a.col(src);
+        s.f.col(id).setZero();
+        s.fExt.col(id).setZero();
+        origNode_.push_back(copies[static_cast<size_t>(k)].orig);
+    }
+}
+
+// Masses and incidence of the changed elements. An element of an uncut parent can be re-pointed
+// too (its corner's copies were regrouped): its stiffness now couples other nodes, so every row
+// it touches is stale, not only the rows of the nodes it left and joined.
+void CutEngine::finishRelink(Model& m, const std::vector<int>& parents, const std::vector<int>& repointed,
+                             std::vector<int>& changedNodes, CutResult& r) {
+    for (int p : parents)
+        for (int e : virtualsOf(p)) {
+            setMassShare(m, e);
+            r.changedElements.push_back(e);
+        }
+    r.changedElements.insert(r.changedElements.end(), repointed.begin(), repointed.end());
+    std::sort(r.changedElements.begin(), r.changedElements.end());
+    r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
+    for (int e : r.changedElements)
+        for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
+    changedNodes.insert(changedNodes.end(), r.changedNodes.begin(), r.changedNodes.end());  // from followFused
+    updateMasses(m);
+    buildIncidence(m);
+    std::sort(changedNodes.begin(), changedNodes.end());
+    changedNodes.erase(std::unique(changedNodes.begin(), changedNodes.end()), changedNodes.end());
+    r.changedNodes = std::move(changedNodes);
+}
+
 void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
                        std::unordered_map<int, double>& nodeS) {
     // Original nodes whose copies may change: those of the parents the cut touched.
@@ -508,10 +575,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     struct Slot {
         int elem, corner, parent;
     };
-    struct Copy {
-        int src, orig;
-    };
-    std::vector<Copy> copies;
+    std::vector<NodeCopy> copies;
     std::vector<std::pair<int, std::uint8_t>> fixedOf;  // node -> fixed, applied once the arrays have grown
     std::vector<int> changedNodes;
     std::vector<int> repointed;  // elements with a corner moved to another node
@@ -526,30 +590,11 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     std::unordered_map<std::uint64_t, bool>& gluedSeen = gluedSeen_;
     gluedSeen.clear();
 
-    // Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
-    // across the face when their sides leave part of it to both (Molino et al. 2004).
-    auto glued = [&](int e, int p, int k, int g, int q) {
-        const auto ie = virt_.find(e), ig = virt_.find(g);
-        if (ie == virt_.end() && ig == virt_.end()) return true;
-        int cp[3], cq[3];
-        for (int a = 0, j = 0; a < 4; ++a)
-            if (a != k) {
-                cp[j] = a;
-                cq[j] = localIndex(tets0_, q, tets0_(a, p));
-                ++j;
-            }
-        sides.clear();
-        if (ie != virt_.end())
-            for (const Halfspace& h : ie->second.hs) sides.push_back({{h.s[cp[0]], h.s[cp[1]], h.s[cp[2]]}, h.positive});
-        if (ig != virt_.end())
-            for (const Halfspace& h : ig->second.hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
-        return faceAreaFraction(sides) > 1e-9;
-    };
     auto gluedOnce = [&](int e, int p, int k, int g, int q) {
         const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(e)) << 32) |
                                   static_cast<std::uint32_t>(g);
         const auto [it, added] = gluedSeen.try_emplace(key, false);
-        if (added) it->second = glued(e, p, k, g, q);
+        if (added) it->second = gluedAcross(e, p, k, g, q, sides);
         return it->second;
     };
 
@@ -642,51 +687,11 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
         }
     }
 
-    // New nodes: copies of the node they split from, at its rest and current position and velocity.
-    if (!copies.empty()) {
-        const int N0 = m.nodes(), N1 = nextNode;
-        m.X.conservativeResize(3, N1);
-        for (auto* mat : {&s.x, &s.v, &s.f, &s.a, &s.fExt}) mat->conservativeResize(3, N1);
-        m.fixed.resize(static_cast<size_t>(N1), 0);
-        // Added mass stays with the node it was put on; a copy starts without.
-        if (m.addedMass.size() == N0) {
-            m.addedMass.conservativeResize(N1);
-            m.addedMass.tail(N1 - N0).setZero();
-        }
-        for (int k = 0; k < N1 - N0; ++k) {
-            const int id = N0 + k, src = copies[static_cast<size_t>(k)].src;
-            m.X.col(id) = m.X.col(src);
-            s.x.col(id) = s.x.col(src);
-            s.v.col(id) = s.v.col(src);
-            s.a.col(id) = s.a.col(src);
-            s.f.col(id).setZero();
-            s.fExt.col(id).setZero();
-            origNode_.push_back(copies[static_cast<size_t>(k)].orig);
-        }
-    }
-
+    appendNodeCopies(m, s, copies);
     for (const auto& [id, fx] : fixedOf) m.fixed[static_cast<size_t>(id)] = fx;
     followFused(m, r);
 
-    // Masses and incidence of the changed elements. An element of an uncut parent can be re-pointed
-    // too (its corner's copies were regrouped): its stiffness now couples other nodes, so every row
-    // it touches is stale, not only the rows of the nodes it left and joined.
-    for (int p : parents)
-        for (int e : virtualsOf(p)) {
-            setMassShare(m, e);
-            r.changedElements.push_back(e);
-        }
-    r.changedElements.insert(r.changedElements.end(), repointed.begin(), repointed.end());
-    std::sort(r.changedElements.begin(), r.changedElements.end());
-    r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
-    for (int e : r.changedElements)
-        for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
-    changedNodes.insert(changedNodes.end(), r.changedNodes.begin(), r.changedNodes.end());  // from followFused
-    updateMasses(m);
-    buildIncidence(m);
-    std::sort(changedNodes.begin(), changedNodes.end());
-    changedNodes.erase(std::unique(changedNodes.begin(), changedNodes.end()), changedNodes.end());
-    r.changedNodes = std::move(changedNodes);
+    finishRelink(m, parents, repointed, changedNodes, r);
 }
 
 void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {

@@ -170,6 +170,13 @@ private:
     void appendVirtuals(Model& m, State& s, Pass& pass);
     void relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
                 std::unordered_map<int, double>& nodeS);
+    struct NodeCopy {
+        int src, orig;  // node the copy is made from, and the original node it stands for
+    };
+    bool gluedAcross(int e, int p, int k, int g, int q, std::vector<FaceSide>& sides) const;
+    void appendNodeCopies(Model& m, State& s, const std::vector<NodeCopy>& copies);
+    void finishRelink(Model& m, const std::vector<int>& parents, const std::vector<int>& repointed,
+                      std::vector<int>& changedNodes, CutResult& r);
     void mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r);
     bool followFused(Model& m, CutResult& r) const;
     void relaxCutNodes(const Model& m, State& s, const CutResult& r) const;
