@@ -489,6 +489,7 @@ RunStatus Simulation::step() {
         if (!go) return status_;
     }
     // 4-5. forces and integration (fem/integrate.hpp; the node update may run inside the force stage)
+    so_.alphaElem = alphaElem_.size() ? &alphaElem_ : nullptr;  // this object's, also after a move
     stepper_.step(model_, state_, so_);
     const double stepSeconds = sw.lap();
     rec_.stages[Stage::Forces] += stepper_.lastForceSeconds();
