@@ -150,7 +150,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                                     {"frames", sink ? sink->frames() : 0},
                                     {"video", sink ? sink->videoPath() : ""}});
     writeFileAtomic((out / "report.json").string(), report.dump(2) + "\n");
-    if (!opt.quiet)
+    if (!opt.quiet || !ok)  // a failure is always said
         std::fprintf(stderr, "%s: %s, %ld steps of %.3g s (exact limit %.3g s), %.2f s wall, %d frames -> %s\n",
                      sc.name.c_str(), report["status"].get<std::string>().c_str(), sim.state().steps, sim.dt(),
                      sim.initialLimits().exact, wall.seconds(), sink ? sink->frames() : 0, opt.out.c_str());

@@ -28,6 +28,7 @@ constexpr double kKeepStepWarnFraction = 0.01;  // keep_step adding more of the 
 constexpr double kMinObjectSize = 1e-3;         // [m] below or above these the scale is most likely wrong
 constexpr double kMaxObjectSize = 10;
 constexpr long kBoundsEvery = 4;                // steps between the speed and displacement checks
+constexpr double kOneCoreTetSteps = 3e7;        // tet-steps per second of one core (BENCHMARKS.md, step)
 
 std::string fmt(const char* f, auto... args) {
     char buf[512];
@@ -159,14 +160,15 @@ DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model) {
     return b;
 }
 
-void checkStepBudget(const SceneDef& sc, double dt) {
+void checkStepBudget(const SceneDef& sc, double dt, int elements) {
     if (!(dt > 0) || !std::isfinite(dt))
         throw InputError(sc.file + ": integrator.dt: the step " + fmt("%g", dt) + " s cannot advance the run");
     const double steps = sc.duration / dt;
     if (steps > sc.maxSteps)
         throw InputError(sc.file + ": integrator.max_steps: " +
-                         fmt("duration %g s at a step of %.4g s takes %.3g steps, above integrator.max_steps %.3g",
-                             sc.duration, dt, steps, sc.maxSteps) +
+                         fmt("duration %g s at a step of %.4g s takes %.3g steps, above integrator.max_steps %.3g "
+                             "(about %.2g s of one core at %.0e tet-steps/s)",
+                             sc.duration, dt, steps, sc.maxSteps, steps * elements / kOneCoreTetSteps, kOneCoreTetSteps) +
                          "; raise integrator.max_steps to run it");
 }
 
@@ -244,7 +246,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
         throw InputError(sc_.file + ": the exact stable step of the object is " + fmt("%g", exact.dt) +
                          " s: check material (E, nu, rho), object.scale and fixed");
     chooseAndApply(true);
-    checkStepBudget(sc_, choice_.dt);
+    checkStepBudget(sc_, choice_.dt, model_.elements());
 
     setupContact();
     // Cutting: the engine's bookkeeping exists only in scenes that cut (a scene pays for what it uses).

@@ -63,8 +63,8 @@ struct DivergenceBounds {
 //   inverted     > max(10, 5% of the elements) for 100 steps in a row, without stretch limiting
 DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model);
 
-// Work a run's step count implies, refused above SceneDef::maxSteps (exit 2).
-void checkStepBudget(const SceneDef& sc, double dt);
+// The steps a run implies, refused above SceneDef::maxSteps (exit 2) with the time they would take.
+void checkStepBudget(const SceneDef& sc, double dt, int elements);
 
 struct SimulationOptions {
     int threads = 0;             // worker threads; 0: chosen by measuring (ThreadTuner)
