@@ -176,18 +176,7 @@ int runView(const ViewArgs& a) {
         sc.dt = p;
         scene.setStep(sim->dt(), sc.capture.criticalFactor);
     };
-    auto cutNext = [&] {
-        const size_t before = sim->record().cuts.size();
-        if (!sim->cutNextScripted()) return;
-        const auto& cuts = sim->record().cuts;
-        if (cuts.size() > before) {
-            char msg[200];
-            const auto& c = cuts.back();
-            std::snprintf(msg, sizeof msg, "%s: %d elements split, dt %.3e s (%s)", c["key"].get<std::string>().c_str(),
-                          c["split"].get<int>(), sim->dt(), c["limit_action"].get<std::string>().c_str());
-            message = msg;
-        }
-    };
+    auto cutNext = [&] { sim->cutNextScripted(); };  // the message follows with the topology change
 
     for (int frame = 0; !win.shouldClose(); ++frame) {
         win.beginFrame();
@@ -243,11 +232,11 @@ int runView(const ViewArgs& a) {
         if (sim->topologyVersion() != drawnVersion) {
             drawnVersion = sim->topologyVersion();
             scene.topologyChanged(sim->model(), *sim->surface(), sim->analyzer().estimates().r1r, sim->dt());
-            if (message.empty() && !sim->record().cuts.empty()) {
+            if (!sim->record().cuts.empty()) {  // the last cut, scripted, x or blade
                 const auto& c = sim->record().cuts.back();
                 char msg[200];
-                std::snprintf(msg, sizeof msg, "%s: %d elements split, dt %.3e s", c["key"].get<std::string>().c_str(),
-                              c["split"].get<int>(), sim->dt());
+                std::snprintf(msg, sizeof msg, "%s: %d elements split, dt %.3e s (%s)", c["key"].get<std::string>().c_str(),
+                              c["split"].get<int>(), sim->dt(), c["limit_action"].get<std::string>().c_str());
                 message = msg;
             }
         }

@@ -1,8 +1,11 @@
 #include "fem/model.hpp"
+#include "util/union_find.hpp"
 
 #include "fem/tet.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <string>
 
 namespace cutsim {
@@ -132,6 +135,20 @@ TetMesh restMesh(const Model& m) {
     mesh.tets = m.tets;
     mesh.source = "model";
     return mesh;
+}
+
+std::vector<double> pieceVolumes(const Model& m) {
+    UnionFind uf = elementPieces(m.tets, m.nodes());
+    std::vector<double> byRoot(static_cast<size_t>(m.nodes()), -1.0);
+    for (int e = 0; e < m.elements(); ++e) {
+        double& v = byRoot[static_cast<size_t>(uf.find(m.tets(0, e)))];
+        v = std::max(v, 0.0) + m.volume(e) * m.fraction(e);
+    }
+    std::vector<double> volumes;
+    for (double v : byRoot)
+        if (v >= 0) volumes.push_back(v);
+    std::sort(volumes.begin(), volumes.end(), std::greater<>());
+    return volumes;
 }
 
 } // namespace cutsim

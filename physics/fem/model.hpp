@@ -92,6 +92,10 @@ Eigen::SparseMatrix<double> freeStiffness(const Model& model, const std::vector<
 // M^-1/2 K M^-1/2 over the free DOFs (the operator of the exact step, thesis eq. 3.10).
 Eigen::SparseMatrix<double> scaledFreeStiffness(const Model& model, const std::vector<int>& map, int nf);
 
+// Connected pieces of elements joined through shared nodes: their volumes (V fraction), largest
+// first [m^3].
+std::vector<double> pieceVolumes(const Model& model);
+
 // The mesh this model was built from (rest positions), e.g. for output.
 TetMesh restMesh(const Model& model);
 
