@@ -17,31 +17,34 @@
 #include <string>
 #include <vector>
 
-namespace CLI { class App; }
+namespace CLI {
+class App;
+}
 
 namespace cutsim::app {
 
 // One configuration's result on one reference problem.
 struct BenchPoint {
-    std::string problem;            // cantilever_static | cantilever_frequency | ...
-    std::string config;             // e.g. "conforming 40x4x4 f=0.9", "backward_euler 40x4x4 dt=0.01"
-    double error = 0;               // relative error against the problem's reference [-]
-    double wallPerSimSecond = 0;    // wall time of the stepping loop / simulated time [s/s]
-    double dt = 0;                  // time step used [s]
-    bool explicitScheme = true;     // false for the implicit reference
-    bool pareto = false;            // on the error-cost Pareto front of its problem
+    std::string problem;          // cantilever_static | cantilever_frequency | ...
+    std::string config;           // e.g. "conforming 40x4x4 f=0.9", "backward_euler 40x4x4 dt=0.01"
+    double error = 0;             // relative error against the problem's reference [-]
+    double wallPerSimSecond = 0;  // wall time of the stepping loop / simulated time [s/s]
+    double dt = 0;                // time step used [s]
+    bool explicitScheme = true;   // false for the implicit reference
+    bool pareto = false;          // on the error-cost Pareto front of its problem
     // Frequency problems: the two parts of the error (NaN elsewhere), and the error the integrator's
     // mode formula predicts from the mesh's own first frequency (NaN where no formula applies).
-    double frequencyError = NAN;    // (f - f_ref) / f_ref, signed [-]
-    double dampingRatio = NAN;      // decay rate of the tip's oscillation / omega_ref [-]
-    double predictedError = NAN;    // [-]
+    double frequencyError = NAN;  // (f - f_ref) / f_ref, signed [-]
+    double dampingRatio = NAN;    // decay rate of the tip's oscillation / omega_ref [-]
+    double predictedError = NAN;  // [-]
 };
 
 // Marks, per problem, the points no other point beats in both error and cost (ties: not beaten).
 void markPareto(std::vector<BenchPoint>& points);
 // Smallest cost among the problem's points with error <= maxError, explicit or implicit ones;
 // negative when none reaches it.
-double costAtError(const std::vector<BenchPoint>& points, const std::string& problem, double maxError, bool explicitScheme);
+double costAtError(const std::vector<BenchPoint>& points, const std::string& problem, double maxError,
+                   bool explicitScheme);
 
 // The cantilever of the accuracy problems: length L along x, square section h, clamped at x = 0,
 // gravity -z. Meshes of nyz cubes through the section and 10 nyz along the length.
@@ -54,31 +57,32 @@ struct Cantilever {
 };
 // The bar meshed as 10 nyz x nyz x nyz cubes, clamped at x = 0, gravity along -z. The accuracy
 // bench meshes it Mirrored (no skew bending axes); elsewhere it is the plain Kuhn split.
-Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational, BoxSplit split = BoxSplit::Kuhn);
+Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational,
+                      BoxSplit split = BoxSplit::Kuhn);
 // Mean z displacement of the nodes at x = L [m].
 double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x);
 
 // What a configuration needs to compute its points: the problem and its converged references.
 struct AccuracyContext {
     Cantilever bar;
-    double tipReference = 0;        // converged static tip deflection (negative, along -z) [m]
-    double frequencyReference = 0;  // converged first bending frequency (z) [Hz]
-    bool tiny = false;              // test size: small meshes, short runs
-    int maxRes = 4;                 // finest explicit cantilever: 10N x N x N cubes
-    std::vector<int> res;           // the cantilever resolutions N to run (ascending; maxRes is the last)
-    int implicitMaxRes = 4;         // backward Euler runs in full up to this N; beyond, its step is timed
-    int cgMaxRes = 0;               // and beyond that, up to this N, its CG solve runs in full at its 1% dt
-    bool quiet = false;             // no progress lines on stderr
-    nlohmann::json* references = nullptr; // configurations add their problems' references here
+    double tipReference = 0;               // converged static tip deflection (negative, along -z) [m]
+    double frequencyReference = 0;         // converged first bending frequency (z) [Hz]
+    bool tiny = false;                     // test size: small meshes, short runs
+    int maxRes = 4;                        // finest explicit cantilever: 10N x N x N cubes
+    std::vector<int> res;                  // the cantilever resolutions N to run (ascending; maxRes is the last)
+    int implicitMaxRes = 4;                // backward Euler runs in full up to this N; beyond, its step is timed
+    int cgMaxRes = 0;                      // and beyond that, up to this N, its CG solve runs in full at its 1% dt
+    bool quiet = false;                    // no progress lines on stderr
+    nlohmann::json* references = nullptr;  // configurations add their problems' references here
 };
 
 // A problem's measured quantity and converged reference. Default: the cantilever's (tipDeflection,
 // ctx.tipReference or ctx.frequencyReference, problems cantilever_static / cantilever_frequency).
 using TipFn = std::function<double(const Model&, const Eigen::Matrix3Xd&)>;
 struct TipProbe {
-    std::string problem;    // problem name; empty: the cantilever's
-    double reference = 0;   // converged tip deflection [m] or frequency [Hz]
-    TipFn tip;              // tip deflection of positions x [m]; null: tipDeflection
+    std::string problem;   // problem name; empty: the cantilever's
+    double reference = 0;  // converged tip deflection [m] or frequency [Hz]
+    TipFn tip;             // tip deflection of positions x [m]; null: tipDeflection
 };
 
 // Runs model from rest under gravity for bar.staticTime with the model's damping and returns the
@@ -89,13 +93,14 @@ BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m, const Step
 // Its error is that of the tip's first mode as a complex frequency s = -decay + i omega (both
 // measured by fitOscillation) against i omega_ref: |s - i omega_ref| / omega_ref. A frequency alone would
 // let an integrator's damping go unseen, and its period error cancel the mesh's stiffness.
-BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, const std::string& config,
-                             const TipProbe& probe = {});
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m, const StepOptions& opt,
+                             const std::string& config, const TipProbe& probe = {});
 // A frequency run (as runFrequencyPoint) advanced in slices, so that runs can take turns on the
 // machine (runPaired): the same steps, hence the same point, in any slicing.
 class FrequencyRun {
 public:
-    FrequencyRun(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, std::string config, TipProbe probe = {});
+    FrequencyRun(const AccuracyContext& ctx, const Model& m, const StepOptions& opt, std::string config,
+                 TipProbe probe = {});
     ~FrequencyRun();
     FrequencyRun(FrequencyRun&&) noexcept;
     // Steps on while the simulated time is below until (INFINITY: to the run's end) and the run has
@@ -151,8 +156,8 @@ double observedOrder(const std::vector<int>& levels, const std::vector<double>& 
 // Converged references of a bar family: the linear static tip and the first bending frequency on
 // the model of each level (ascending), extrapolated (h^2) from the two finest.
 struct BarReferences {
-    std::vector<double> tips, freqs;      // per level [m], [Hz]
-    double tip = 0, frequency = 0;        // Richardson from the two finest [m], [Hz]
+    std::vector<double> tips, freqs;              // per level [m], [Hz]
+    double tip = 0, frequency = 0;                // Richardson from the two finest [m], [Hz]
     double tipOrder = NAN, frequencyOrder = NAN;  // observedOrder of the last three levels
 };
 BarReferences barReferences(const std::vector<int>& levels, const std::function<Model(int)>& model);
@@ -165,11 +170,11 @@ void addBenchSubcommand(std::function<void(CLI::App& bench)> setup);
 // Models after XFEM cuts for the stability sweep: the notched cantilever 20x2x2 and the liver
 // after the thesis's four planes (sec. 5.2), one per lumping option (cmd_bench_cuts.cpp).
 struct AfterCutModel {
-    std::string mesh;        // e.g. "cantilever 20x2x2, notch"
-    std::string lumping;     // row_sum | weighted_diagonal | enrichment
-    Model model;             // after the cuts
-    double dtUncut = 0;      // exact step before the cuts [s]
-    int crossed = 0;         // elements the cuts went through
+    std::string mesh;     // e.g. "cantilever 20x2x2, notch"
+    std::string lumping;  // row_sum | weighted_diagonal | enrichment
+    Model model;          // after the cuts
+    double dtUncut = 0;   // exact step before the cuts [s]
+    int crossed = 0;      // elements the cuts went through
 };
 std::vector<AfterCutModel> afterCutModels(bool tiny);
 
@@ -183,4 +188,4 @@ void addMiBarBench();
 // Registers the `bench` command with its built-in and registered subcommands.
 void addBenchCommand(CLI::App& app);
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

@@ -55,7 +55,6 @@ Registry& registry() {
     return r;
 }
 
-
 // gnuplot on PATH, for the plots (Debian package gnuplot-nox).
 bool haveGnuplot() {
     const char* path = std::getenv("PATH");
@@ -73,26 +72,33 @@ bool runaway(const State& s) { return !(s.v.cwiseAbs().maxCoeff() < 1e3); }
 
 json jsonNumber(double v) { return std::isfinite(v) && v >= 0 ? json(v) : json(nullptr); }
 
-} // namespace
+}  // namespace
 
 // ---- registry and Pareto front ----
 
-void addAccuracyConfig(const std::string& name, AccuracyConfig fn) { registry().configs.emplace_back(name, std::move(fn)); }
+void addAccuracyConfig(const std::string& name, AccuracyConfig fn) {
+    registry().configs.emplace_back(name, std::move(fn));
+}
 void addBenchSubcommand(std::function<void(CLI::App&)> setup) { registry().subcommands.push_back(std::move(setup)); }
 
 void markPareto(std::vector<BenchPoint>& pts) {
     for (auto& p : pts) {
         p.pareto = std::isfinite(p.error) && std::isfinite(p.wallPerSimSecond);
         for (const auto& q : pts) {
-            if (&q == &p || q.problem != p.problem || !std::isfinite(q.error) || !std::isfinite(q.wallPerSimSecond)) continue;
+            if (&q == &p || q.problem != p.problem || !std::isfinite(q.error) || !std::isfinite(q.wallPerSimSecond))
+                continue;
             const bool noWorse = q.error <= p.error && q.wallPerSimSecond <= p.wallPerSimSecond;
             const bool better = q.error < p.error || q.wallPerSimSecond < p.wallPerSimSecond;
-            if (noWorse && better) { p.pareto = false; break; }
+            if (noWorse && better) {
+                p.pareto = false;
+                break;
+            }
         }
     }
 }
 
-double costAtError(const std::vector<BenchPoint>& pts, const std::string& problem, double maxError, bool explicitScheme) {
+double costAtError(const std::vector<BenchPoint>& pts, const std::string& problem, double maxError,
+                   bool explicitScheme) {
     double best = -1;
     for (const auto& p : pts)
         // equal errors: within 1e-6 relative (backward Euler's two solvers agree to ~1e-12, so
@@ -120,12 +126,15 @@ double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x) {
     double sum = 0;
     int n = 0;
     for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) > L * (1 - 1e-9)) { sum += x(2, i) - m.X(2, i); ++n; }
+        if (m.X(0, i) > L * (1 - 1e-9)) {
+            sum += x(2, i) - m.X(2, i);
+            ++n;
+        }
     return n ? sum / n : 0.0;
 }
 
-BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
-                          const TipProbe& probe) {
+BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt,
+                          const std::string& config, const TipProbe& probe) {
     Model m = m0;
     m.massDamping = ctx.bar.damping;
     State s = makeState(m);
@@ -150,7 +159,8 @@ BenchPoint runStaticPoint(const AccuracyContext& ctx, const Model& m0, const Ste
     return p;
 }
 
-FrequencyRun::FrequencyRun(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, std::string config, TipProbe probe)
+FrequencyRun::FrequencyRun(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, std::string config,
+                           TipProbe probe)
     : ctx_(&ctx), m_(m0), opt_(opt), config_(std::move(config)), probe_(std::move(probe)) {
     m_.massDamping = 0;
     s_ = makeState(m_);
@@ -199,8 +209,8 @@ BenchPoint FrequencyRun::point() const {
     return p;
 }
 
-BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt, const std::string& config,
-                             const TipProbe& probe) {
+BenchPoint runFrequencyPoint(const AccuracyContext& ctx, const Model& m0, const StepOptions& opt,
+                             const std::string& config, const TipProbe& probe) {
     FrequencyRun run(ctx, m0, opt, config, probe);
     run.advance(INFINITY);
     return run.point();
@@ -271,10 +281,16 @@ double firstBendingFrequency(const Model& m) {
             if (d < 0) continue;
             const double sm = std::sqrt(m.mass(i));
             load += vec(d, j) * sm;
-            if (m.X(0, i) > L * (1 - 1e-9)) { tip += vec(d, j) / sm; ++nTip; }
+            if (m.X(0, i) > L * (1 - 1e-9)) {
+                tip += vec(d, j) / sm;
+                ++nTip;
+            }
         }
         const double share = std::abs(load * tip) / (nTip ? nTip : 1) / lam(j);
-        if (share > best) { best = share; lambda = lam(j); }
+        if (share > best) {
+            best = share;
+            lambda = lam(j);
+        }
     }
     return std::sqrt(lambda) / (2 * M_PI);
 }
@@ -322,8 +338,8 @@ struct AccuracyArgs {
     bool json = false, tiny = false;
     std::string csv, plot, from;
     int maxRes = 4;
-    std::vector<int> res;           // cantilever resolutions (empty: 1 .. maxRes)
-    std::vector<int> refLevels;     // reference meshes (empty: 2, 4, 8)
+    std::vector<int> res;        // cantilever resolutions (empty: 1 .. maxRes)
+    std::vector<int> refLevels;  // reference meshes (empty: 2, 4, 8)
     int implicitMaxRes = 4;
     int cgMaxRes = 0;
     int threads = 0;                // worker threads of the explicit runs (0: all cores)
@@ -366,7 +382,8 @@ std::vector<BenchPoint> readPointsCsv(const std::string& path) {
             try {
                 *extra[k - 7] = std::stod(f[k]);
             } catch (const std::exception&) {
-                throw InputError(path, lineNo, "frequency_error, damping_ratio and predicted_error must be numbers or empty");
+                throw InputError(path, lineNo,
+                                 "frequency_error, damping_ratio and predicted_error must be numbers or empty");
             }
         }
         pts.push_back(p);
@@ -399,7 +416,8 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
     fs::create_directories(dir);
     std::ostringstream g;
     // up to three panels a row
-    const size_t cols = std::clamp<size_t>(problems.size(), 1, 3), rows = std::max<size_t>(1, (problems.size() + 2) / 3);
+    const size_t cols = std::clamp<size_t>(problems.size(), 1, 3),
+                 rows = std::max<size_t>(1, (problems.size() + 2) / 3);
     g << "set terminal pngcairo size " << 700 * cols << "," << 560 * rows << " noenhanced\n";
     g << "set output '" << out << ".tmp.png'\n";
     g << "set multiplot layout " << rows << "," << cols << "\n";
@@ -414,15 +432,20 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
             (p.explicitScheme ? ex : im) << p.wallPerSimSecond << " " << p.error << "\n";
             if (p.pareto) front.push_back(&p);
         }
-        std::sort(front.begin(), front.end(), [](auto* a, auto* b) { return a->wallPerSimSecond < b->wallPerSimSecond; });
+        std::sort(front.begin(), front.end(),
+                  [](auto* a, auto* b) { return a->wallPerSimSecond < b->wallPerSimSecond; });
         for (auto* p : front) pf << p->wallPerSimSecond << " " << p->error << "\n";
         const bool hasEx = ex.tellp() > 0, hasIm = im.tellp() > 0;
-        ex.close(); im.close(); pf.close();
+        ex.close();
+        im.close();
+        pf.close();
         g << "set title '" << problems[k] << "'\n";
         g << "plot 0.01 with lines dt 2 lc rgb 'gray' title '1%'";
         if (hasEx) g << ", '" << base << "_explicit.dat' with points pt 7 ps 1.2 lc rgb '#1f77b4' title 'explicit'";
-        if (hasIm) g << ", '" << base << "_implicit.dat' with points pt 5 ps 1.2 lc rgb '#d62728' title 'backward Euler'";
-        if (!front.empty()) g << ", '" << base << "_pareto.dat' with linespoints pt 6 ps 2 lw 2 lc rgb 'black' title 'Pareto front'";
+        if (hasIm)
+            g << ", '" << base << "_implicit.dat' with points pt 5 ps 1.2 lc rgb '#d62728' title 'backward Euler'";
+        if (!front.empty())
+            g << ", '" << base << "_pareto.dat' with linespoints pt 6 ps 2 lw 2 lc rgb 'black' title 'Pareto front'";
         g << "\n";
     }
     g << "unset multiplot\n";
@@ -449,16 +472,16 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
 struct ImplicitProjection {
     int res = 0;
     long tets = 0;
-    double meshFrequency = 0;   // first bending frequency of the mesh (Lanczos) [Hz]
-    double meshError = 0;       // its error against the reference [-]
-    double dt = 0;              // largest dt with error <= 1%; 0 when the mesh alone misses it [s]
-    double directSeconds = 0;   // wall time of one step with the sparse LDL^T, median of the timed steps [s]
-    double cgSeconds = 0;       // the same with CG at dt [s]
-    int cgIterations = 0;       // CG iterations of the median step
-    int steps = 0;              // steps timed per solver
+    double meshFrequency = 0;  // first bending frequency of the mesh (Lanczos) [Hz]
+    double meshError = 0;      // its error against the reference [-]
+    double dt = 0;             // largest dt with error <= 1%; 0 when the mesh alone misses it [s]
+    double directSeconds = 0;  // wall time of one step with the sparse LDL^T, median of the timed steps [s]
+    double cgSeconds = 0;      // the same with CG at dt [s]
+    int cgIterations = 0;      // CG iterations of the median step
+    int steps = 0;             // steps timed per solver
     double stepSeconds() const { return std::min(directSeconds, cgSeconds); }
     const char* solver() const { return directSeconds <= cgSeconds ? "direct" : "cg"; }
-    double cost = INFINITY;     // stepSeconds() / dt [s/s]
+    double cost = INFINITY;  // stepSeconds() / dt [s/s]
 };
 
 // An implicit point and the explicit runs that took turns with it (runPaired), on one mesh.
@@ -467,9 +490,9 @@ struct PairedComparison {
     int slices = 0;
     struct Explicit {
         BenchPoint point;
-        double ratio = 0;                  // implicit cost / explicit cost over the whole run
-        double firstHalf = 0, secondHalf = 0; // the same over the first and the last half of the slices
-        double sliceMin = 0, sliceMax = 0; // the smallest and largest ratio of one slice
+        double ratio = 0;                      // implicit cost / explicit cost over the whole run
+        double firstHalf = 0, secondHalf = 0;  // the same over the first and the last half of the slices
+        double sliceMin = 0, sliceMax = 0;     // the smallest and largest ratio of one slice
     };
     std::vector<Explicit> runs;
 };
@@ -505,12 +528,15 @@ std::pair<double, int> backwardEulerStepSeconds(const Model& m0, double dt, int 
     return w[w.size() / 2];
 }
 
-std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool quiet, std::vector<ImplicitProjection>& proj,
+std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool quiet,
+                                              std::vector<ImplicitProjection>& proj,
                                               std::vector<PairedComparison>& paired) {
     std::vector<BenchPoint> pts;
     auto log = [&](const BenchPoint& p) {
         pts.push_back(p);
-        if (!quiet) std::fprintf(stderr, "  %-22s %-40s error %.3e  cost %.4g s/s\n", p.problem.c_str(), p.config.c_str(), p.error, p.wallPerSimSecond);
+        if (!quiet)
+            std::fprintf(stderr, "  %-22s %-40s error %.3e  cost %.4g s/s\n", p.problem.c_str(), p.config.c_str(),
+                         p.error, p.wallPerSimSecond);
     };
     const double wRef = 2 * M_PI * ctx.frequencyReference;
     // A frequency point's predicted error: the integrator's mode formula on the mesh's own mode.
@@ -521,7 +547,9 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
     };
     // The bench's bar is the mirrored split: the Kuhn split's skew bending axes make a z load
     // excite two modes of different frequency, and the tip's motion beat.
-    auto bar = [&](int r, BoxSplit split = BoxSplit::Mirrored) { return cantileverModel(ctx.bar, r, ElementModel::Corotational, split); };
+    auto bar = [&](int r, BoxSplit split = BoxSplit::Mirrored) {
+        return cantileverModel(ctx.bar, r, ElementModel::Corotational, split);
+    };
     std::vector<double> fMesh;
     for (int r : ctx.res) fMesh.push_back(firstBendingFrequency(bar(r)));
     char name[160];
@@ -571,8 +599,11 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
                 e.sliceMax = std::max(e.sliceMax, q);
             }
             if (!quiet)
-                std::fprintf(stderr, "    taking turns with it: %-34s error %.3e  cost %.4g s/s  ratio %.3g (halves %.3g, %.3g)\n",
-                             e.point.config.c_str(), e.point.error, e.point.wallPerSimSecond, e.ratio, e.firstHalf, e.secondHalf);
+                std::fprintf(
+                    stderr,
+                    "    taking turns with it: %-34s error %.3e  cost %.4g s/s  ratio %.3g (halves %.3g, %.3g)\n",
+                    e.point.config.c_str(), e.point.error, e.point.wallPerSimSecond, e.ratio, e.firstHalf,
+                    e.secondHalf);
             c.runs.push_back(e);
         }
         paired.push_back(c);
@@ -598,7 +629,8 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
                 const StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
                 const std::string cfg = explicitName(kuhn ? "kuhn " : "", r, f);
                 log(runStaticPoint(ctx, m, opt, cfg));
-                log(kuhn ? runFrequencyPoint(ctx, m, opt, cfg) : predicted(runFrequencyPoint(ctx, m, opt, cfg), opt, fMesh[i]));
+                log(kuhn ? runFrequencyPoint(ctx, m, opt, cfg)
+                         : predicted(runFrequencyPoint(ctx, m, opt, cfg), opt, fMesh[i]));
             }
             // and with the element forces in single precision (integrator.precision), at 0.999
             if (!kuhn && r == finest) {
@@ -659,10 +691,13 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
         pr.steps = ctx.tiny ? 3 : 5;
         const double dtTimed = pr.dt > 0 ? pr.dt : 1e-3;
         pr.directSeconds = backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::Direct).first;
-        std::tie(pr.cgSeconds, pr.cgIterations) = backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::ConjugateGradient);
+        std::tie(pr.cgSeconds, pr.cgIterations) =
+            backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::ConjugateGradient);
         if (pr.dt > 0) pr.cost = pr.stepSeconds() / pr.dt;
         if (!quiet)
-            std::fprintf(stderr, "  backward Euler %dx%dx%d: mesh frequency error %.4f, a step %.4g s (LDL^T) / %.4g s (CG, %d iterations), "
+            std::fprintf(stderr,
+                         "  backward Euler %dx%dx%d: mesh frequency error %.4f, a step %.4g s (LDL^T) / %.4g s (CG, %d "
+                         "iterations), "
                          "dt for 1%%: %.4g s, projected %.4g s/s\n",
                          10 * r, r, r, pr.meshError, pr.directSeconds, pr.cgSeconds, pr.cgIterations, pr.dt, pr.cost);
         proj.push_back(pr);
@@ -700,9 +735,12 @@ int runAccuracy(const AccuracyArgs& a) {
         setThreads(a.threads);
         AccuracyContext ctx;
         ctx.tiny = a.tiny;
-        if (a.tiny) ctx.res = {1};
-        else if (!a.res.empty()) ctx.res = a.res;
-        else for (int r = 1; r <= a.maxRes; ++r) ctx.res.push_back(r);
+        if (a.tiny)
+            ctx.res = {1};
+        else if (!a.res.empty())
+            ctx.res = a.res;
+        else
+            for (int r = 1; r <= a.maxRes; ++r) ctx.res.push_back(r);
         std::sort(ctx.res.begin(), ctx.res.end());
         ctx.res.erase(std::unique(ctx.res.begin(), ctx.res.end()), ctx.res.end());
         ctx.maxRes = ctx.res.back();
@@ -710,16 +748,20 @@ int runAccuracy(const AccuracyArgs& a) {
         ctx.cgMaxRes = a.cgMaxRes;
         ctx.quiet = a.json;
         ctx.references = &refs;
-        if (a.tiny) { ctx.bar.staticTime = 0.2; ctx.bar.frequencyTime = 0.5; }
+        if (a.tiny) {
+            ctx.bar.staticTime = 0.2;
+            ctx.bar.frequencyTime = 0.5;
+        }
         // Converged references: Richardson extrapolation of the two finest reference meshes
         // (linear tets converge as h^2); the coarser pair shows how well converged they are.
-        std::vector<int> levels = a.tiny ? std::vector<int>{2, 4} : a.refLevels.empty() ? std::vector<int>{2, 4, 8} : a.refLevels;
+        std::vector<int> levels = a.tiny                ? std::vector<int>{2, 4}
+                                  : a.refLevels.empty() ? std::vector<int>{2, 4, 8}
+                                                        : a.refLevels;
         std::sort(levels.begin(), levels.end());
         levels.erase(std::unique(levels.begin(), levels.end()), levels.end());
         if (levels.size() < 2) throw InputError("--ref-levels", 0, "needs at least two different levels");
-        const BarReferences br = barReferences(levels, [&](int r) {
-            return cantileverModel(ctx.bar, r, ElementModel::Corotational, BoxSplit::Mirrored);
-        });
+        const BarReferences br = barReferences(
+            levels, [&](int r) { return cantileverModel(ctx.bar, r, ElementModel::Corotational, BoxSplit::Mirrored); });
         ctx.tipReference = br.tip;
         ctx.frequencyReference = br.frequency;
         // Euler-Bernoulli with Timoshenko's shear term (kappa = 5/6) and the first bending frequency.
@@ -729,14 +771,21 @@ int runAccuracy(const AccuracyArgs& a) {
         const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
         const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
         auto order = [](double p) { return std::isfinite(p) ? json(p) : json(nullptr); };
-        refs["cantilever_static"] = {{"reference", ctx.tipReference}, {"levels", levels}, {"values", br.tips},
+        refs["cantilever_static"] = {{"reference", ctx.tipReference},
+                                     {"levels", levels},
+                                     {"values", br.tips},
                                      {"observed_order", order(br.tipOrder)},
-                                     {"beam_theory", beamTip}, {"reference_over_beam", ctx.tipReference / beamTip}};
-        refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference}, {"levels", levels}, {"values", br.freqs},
+                                     {"beam_theory", beamTip},
+                                     {"reference_over_beam", ctx.tipReference / beamTip}};
+        refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference},
+                                        {"levels", levels},
+                                        {"values", br.freqs},
                                         {"observed_order", order(br.frequencyOrder)},
-                                        {"beam_theory", beamFreq}, {"reference_over_beam", ctx.frequencyReference / beamFreq}};
+                                        {"beam_theory", beamFreq},
+                                        {"reference_over_beam", ctx.frequencyReference / beamFreq}};
         if (!a.json)
-            std::fprintf(stderr, "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
+            std::fprintf(stderr,
+                         "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
                          ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
         if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj, paired);
         for (auto& [name, fn] : registry().configs) {
@@ -749,11 +798,14 @@ int runAccuracy(const AccuracyArgs& a) {
 
     json j;
     j["points"] = json::array();
-    for (const auto& p : pts)
-    {
-        json q = {{"problem", p.problem}, {"config", p.config}, {"error", jsonNumber(p.error)},
-                  {"wall_per_sim_second", p.wallPerSimSecond}, {"dt", p.dt},
-                  {"scheme", p.explicitScheme ? "explicit" : "implicit"}, {"pareto", p.pareto}};
+    for (const auto& p : pts) {
+        json q = {{"problem", p.problem},
+                  {"config", p.config},
+                  {"error", jsonNumber(p.error)},
+                  {"wall_per_sim_second", p.wallPerSimSecond},
+                  {"dt", p.dt},
+                  {"scheme", p.explicitScheme ? "explicit" : "implicit"},
+                  {"pareto", p.pareto}};
         if (std::isfinite(p.frequencyError)) q["frequency_error"] = p.frequencyError;
         if (std::isfinite(p.dampingRatio)) q["damping_ratio"] = p.dampingRatio;
         if (std::isfinite(p.predictedError)) q["predicted_error"] = p.predictedError;
@@ -766,13 +818,17 @@ int runAccuracy(const AccuracyArgs& a) {
         // When 1% is out of reach: the finest error both kinds reach, and their costs there.
         double minEx = INFINITY, minIm = INFINITY;
         for (const auto& q : pts)
-            if (q.problem == p.problem) (q.explicitScheme ? minEx : minIm) = std::min(q.explicitScheme ? minEx : minIm, q.error);
+            if (q.problem == p.problem)
+                (q.explicitScheme ? minEx : minIm) = std::min(q.explicitScheme ? minEx : minIm, q.error);
         const double common = std::max(minEx, minIm);
         const double exC = costAtError(pts, p.problem, common, true), imC = costAtError(pts, p.problem, common, false);
-        j["summary"][p.problem] = {{"best_explicit_cost_at_1pct", jsonNumber(ex)}, {"implicit_cost_at_1pct", jsonNumber(im)},
+        j["summary"][p.problem] = {{"best_explicit_cost_at_1pct", jsonNumber(ex)},
+                                   {"implicit_cost_at_1pct", jsonNumber(im)},
                                    {"speedup_at_1pct", ex > 0 && im > 0 ? json(im / ex) : json(nullptr)},
-                                   {"best_explicit_error", jsonNumber(minEx)}, {"best_implicit_error", jsonNumber(minIm)},
-                                   {"common_error", jsonNumber(common)}, {"explicit_cost_at_common_error", jsonNumber(exC)},
+                                   {"best_explicit_error", jsonNumber(minEx)},
+                                   {"best_implicit_error", jsonNumber(minIm)},
+                                   {"common_error", jsonNumber(common)},
+                                   {"explicit_cost_at_common_error", jsonNumber(exC)},
                                    {"implicit_cost_at_common_error", jsonNumber(imC)}};
     }
     // The implicit reference where it is too dear to run: measured step, projected steps.
@@ -780,11 +836,17 @@ int runAccuracy(const AccuracyArgs& a) {
         j["implicit_projection"] = json::array();
         const ImplicitProjection* best = nullptr;
         for (const auto& pr : proj) {
-            j["implicit_projection"].push_back({{"res", pr.res}, {"tets", pr.tets}, {"mesh_frequency", pr.meshFrequency},
-                                                {"mesh_error", pr.meshError}, {"dt_at_1pct", jsonNumber(pr.dt > 0 ? pr.dt : -1)},
-                                                {"step_seconds", pr.stepSeconds()}, {"solver", pr.solver()},
-                                                {"step_seconds_direct", pr.directSeconds}, {"step_seconds_cg", pr.cgSeconds},
-                                                {"cg_iterations", pr.cgIterations}, {"steps_timed", pr.steps},
+            j["implicit_projection"].push_back({{"res", pr.res},
+                                                {"tets", pr.tets},
+                                                {"mesh_frequency", pr.meshFrequency},
+                                                {"mesh_error", pr.meshError},
+                                                {"dt_at_1pct", jsonNumber(pr.dt > 0 ? pr.dt : -1)},
+                                                {"step_seconds", pr.stepSeconds()},
+                                                {"solver", pr.solver()},
+                                                {"step_seconds_direct", pr.directSeconds},
+                                                {"step_seconds_cg", pr.cgSeconds},
+                                                {"cg_iterations", pr.cgIterations},
+                                                {"steps_timed", pr.steps},
                                                 {"cost_at_1pct", jsonNumber(std::isfinite(pr.cost) ? pr.cost : -1)}});
             if (std::isfinite(pr.cost) && (!best || pr.cost < best->cost)) best = &pr;
         }
@@ -805,17 +867,27 @@ int runAccuracy(const AccuracyArgs& a) {
         for (const auto& c : paired) {
             json runs = json::array();
             for (const auto& e : c.runs)
-                runs.push_back({{"config", e.point.config}, {"error", jsonNumber(e.point.error)}, {"cost", e.point.wallPerSimSecond},
-                                {"ratio", e.ratio}, {"ratio_first_half", e.firstHalf}, {"ratio_second_half", e.secondHalf},
-                                {"slice_ratio_min", e.sliceMin}, {"slice_ratio_max", e.sliceMax}});
-            j["paired"].push_back({{"problem", c.implicitPoint.problem}, {"implicit", c.implicitPoint.config},
-                                   {"implicit_error", jsonNumber(c.implicitPoint.error)}, {"implicit_cost", c.implicitPoint.wallPerSimSecond},
-                                   {"slices", c.slices}, {"explicit", runs}});
-            if (!(c.implicitPoint.error <= 0.01) || (best && best->implicitPoint.wallPerSimSecond <= c.implicitPoint.wallPerSimSecond))
+                runs.push_back({{"config", e.point.config},
+                                {"error", jsonNumber(e.point.error)},
+                                {"cost", e.point.wallPerSimSecond},
+                                {"ratio", e.ratio},
+                                {"ratio_first_half", e.firstHalf},
+                                {"ratio_second_half", e.secondHalf},
+                                {"slice_ratio_min", e.sliceMin},
+                                {"slice_ratio_max", e.sliceMax}});
+            j["paired"].push_back({{"problem", c.implicitPoint.problem},
+                                   {"implicit", c.implicitPoint.config},
+                                   {"implicit_error", jsonNumber(c.implicitPoint.error)},
+                                   {"implicit_cost", c.implicitPoint.wallPerSimSecond},
+                                   {"slices", c.slices},
+                                   {"explicit", runs}});
+            if (!(c.implicitPoint.error <= 0.01) ||
+                (best && best->implicitPoint.wallPerSimSecond <= c.implicitPoint.wallPerSimSecond))
                 continue;
             const PairedComparison::Explicit* cheapest = nullptr;
             for (const auto& e : c.runs)
-                if (e.point.error <= 0.01 && (!cheapest || e.point.wallPerSimSecond < cheapest->point.wallPerSimSecond)) cheapest = &e;
+                if (e.point.error <= 0.01 && (!cheapest || e.point.wallPerSimSecond < cheapest->point.wallPerSimSecond))
+                    cheapest = &e;
             if (cheapest) {
                 best = &c;
                 bestEx = cheapest;
@@ -837,53 +909,61 @@ int runAccuracy(const AccuracyArgs& a) {
         std::cout << j.dump(2) << "\n";
         return 0;
     }
-    std::printf("%-26s %-42s %12s %14s %12s %6s %11s %11s %11s\n", "problem", "config", "error", "wall/sim [s/s]", "dt [s]",
-                "pareto", "freq err", "damping", "predicted");
+    std::printf("%-26s %-42s %12s %14s %12s %6s %11s %11s %11s\n", "problem", "config", "error", "wall/sim [s/s]",
+                "dt [s]", "pareto", "freq err", "damping", "predicted");
     auto opt = [](double v) {
         char b[32];
-        if (std::isfinite(v)) std::snprintf(b, sizeof b, "%11.3e", v);
-        else std::snprintf(b, sizeof b, "%11s", "");
+        if (std::isfinite(v))
+            std::snprintf(b, sizeof b, "%11.3e", v);
+        else
+            std::snprintf(b, sizeof b, "%11s", "");
         return std::string(b);
     };
     for (const auto& p : pts)
         std::printf("%-26s %-42s %12.4e %14.5g %12.4g %6s %s %s %s\n", p.problem.c_str(), p.config.c_str(), p.error,
-                    p.wallPerSimSecond, p.dt, p.pareto ? "*" : "", opt(p.frequencyError).c_str(), opt(p.dampingRatio).c_str(),
-                    opt(p.predictedError).c_str());
+                    p.wallPerSimSecond, p.dt, p.pareto ? "*" : "", opt(p.frequencyError).c_str(),
+                    opt(p.dampingRatio).c_str(), opt(p.predictedError).c_str());
     if (!proj.empty()) {
-        std::printf("\nbackward Euler at 1%% on cantilever_frequency, projected: its step timed on each mesh, over the dt at\n"
-                    "which its first mode is 1%% off (mesh error from Lanczos):\n");
+        std::printf(
+            "\nbackward Euler at 1%% on cantilever_frequency, projected: its step timed on each mesh, over the dt at\n"
+            "which its first mode is 1%% off (mesh error from Lanczos):\n");
         std::printf("  %-12s %8s %11s %13s %10s %8s %12s %14s\n", "mesh", "tets", "mesh error", "LDL^T [s]", "CG [s]",
                     "CG its", "dt 1% [s]", "cost [s/s]");
         for (const auto& pr : proj) {
             char mesh[32];
             std::snprintf(mesh, sizeof mesh, "%dx%dx%d", 10 * pr.res, pr.res, pr.res);
-            std::printf("  %-12s %8ld %11.4f %13.4g %10.4g %8d %12s %14s\n", mesh, pr.tets, pr.meshError, pr.directSeconds,
-                        pr.cgSeconds, pr.cgIterations, pr.dt > 0 ? std::to_string(pr.dt).c_str() : "-",
+            std::printf("  %-12s %8ld %11.4f %13.4g %10.4g %8d %12s %14s\n", mesh, pr.tets, pr.meshError,
+                        pr.directSeconds, pr.cgSeconds, pr.cgIterations,
+                        pr.dt > 0 ? std::to_string(pr.dt).c_str() : "-",
                         std::isfinite(pr.cost) ? std::to_string(pr.cost).c_str() : "-");
         }
     }
     if (!paired.empty()) {
-        std::printf("\nexplicit runs taking turns with an implicit one (%d slices of equal simulated time; ratio = implicit cost /\n"
-                    "explicit cost, over the run, its two halves, and the range of single slices):\n", paired.front().slices);
+        std::printf("\nexplicit runs taking turns with an implicit one (%d slices of equal simulated time; ratio = "
+                    "implicit cost /\n"
+                    "explicit cost, over the run, its two halves, and the range of single slices):\n",
+                    paired.front().slices);
         for (const auto& c : paired) {
             std::printf("  %s: error %.4e, %.5g s/s\n", c.implicitPoint.config.c_str(), c.implicitPoint.error,
                         c.implicitPoint.wallPerSimSecond);
             for (const auto& e : c.runs)
                 std::printf("    %-38s error %.4e  %9.5g s/s  ratio %6.3f  halves %6.3f %6.3f  slices %6.3f .. %6.3f\n",
-                            e.point.config.c_str(), e.point.error, e.point.wallPerSimSecond, e.ratio, e.firstHalf, e.secondHalf,
-                            e.sliceMin, e.sliceMax);
+                            e.point.config.c_str(), e.point.error, e.point.wallPerSimSecond, e.ratio, e.firstHalf,
+                            e.secondHalf, e.sliceMin, e.sliceMax);
         }
     }
     std::printf("\ncost at 1%% error (wall s per simulated s; - = not reached):\n");
     for (auto& [problem, s] : j["summary"].items()) {
         auto show = [](const json& v) { return v.is_null() ? std::string("-") : std::to_string(v.get<double>()); };
-        std::printf("  %-22s explicit %s  implicit %s;  at the finest error both reach (%s): explicit %s  implicit %s\n",
-                    problem.c_str(), show(s["best_explicit_cost_at_1pct"]).c_str(), show(s["implicit_cost_at_1pct"]).c_str(),
-                    show(s["common_error"]).c_str(), show(s["explicit_cost_at_common_error"]).c_str(),
-                    show(s["implicit_cost_at_common_error"]).c_str());
+        std::printf(
+            "  %-22s explicit %s  implicit %s;  at the finest error both reach (%s): explicit %s  implicit %s\n",
+            problem.c_str(), show(s["best_explicit_cost_at_1pct"]).c_str(), show(s["implicit_cost_at_1pct"]).c_str(),
+            show(s["common_error"]).c_str(), show(s["explicit_cost_at_common_error"]).c_str(),
+            show(s["implicit_cost_at_common_error"]).c_str());
         if (s.contains("speedup_at_1pct_paired") && !s["speedup_at_1pct_paired"].is_null())
-            std::printf("  %-22s taking turns at 1%%: %s cheaper by %.3fx than %s\n", "", s["paired_explicit"].get<std::string>().c_str(),
-                        s["speedup_at_1pct_paired"].get<double>(), s["paired_implicit"].get<std::string>().c_str());
+            std::printf("  %-22s taking turns at 1%%: %s cheaper by %.3fx than %s\n", "",
+                        s["paired_explicit"].get<std::string>().c_str(), s["speedup_at_1pct_paired"].get<double>(),
+                        s["paired_implicit"].get<std::string>().c_str());
     }
     return 0;
 }
@@ -893,8 +973,8 @@ int runAccuracy(const AccuracyArgs& a) {
 struct StabilityArgs {
     bool json = false, tiny = false;
     int steps = 2000;
-    int cutRuns = 150;      // random cut sequences per object
-    int cutSteps = 300;     // steps between two cuts of a sequence
+    int cutRuns = 150;   // random cut sequences per object
+    int cutSteps = 300;  // steps between two cuts of a sequence
 };
 
 // The sweep's meshes: the clamped cantilever 20x2x2 and, when present, the liver mesh.
@@ -933,11 +1013,17 @@ bool stableRun(const Model& m0, const StepOptions& opt, int steps, double* growt
     double emax = e0;
     for (int k = 0; k < steps; ++k) {
         st.step(m, s, opt);
-        if (s.flags.nonFinite) { *growth = INFINITY; return false; }
+        if (s.flags.nonFinite) {
+            *growth = INFINITY;
+            return false;
+        }
         if (k % 50 == 49 || k == steps - 1) {
             const double e = kineticEnergy(m, s) + elasticEnergy(m, s);
             emax = std::max(emax, e);
-            if (!(e < 1e3 * e0)) { *growth = e / e0; return false; }
+            if (!(e < 1e3 * e0)) {
+                *growth = e / e0;
+                return false;
+            }
         }
     }
     *growth = emax / e0;
@@ -967,9 +1053,14 @@ int runStability(const StabilityArgs& a) {
     const int steps = a.tiny ? std::min(a.steps, 400) : a.steps;
     // alpha_e: eq. 3.16 as written, which puts each damped element exactly at its own limit;
     // alpha_e_0.95: the same with a 5% margin on the element steps (dt_e -> 0.95 dt_e).
-    struct Scheme { Integrator integrator; double margin; };
-    const std::vector<Scheme> schemes = {{Integrator::SymplecticEuler, 0}, {Integrator::CentralDifference, 0},
-                                         {Integrator::Newmark, 0}, {Integrator::SymplecticEuler, 1.0},
+    struct Scheme {
+        Integrator integrator;
+        double margin;
+    };
+    const std::vector<Scheme> schemes = {{Integrator::SymplecticEuler, 0},
+                                         {Integrator::CentralDifference, 0},
+                                         {Integrator::Newmark, 0},
+                                         {Integrator::SymplecticEuler, 1.0},
                                          {Integrator::SymplecticEuler, 0.95}};
     json j;
     j["steps"] = steps;
@@ -989,7 +1080,10 @@ int runStability(const StabilityArgs& a) {
             for (double f : grid) {
                 StepOptions opt{sc.integrator, f * dtExact};
                 Eigen::VectorXd alpha;
-                if (damped) { alpha = elementAlpha(sc.margin * r1r, opt.dt); opt.alphaElem = &alpha; }
+                if (damped) {
+                    alpha = elementAlpha(sc.margin * r1r, opt.dt);
+                    opt.alphaElem = &alpha;
+                }
                 double growth = 0;
                 const bool ok = stableRun(m, opt, steps, &growth);
                 runs.push_back({{"fraction", f}, {"stable", ok}, {"energy_growth", jsonNumber(growth)}});
@@ -997,20 +1091,27 @@ int runStability(const StabilityArgs& a) {
                 if (!ok) allBelow = false;
             }
             const std::string scheme = !damped ? "plain" : sc.margin == 1.0 ? "alpha_e" : "alpha_e_0.95";
-            j["sweeps"].push_back({{"mesh", sm.name}, {"tets", m.elements()}, {"dt_exact", dtExact},
+            j["sweeps"].push_back({{"mesh", sm.name},
+                                   {"tets", m.elements()},
+                                   {"dt_exact", dtExact},
                                    {"dt_r1r_min_over_exact", r1r.minCoeff() / dtExact},
                                    {"dt_r1r_max_over_exact", r1r.maxCoeff() / dtExact},
-                                   {"integrator", integratorName(sc.integrator)}, {"scheme", scheme},
-                                   {"largest_stable_fraction", largest}, {"runs", runs}});
+                                   {"integrator", integratorName(sc.integrator)},
+                                   {"scheme", scheme},
+                                   {"largest_stable_fraction", largest},
+                                   {"runs", runs}});
             if (!a.json)
-                std::printf("%-26s %-22s %-9s %18.3f\n", sm.name.c_str(), integratorName(sc.integrator), scheme.c_str(), largest);
+                std::printf("%-26s %-22s %-9s %18.3f\n", sm.name.c_str(), integratorName(sc.integrator), scheme.c_str(),
+                            largest);
         }
     }
     // After XFEM cuts: the same sweep (plain symplectic Euler) relative to the exact limit of the
     // cut model, one model per lumping option.
     j["after_cuts"] = json::array();
-    if (!a.json) std::printf("\nafter cuts (symplectic Euler, plain; fractions of the cut model's exact limit)\n%-26s %-18s %8s %14s %18s\n",
-                             "mesh", "lumping", "crossed", "dt cut/uncut", "largest stable f");
+    if (!a.json)
+        std::printf("\nafter cuts (symplectic Euler, plain; fractions of the cut model's exact limit)\n%-26s %-18s %8s "
+                    "%14s %18s\n",
+                    "mesh", "lumping", "crossed", "dt cut/uncut", "largest stable f");
     for (AfterCutModel& ac : afterCutModels(a.tiny)) {
         // Plain: without the damping of the light control points (Model::lightNodes), which is
         // what sets the limit of a cut model and which lets it run past that limit.
@@ -1026,12 +1127,19 @@ int runStability(const StabilityArgs& a) {
             if (ok && allBelow) largest = f;
             if (!ok) allBelow = false;
         }
-        j["after_cuts"].push_back({{"mesh", ac.mesh}, {"lumping", ac.lumping}, {"crossed", ac.crossed},
-                                   {"tets", ac.model.elements()}, {"dt_uncut", ac.dtUncut}, {"dt_exact", dtExact},
-                                   {"dt_ratio", dtExact / ac.dtUncut}, {"integrator", "symplectic_euler"},
-                                   {"largest_stable_fraction", largest}, {"runs", runs}});
+        j["after_cuts"].push_back({{"mesh", ac.mesh},
+                                   {"lumping", ac.lumping},
+                                   {"crossed", ac.crossed},
+                                   {"tets", ac.model.elements()},
+                                   {"dt_uncut", ac.dtUncut},
+                                   {"dt_exact", dtExact},
+                                   {"dt_ratio", dtExact / ac.dtUncut},
+                                   {"integrator", "symplectic_euler"},
+                                   {"largest_stable_fraction", largest},
+                                   {"runs", runs}});
         if (!a.json)
-            std::printf("%-26s %-18s %8d %14.4f %18.3f\n", ac.mesh.c_str(), ac.lumping.c_str(), ac.crossed, dtExact / ac.dtUncut, largest);
+            std::printf("%-26s %-18s %8d %14.4f %18.3f\n", ac.mesh.c_str(), ac.lumping.c_str(), ac.crossed,
+                        dtExact / ac.dtUncut, largest);
     }
     // Random cut sequences (the stress test of cutting, short): 1-4 random planes per run, steps at
     // 0.9 of the current exact limit between cuts; a failure is a non-finite value or a node faster
@@ -1041,8 +1149,8 @@ int runStability(const StabilityArgs& a) {
         if (!a.json)
             std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
                         "integrator.min_stretch)\n%-10s %6s %6s %6s %9s %9s %14s %15s %13s %12s\n",
-                        a.cutSteps, "object", "limit", "runs", "cuts", "steps", "failures", "inverted runs", "inverted at end",
-                        "limited runs", "min dt ratio");
+                        a.cutSteps, "object", "limit", "runs", "cuts", "steps", "failures", "inverted runs",
+                        "inverted at end", "limited runs", "min dt ratio");
         std::vector<std::pair<std::string, Model>> objects;
         objects.emplace_back("bar", randomCutBarModel());
         const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
@@ -1052,17 +1160,28 @@ int runStability(const StabilityArgs& a) {
             // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
             for (const double limit : {0.0, 0.2}) {
                 const auto t0 = WallClock::now();
-                const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, {MassLumping::Enrichment, 0.9, limit});
-                j["random_cuts"].push_back({{"object", name}, {"min_stretch", limit}, {"runs", st.runs}, {"cuts", st.cuts},
-                                            {"steps", st.steps}, {"failures", st.failures}, {"inverted_runs", st.invertedRuns},
-                                            {"inverted_at_end", st.invertedAtEnd}, {"limited_runs", st.limitedRuns},
-                                            {"limited_steps", st.limitedSteps}, {"max_speed", st.maxSpeed},
-                                            {"min_dt_ratio", st.minDtRatio}, {"max_volume_error", st.maxVolumeError},
-                                            {"max_mass_error", st.maxMassError}, {"first_failure", st.firstFailure},
+                const RandomCutStats st =
+                    runRandomCuts(model, a.cutRuns, a.cutSteps, seed, {MassLumping::Enrichment, 0.9, limit});
+                j["random_cuts"].push_back({{"object", name},
+                                            {"min_stretch", limit},
+                                            {"runs", st.runs},
+                                            {"cuts", st.cuts},
+                                            {"steps", st.steps},
+                                            {"failures", st.failures},
+                                            {"inverted_runs", st.invertedRuns},
+                                            {"inverted_at_end", st.invertedAtEnd},
+                                            {"limited_runs", st.limitedRuns},
+                                            {"limited_steps", st.limitedSteps},
+                                            {"max_speed", st.maxSpeed},
+                                            {"min_dt_ratio", st.minDtRatio},
+                                            {"max_volume_error", st.maxVolumeError},
+                                            {"max_mass_error", st.maxMassError},
+                                            {"first_failure", st.firstFailure},
                                             {"seconds", secondsSince(t0)}});
                 if (!a.json)
-                    std::printf("%-10s %6.2f %6d %6d %9ld %9d %14d %15d %13d %12.4f%s%s\n", name.c_str(), limit, st.runs, st.cuts,
-                                st.steps, st.failures, st.invertedRuns, st.invertedAtEnd, st.limitedRuns, st.minDtRatio,
+                    std::printf("%-10s %6.2f %6d %6d %9ld %9d %14d %15d %13d %12.4f%s%s\n", name.c_str(), limit,
+                                st.runs, st.cuts, st.steps, st.failures, st.invertedRuns, st.invertedAtEnd,
+                                st.limitedRuns, st.minDtRatio,
                                 st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
             }
             ++seed;
@@ -1097,8 +1216,9 @@ int runStability(const StabilityArgs& a) {
             }
         }
         const double drift = (last - first) / e0;
-        j["energy_drift"] = {{"mesh", models[0].name}, {"integrator", "symplectic_euler"}, {"fraction", 0.9}, {"steps", n},
-                             {"oscillation", maxDev}, {"drift", drift}};
+        j["energy_drift"] = {{"mesh", models[0].name}, {"integrator", "symplectic_euler"},
+                             {"fraction", 0.9},        {"steps", n},
+                             {"oscillation", maxDev},  {"drift", drift}};
         if (!a.json)
             std::printf("\nenergy, %s, symplectic Euler at 0.9, %ld steps: oscillation max |E-E0|/E0 = %.3e, "
                         "drift (last tenth - first tenth)/E0 = %.3e\n",
@@ -1112,7 +1232,7 @@ int runStability(const StabilityArgs& a) {
 
 struct StepArgs {
     bool json = false, tiny = false;
-    double seconds = 1.0;   // measuring time per configuration [s]
+    double seconds = 1.0;  // measuring time per configuration [s]
 };
 
 // The benchmark's box: n^3 cubes (6 n^3 tets), clamped at x = 0, rotated and bent start so the
@@ -1133,46 +1253,54 @@ int runStep(const StepArgs& a) {
     json j;
     j["runs"] = json::array();
     if (!a.json)
-        std::printf("%9s %7s %9s %8s %14s %12s %12s %12s\n", "tets", "threads", "precision", "steps", "tet-steps/s", "element %",
-                    "nodes %", "integrate %");
+        std::printf("%9s %7s %9s %8s %14s %12s %12s %12s\n", "tets", "threads", "precision", "steps", "tet-steps/s",
+                    "element %", "nodes %", "integrate %");
     for (int n : sizes) {
         Model m = stepModel(n);
         for (int th : threadCounts)
-        for (ForcePrecision precision : {ForcePrecision::Double, ForcePrecision::Single}) {
-            setThreads(th);
-            m.precision = precision;
-            const char* precisionName = precision == ForcePrecision::Single ? "single" : "double";
-            State s = makeState(m);
-            s.x = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix() * m.X;
-            Stepper st;
-            const StepOptions opt{Integrator::SymplecticEuler, 1e-6};
-            for (int k = 0; k < 3; ++k) st.step(m, s, opt);
-            // Whole steps for at least the measuring time (at least 3).
-            long steps = 0;
-            double forceSec = 0;
-            const auto t0 = WallClock::now();
-            while (steps < 3 || secondsSince(t0) < a.seconds) {
-                st.step(m, s, opt);
-                forceSec += st.lastForceSeconds();
-                ++steps;
+            for (ForcePrecision precision : {ForcePrecision::Double, ForcePrecision::Single}) {
+                setThreads(th);
+                m.precision = precision;
+                const char* precisionName = precision == ForcePrecision::Single ? "single" : "double";
+                State s = makeState(m);
+                s.x = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix() * m.X;
+                Stepper st;
+                const StepOptions opt{Integrator::SymplecticEuler, 1e-6};
+                for (int k = 0; k < 3; ++k) st.step(m, s, opt);
+                // Whole steps for at least the measuring time (at least 3).
+                long steps = 0;
+                double forceSec = 0;
+                const auto t0 = WallClock::now();
+                while (steps < 3 || secondsSince(t0) < a.seconds) {
+                    st.step(m, s, opt);
+                    forceSec += st.lastForceSeconds();
+                    ++steps;
+                }
+                const double total = secondsSince(t0);
+                // The force stage split into its phases, timed in passes of their own on the same threads.
+                ForceStageSeconds phases;
+                const int reps = static_cast<int>(std::max<long>(1, steps / 4));
+                for (int r = 0; r < reps; ++r) computeForces(m, s, nullptr, 0, false, &phases);
+                const double perStep = total / steps;
+                const double elemShare = phases.elements / reps / perStep, nodeShare = phases.nodes / reps / perStep;
+                const double integrateShare = std::max(0.0, 1.0 - forceSec / total);
+                const double rate = static_cast<double>(m.elements()) * steps / total;
+                j["runs"].push_back({{"tets", m.elements()},
+                                     {"nodes", m.nodes()},
+                                     {"threads", th},
+                                     {"precision", precisionName},
+                                     {"steps", steps},
+                                     {"seconds", total},
+                                     {"tet_steps_per_second", rate},
+                                     {"stages",
+                                      {{"forces", forceSec / total},
+                                       {"element", elemShare},
+                                       {"nodes", nodeShare},
+                                       {"integrate", integrateShare}}}});
+                if (!a.json)
+                    std::printf("%9d %7d %9s %8ld %14.4g %12.1f %12.1f %12.1f\n", m.elements(), th, precisionName,
+                                steps, rate, 100 * elemShare, 100 * nodeShare, 100 * integrateShare);
             }
-            const double total = secondsSince(t0);
-            // The force stage split into its phases, timed in passes of their own on the same threads.
-            ForceStageSeconds phases;
-            const int reps = static_cast<int>(std::max<long>(1, steps / 4));
-            for (int r = 0; r < reps; ++r) computeForces(m, s, nullptr, 0, false, &phases);
-            const double perStep = total / steps;
-            const double elemShare = phases.elements / reps / perStep, nodeShare = phases.nodes / reps / perStep;
-            const double integrateShare = std::max(0.0, 1.0 - forceSec / total);
-            const double rate = static_cast<double>(m.elements()) * steps / total;
-            j["runs"].push_back({{"tets", m.elements()}, {"nodes", m.nodes()}, {"threads", th}, {"precision", precisionName}, {"steps", steps},
-                                 {"seconds", total}, {"tet_steps_per_second", rate},
-                                 {"stages", {{"forces", forceSec / total}, {"element", elemShare}, {"nodes", nodeShare},
-                                             {"integrate", integrateShare}}}});
-            if (!a.json)
-                std::printf("%9d %7d %9s %8ld %14.4g %12.1f %12.1f %12.1f\n", m.elements(), th, precisionName, steps, rate,
-                            100 * elemShare, 100 * nodeShare, 100 * integrateShare);
-        }
     }
     setThreads(0);
     if (a.json) std::cout << j.dump(2) << "\n";
@@ -1204,7 +1332,10 @@ json runVariant(const std::string& scene, std::vector<std::string> sets, int thr
 int runCost(const CostArgs& a) {
     // The scene as given, then without each optional part it uses: the subsystems it leaves out
     // must cost nothing, and each one it uses shows up as the difference.
-    struct Variant { std::string name; std::vector<std::string> sets; };
+    struct Variant {
+        std::string name;
+        std::vector<std::string> sets;
+    };
     const SceneDef def = loadScene(a.scene, a.sets);
     std::vector<Variant> variants = {{"as given", {}}};
     if (!def.forces.empty()) variants.push_back({"without loads", {"loads.forces=[]"}});
@@ -1226,8 +1357,12 @@ int runCost(const CostArgs& a) {
         const double steps = std::max(1.0, r["steps"].get<double>());
         json perStep = json::object();
         for (auto& [k, val] : r["stages"].items()) perStep[k] = val.get<double>() / steps;
-        j["variants"].push_back({{"name", v.name}, {"status", r["status"]}, {"steps", r["steps"]}, {"wall_time", r["wall_time"]},
-                                 {"stages", r["stages"]}, {"stage_seconds_per_step", perStep}});
+        j["variants"].push_back({{"name", v.name},
+                                 {"status", r["status"]},
+                                 {"steps", r["steps"]},
+                                 {"wall_time", r["wall_time"]},
+                                 {"stages", r["stages"]},
+                                 {"stage_seconds_per_step", perStep}});
     }
     if (a.json) {
         std::cout << j.dump(2) << "\n";
@@ -1238,7 +1373,8 @@ int runCost(const CostArgs& a) {
     for (const auto& s : stages) std::printf(" %11s", s.c_str());
     std::printf("\n");
     for (const auto& v : j["variants"]) {
-        std::printf("%-20s %8ld %10.3f", v["name"].get<std::string>().c_str(), v["steps"].get<long>(), v["wall_time"].get<double>());
+        std::printf("%-20s %8ld %10.3f", v["name"].get<std::string>().c_str(), v["steps"].get<long>(),
+                    v["wall_time"].get<double>());
         for (const auto& s : stages) std::printf(" %11.4g", v["stages"][s].get<double>());
         std::printf("\n");
     }
@@ -1249,8 +1385,8 @@ int runCost(const CostArgs& a) {
 // Extensions of `bench`: one line per configuration or subcommand from elsewhere, e.g.
 //   addAccuracyConfig("mi-bar", miBarPoints);
 void registerBenchExtensions() {
-    addMiBarBench();           // cmd_bench_mibar.cpp: Table 6.1
-    addCutAccuracyConfigs();   // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
+    addMiBarBench();          // cmd_bench_mibar.cpp: Table 6.1
+    addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 
 template <class F>
@@ -1266,46 +1402,61 @@ int guarded(F&& f) {
     }
 }
 
-} // namespace
+}  // namespace
 
 void addBenchCommand(CLI::App& app) {
     registerBenchExtensions();
-    CLI::App* bench = app.add_subcommand("bench", "Benchmarks: accuracy against cost, stability, step throughput, scene cost");
+    CLI::App* bench =
+        app.add_subcommand("bench", "Benchmarks: accuracy against cost, stability, step throughput, scene cost");
     bench->require_subcommand(1);
 
     {
         auto a = std::make_shared<AccuracyArgs>();
-        auto* c = bench->add_subcommand("accuracy", "Error against wall time per simulated second: the cantilever (static tip "
-                                                    "deflection, first bending frequency) on conforming and MI meshes, the notched "
-                                                    "cantilever per XFEM lumping option, the liver sagging under gravity");
-        c->add_flag("--json", a->json, "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
-                                       "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, speedup_at_1pct_paired, ...}}, "
-                                       "paired: [{implicit, implicit_cost, slices, explicit: [{config, cost, ratio, ...}]}] (the explicit "
-                                       "runs that took turns with the CG runs on the finest bar), references}; error is null for a run that diverged or gave no frequency, "
-                                       "a cost is null when no point reaches the error");
+        auto* c = bench->add_subcommand("accuracy",
+                                        "Error against wall time per simulated second: the cantilever (static tip "
+                                        "deflection, first bending frequency) on conforming and MI meshes, the notched "
+                                        "cantilever per XFEM lumping option, the liver sagging under gravity");
+        c->add_flag("--json", a->json,
+                    "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
+                    "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, "
+                    "speedup_at_1pct_paired, ...}}, "
+                    "paired: [{implicit, implicit_cost, slices, explicit: [{config, cost, ratio, ...}]}] (the explicit "
+                    "runs that took turns with the CG runs on the finest bar), references}; error is null for a run "
+                    "that diverged or gave no frequency, "
+                    "a cost is null when no point reaches the error");
         c->add_option("--csv", a->csv, "Write the points to this CSV file");
         c->add_option("--plot", a->plot, "Draw error against cost with the Pareto front to this PNG (needs gnuplot)");
-        c->add_option("--from", a->from, "Take the points from a CSV (problem,config,error,wall_per_sim_second,dt[,scheme,pareto,frequency_error,damping_ratio,predicted_error]) "
-                                         "instead of running");
-        c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")->check(CLI::Range(1, 8))->capture_default_str();
-        c->add_option("--res", a->res, "Cantilever meshes N to run instead of 1 .. max-res, comma-separated (10N x N x N cubes)")
+        c->add_option("--from", a->from,
+                      "Take the points from a CSV "
+                      "(problem,config,error,wall_per_sim_second,dt[,scheme,pareto,frequency_error,damping_ratio,"
+                      "predicted_error]) "
+                      "instead of running");
+        c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")
+            ->check(CLI::Range(1, 8))
+            ->capture_default_str();
+        c->add_option("--res", a->res,
+                      "Cantilever meshes N to run instead of 1 .. max-res, comma-separated (10N x N x N cubes)")
             ->delimiter(',')
             ->check(CLI::Range(1, 24));
-        c->add_option("--ref-levels", a->refLevels, "Reference meshes N, comma-separated, at least two: Richardson (h^2) from the "
-                                                    "two finest [default 2,4,8]")
+        c->add_option("--ref-levels", a->refLevels,
+                      "Reference meshes N, comma-separated, at least two: Richardson (h^2) from the "
+                      "two finest [default 2,4,8]")
             ->delimiter(',')
             ->check(CLI::Range(1, 24));
-        c->add_option("--implicit-max-res", a->implicitMaxRes, "Run backward Euler in full up to this N; beyond it only its step "
-                                                               "is timed (its cost at 1% projected)")
+        c->add_option("--implicit-max-res", a->implicitMaxRes,
+                      "Run backward Euler in full up to this N; beyond it only its step "
+                      "is timed (its cost at 1% projected)")
             ->check(CLI::Range(0, 24))
             ->capture_default_str();
-        c->add_option("--cg-max-res", a->cgMaxRes, "Beyond --implicit-max-res and up to this N, run backward Euler with CG "
-                                                   "in full at the dt its mode formula gives for 1% (the projection, measured)")
+        c->add_option("--cg-max-res", a->cgMaxRes,
+                      "Beyond --implicit-max-res and up to this N, run backward Euler with CG "
+                      "in full at the dt its mode formula gives for 1% (the projection, measured)")
             ->check(CLI::Range(0, 24))
             ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: coarse meshes, short runs");
-        c->add_option("--threads", a->threads, "Worker threads of the explicit runs and of CG's matrix products (Eigen's, "
-                                               "OpenMP) (0 = all cores; the LDL^T factorisation is sequential)")
+        c->add_option("--threads", a->threads,
+                      "Worker threads of the explicit runs and of CG's matrix products (Eigen's, "
+                      "OpenMP) (0 = all cores; the LDL^T factorisation is sequential)")
             ->check(CLI::Range(0, 1024))
             ->capture_default_str();
         c->add_option("--only", a->only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
@@ -1315,39 +1466,50 @@ void addBenchCommand(CLI::App& app) {
     }
     {
         auto a = std::make_shared<StabilityArgs>();
-        auto* c = bench->add_subcommand("stability", "dt sweeps from 0.5 to 1.2 of the exact limit: largest stable fraction per "
-                                                     "integrator and scheme, also after XFEM cuts per lumping option; random cut sequences; "
-                                                     "energy drift of a long run");
-        c->add_flag("--json", a->json, "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
-                                       "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
-                                       "random_cuts: [{object, min_stretch, runs, cuts, steps, failures, inverted_runs, inverted_at_end, limited_runs, min_dt_ratio}], energy_drift}");
+        auto* c = bench->add_subcommand(
+            "stability", "dt sweeps from 0.5 to 1.2 of the exact limit: largest stable fraction per "
+                         "integrator and scheme, also after XFEM cuts per lumping option; random cut sequences; "
+                         "energy drift of a long run");
+        c->add_flag("--json", a->json,
+                    "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
+                    "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
+                    "random_cuts: [{object, min_stretch, runs, cuts, steps, failures, inverted_runs, inverted_at_end, "
+                    "limited_runs, min_dt_ratio}], energy_drift}");
         c->add_option("--steps", a->steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
         c->add_option("--cut-runs", a->cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
-            ->check(CLI::Range(0, 100000))->capture_default_str();
+            ->check(CLI::Range(0, 100000))
+            ->capture_default_str();
         c->add_option("--cut-steps", a->cutSteps, "Steps between two cuts of a random sequence")
-            ->check(CLI::Range(1, 1000000))->capture_default_str();
+            ->check(CLI::Range(1, 1000000))
+            ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: a single tet and the notched 20x2x2 cantilever, short runs");
         c->callback([a] { setExitCode(guarded([&] { return runStability(*a); })); });
     }
     {
         auto a = std::make_shared<StepArgs>();
-        auto* c = bench->add_subcommand("step", "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, double and "
-                                                "single-precision forces, and the share of each stage");
-        c->add_flag("--json", a->json, "Print {runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}");
-        c->add_option("--seconds", a->seconds, "Measuring time per configuration [s]")->check(CLI::PositiveNumber)->capture_default_str();
+        auto* c =
+            bench->add_subcommand("step", "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, double and "
+                                          "single-precision forces, and the share of each stage");
+        c->add_flag("--json", a->json,
+                    "Print {runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}");
+        c->add_option("--seconds", a->seconds, "Measuring time per configuration [s]")
+            ->check(CLI::PositiveNumber)
+            ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: one small box");
         c->callback([a] { setExitCode(guarded([&] { return runStep(*a); })); });
     }
     {
         auto a = std::make_shared<CostArgs>();
-        auto* c = bench->add_subcommand("cost", "Per-stage cost of a scene (no rendering), as given and without each optional part");
+        auto* c = bench->add_subcommand(
+            "cost", "Per-stage cost of a scene (no rendering), as given and without each optional part");
         c->add_option("SCENE", a->scene, "Scene file")->required();
         c->add_option("--set", a->sets, "Override a scene value: key.path=value");
         c->add_option("--threads", a->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
-        c->add_flag("--json", a->json, "Print {scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
+        c->add_flag("--json", a->json,
+                    "Print {scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
         c->callback([a] { setExitCode(guarded([&] { return runCost(*a); })); });
     }
     for (auto& setup : registry().subcommands) setup(*bench);
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

@@ -34,7 +34,6 @@ using nlohmann::json;
 
 namespace {
 
-
 void logPoint(const AccuracyContext& ctx, const BenchPoint& p) {
     if (!ctx.quiet)
         std::fprintf(stderr, "  %-28s %-44s error %.3e  cost %.4g s/s\n", p.problem.c_str(), p.config.c_str(), p.error,
@@ -55,7 +54,11 @@ void clampAndLoad(Model& m, double L) {
 // each point interpolated in the model element holding it (rest shape). The conforming cantilever
 // averages its tip-face nodes instead; on a face that stays flat the two agree.
 TipFn sampledTip(const Model& m, double L, double h) {
-    struct Sample { int e; Eigen::Vector4d w; Eigen::Vector3d X; };
+    struct Sample {
+        int e;
+        Eigen::Vector4d w;
+        Eigen::Vector3d X;
+    };
     std::vector<Sample> pts;
     const int n = 5;
     for (int j = 0; j < n; ++j)
@@ -65,9 +68,13 @@ TipFn sampledTip(const Model& m, double L, double h) {
             double bestMin = -INFINITY;
             Eigen::Vector4d bestW;
             for (int e = 0; e < m.elements(); ++e) {
-                const Eigen::Vector4d w = barycentric(p, m.X.col(m.tets(0, e)), m.X.col(m.tets(1, e)), m.X.col(m.tets(2, e)),
-                                                      m.X.col(m.tets(3, e)));
-                if (w.minCoeff() > bestMin) { bestMin = w.minCoeff(); best = e; bestW = w; }
+                const Eigen::Vector4d w = barycentric(p, m.X.col(m.tets(0, e)), m.X.col(m.tets(1, e)),
+                                                      m.X.col(m.tets(2, e)), m.X.col(m.tets(3, e)));
+                if (w.minCoeff() > bestMin) {
+                    bestMin = w.minCoeff();
+                    best = e;
+                    bestW = w;
+                }
             }
             pts.push_back({best, bestW, p});
         }
@@ -104,11 +111,17 @@ Model miCantilever(const Cantilever& c, int r, double shift, int* interfaceTets)
 
 std::vector<BenchPoint> miPoints(const AccuracyContext& ctx) {
     std::vector<BenchPoint> pts;
-    auto add = [&](const BenchPoint& p) { pts.push_back(p); logPoint(ctx, p); };
+    auto add = [&](const BenchPoint& p) {
+        pts.push_back(p);
+        logPoint(ctx, p);
+    };
     json info = json::array();
     char name[160];
     // aligned at the coarsest resolution: the lattice is the conforming mesh (a check), then shifted
-    struct Cfg { int r; double shift; };
+    struct Cfg {
+        int r;
+        double shift;
+    };
     std::vector<Cfg> cfgs = {{1, 0.0}};
     for (int r = 1; r <= ctx.maxRes; ++r) cfgs.push_back({r, 0.3});
     for (const Cfg& c : cfgs) {
@@ -200,7 +213,10 @@ Model notchedConforming(const Cantilever& c, int n) {
 
 std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
     std::vector<BenchPoint> pts;
-    auto add = [&](const BenchPoint& p) { pts.push_back(p); logPoint(ctx, p); };
+    auto add = [&](const BenchPoint& p) {
+        pts.push_back(p);
+        logPoint(ctx, p);
+    };
     // References: conforming notch meshes, Richardson from the two finest.
     const std::vector<int> levels = ctx.tiny ? std::vector<int>{2, 4} : std::vector<int>{2, 4, 8};
     const BarReferences br = barReferences(levels, [&](int n) { return notchedConforming(ctx.bar, n); });
@@ -208,11 +224,15 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
     TipProbe freq{"cantilever_notch", br.frequency, {}};
     if (ctx.references) {
         (*ctx.references)["cantilever_notch_static"] = {
-            {"reference", stat.reference}, {"levels", levels}, {"values", br.tips},
+            {"reference", stat.reference},
+            {"levels", levels},
+            {"values", br.tips},
             {"notch", {{"x", kNotchX * ctx.bar.L}, {"z_from", kNotchZ * ctx.bar.h}}},
             {"uncut_reference", ctx.tipReference}};
-        (*ctx.references)["cantilever_notch_frequency"] = {
-            {"reference", freq.reference}, {"levels", levels}, {"values", br.freqs}, {"uncut_reference", ctx.frequencyReference}};
+        (*ctx.references)["cantilever_notch_frequency"] = {{"reference", freq.reference},
+                                                           {"levels", levels},
+                                                           {"values", br.freqs},
+                                                           {"uncut_reference", ctx.frequencyReference}};
     }
     char name[160];
     json cuts = json::array();
@@ -227,8 +247,12 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
             std::snprintf(name, sizeof name, "xfem %s %dx%dx%d f=0.9", lumpingName(l), 10 * r, r, r);
             add(runStaticPoint(ctx, m, opt, name, stat));
             add(runFrequencyPoint(ctx, m, opt, name, freq));
-            cuts.push_back({{"config", name}, {"crossed", crossed}, {"tets", m.elements()}, {"dt_exact", dtExact},
-                            {"linear_static_tip", linearStaticTip(m)}, {"frequency", firstBendingFrequency(m)}});
+            cuts.push_back({{"config", name},
+                            {"crossed", crossed},
+                            {"tets", m.elements()},
+                            {"dt_exact", dtExact},
+                            {"linear_static_tip", linearStaticTip(m)},
+                            {"frequency", firstBendingFrequency(m)}});
         }
     }
     // The same notch meshed conformingly, explicit and backward Euler.
@@ -282,7 +306,8 @@ Eigen::Matrix3Xd liverEquilibrium(const Model& m0, int* steps) {
 }
 
 // Relative L2 error of displacements u (3 x n0) at the coarse nodes not fixed in the coarse model.
-double displacementError(const std::vector<std::uint8_t>& coarseFixed, const Eigen::Matrix3Xd& u, const Eigen::Matrix3Xd& uRef) {
+double displacementError(const std::vector<std::uint8_t>& coarseFixed, const Eigen::Matrix3Xd& u,
+                         const Eigen::Matrix3Xd& uRef) {
     double num = 0, den = 0;
     for (int i = 0; i < static_cast<int>(coarseFixed.size()); ++i) {
         if (coarseFixed[static_cast<size_t>(i)]) continue;
@@ -336,7 +361,10 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
         const auto t0 = WallClock::now();
         const Eigen::Matrix3Xd x = liverEquilibrium(m, &steps);
         uEq.push_back(x - m.X);
-        levelInfo.push_back({{"level", l}, {"tets", m.elements()}, {"nodes", m.nodes()}, {"equilibrium_steps", steps},
+        levelInfo.push_back({{"level", l},
+                             {"tets", m.elements()},
+                             {"nodes", m.nodes()},
+                             {"equilibrium_steps", steps},
                              {"seconds", secondsSince(t0)}});
     }
     const Eigen::Matrix3Xd& uRef = uEq.back();
@@ -347,9 +375,14 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
         levelInfo[static_cast<size_t>(l)]["equilibrium_error"] =
             displacementError(coarseFixed, uEq[static_cast<size_t>(l)].leftCols(n0), uRef);
     if (ctx.references)
-        (*ctx.references)["liver_sag"] = {{"reference", "backward Euler equilibrium, liver refined " + std::to_string(refLevel) + "x"},
-                                          {"levels", levelInfo}, {"max_sag_m", maxSag}, {"omega1", omega1},
-                                          {"damping", c}, {"sim_time", T}, {"coarse_nodes", n0}};
+        (*ctx.references)["liver_sag"] = {
+            {"reference", "backward Euler equilibrium, liver refined " + std::to_string(refLevel) + "x"},
+            {"levels", levelInfo},
+            {"max_sag_m", maxSag},
+            {"omega1", omega1},
+            {"damping", c},
+            {"sim_time", T},
+            {"coarse_nodes", n0}};
 
     // Displacements at the coarse nodes: the first n0 nodes of a refined mesh, or the embedded
     // vertices of an MI model.
@@ -360,7 +393,8 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
         embeddedPositions(*emb, m.tets, m.X, rest);
         return Eigen::Matrix3Xd(now - rest);
     };
-    auto run = [&](const Model& m0, const StepOptions& opt, const std::string& config, const EmbeddedSurface* emb = nullptr) {
+    auto run = [&](const Model& m0, const StepOptions& opt, const std::string& config,
+                   const EmbeddedSurface* emb = nullptr) {
         Model m = m0;
         State s = makeState(m);
         Stepper st;
@@ -393,7 +427,8 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
             const Eigen::VectorXd alpha = elementAlpha(0.95 * r1r, f * dtExact);
             StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
             opt.alphaElem = &alpha;
-            std::snprintf(name, sizeof name, "explicit alpha_e_0.95 liver refined %dx (%d tets) f=%.3g", l, m.elements(), f);
+            std::snprintf(name, sizeof name, "explicit alpha_e_0.95 liver refined %dx (%d tets) f=%.3g", l,
+                          m.elements(), f);
             run(m, opt, name);
         }
         for (double dt : ctx.tiny ? std::vector<double>{0.03} : std::vector<double>{0.1, 0.03, 0.01}) {
@@ -412,8 +447,12 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
             int steps = 0;
             const Eigen::Matrix3Xd x = liverEquilibrium(mi.model, &steps);
             const double dtExact = exactCriticalDt(mi.model).dt;
-            miInfo.push_back({{"cells", cells}, {"tets", mi.model.elements()}, {"nodes", mi.model.nodes()}, {"dt_exact", dtExact},
-                              {"equilibrium_error", displacementError(coarseFixed, coarseDisplacement(mi.model, x, &mi.surface), uRef)}});
+            miInfo.push_back({{"cells", cells},
+                              {"tets", mi.model.elements()},
+                              {"nodes", mi.model.nodes()},
+                              {"dt_exact", dtExact},
+                              {"equilibrium_error",
+                               displacementError(coarseFixed, coarseDisplacement(mi.model, x, &mi.surface), uRef)}});
             std::snprintf(name, sizeof name, "explicit MI liver %d cells (%d tets) f=0.9", cells, mi.model.elements());
             run(mi.model, StepOptions{Integrator::SymplecticEuler, 0.9 * dtExact}, name, &mi.surface);
         }
@@ -422,12 +461,13 @@ std::vector<BenchPoint> liverPoints(const AccuracyContext& ctx) {
     return pts;
 }
 
-} // namespace
+}  // namespace
 
 std::vector<AfterCutModel> afterCutModels(bool tiny) {
     std::vector<AfterCutModel> out;
     const Cantilever bar;
-    const std::vector<MassLumping> lumpings = {MassLumping::RowSum, MassLumping::WeightedDiagonal, MassLumping::Enrichment};
+    const std::vector<MassLumping> lumpings = {MassLumping::RowSum, MassLumping::WeightedDiagonal,
+                                               MassLumping::Enrichment};
     {
         const double dt0 = exactCriticalDt(cantileverModel(bar, 2)).dt;
         for (MassLumping l : lumpings) {
@@ -444,9 +484,10 @@ std::vector<AfterCutModel> afterCutModels(bool tiny) {
     // The liver fixed at its back, cut by the four planes of thesis sec. 5.2 (liver_cuts.json).
     const Model liver = randomCutLiverModel(readTetMesh(path, ReadOptions{}), kSceneLiverClampZ);
     const double dt0 = exactCriticalDt(liver).dt;
-    const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> planes = {
-        {{-0.085, 0.06, 0.0}, {1, 0, 0.15}}, {{-0.045, 0.06, 0.0}, {1, 0.1, 0}},
-        {{-0.005, 0.06, 0.0}, {1, -0.1, 0.1}}, {{0.0, 0.09, 0.0}, {0.1, 1, 0}}};
+    const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> planes = {{{-0.085, 0.06, 0.0}, {1, 0, 0.15}},
+                                                                             {{-0.045, 0.06, 0.0}, {1, 0.1, 0}},
+                                                                             {{-0.005, 0.06, 0.0}, {1, -0.1, 0.1}},
+                                                                             {{0.0, 0.09, 0.0}, {0.1, 1, 0}}};
     for (MassLumping l : lumpings) {
         AfterCutModel a;
         a.mesh = "liver, 4 planes";
@@ -474,4 +515,4 @@ void addCutAccuracyConfigs() {
     addAccuracyConfig("liver", liverPoints);
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

@@ -91,11 +91,16 @@ int runDt(const DtArgs& a) {
         nlohmann::json worst = nlohmann::json::array();
         for (int k = 0; k < nWorst; ++k) {
             const int e = order[k];
-            worst.push_back({{"element", e}, {"r1r", est.r1r(e)}, {"hs", est.hs(e)}, {"hp", est.hp(e)},
-                             {"le", est.le(e)}, {"element_eigenvalue", est.element(e)}});
+            worst.push_back({{"element", e},
+                             {"r1r", est.r1r(e)},
+                             {"hs", est.hs(e)},
+                             {"hp", est.hp(e)},
+                             {"le", est.le(e)},
+                             {"element_eigenvalue", est.element(e)}});
         }
         j["worst"] = worst;
-        j["seconds"] = {{"rows", tRows}, {"exact", tExact}, {"certified", tCert}, {"estimators", tEst}, {"shapes", tShapes}};
+        j["seconds"] = {
+            {"rows", tRows}, {"exact", tExact}, {"certified", tCert}, {"estimators", tEst}, {"shapes", tShapes}};
 
         if (!a.vtu.empty()) {
             // Per-element fields [s]; critical marks R1R dt < 1.1 dt_exact (the hybrid's threshold, sec. 5).
@@ -154,7 +159,7 @@ int runDt(const DtArgs& a) {
     }
 }
 
-} // namespace
+}  // namespace
 
 void addDtCommand(CLI::App& app) {
     auto args = std::make_shared<DtArgs>();
@@ -176,4 +181,4 @@ void addDtCommand(CLI::App& app) {
     cmd->callback([args] { setExitCode(runDt(*args)); });
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

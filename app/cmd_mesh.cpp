@@ -53,7 +53,8 @@ int runMesh(const MeshArgs& a) {
         j["kind"] = surface ? "surface" : "tet";
         Eigen::Matrix3Xd X;
         if (surface) {
-            if (!a.out.empty()) throw InputError(a.out, 0, "--out converts tet meshes only; " + a.mesh + " is a surface");
+            if (!a.out.empty())
+                throw InputError(a.out, 0, "--out converts tet meshes only; " + a.mesh + " is a surface");
             const SurfaceMesh s = readSurfaceMesh(a.mesh, a.scale);
             std::vector<char> used(static_cast<size_t>(s.vertices()), 0);
             for (long i = 0; i < s.F.size(); ++i) used[static_cast<size_t>(s.F.data()[i])] = 1;
@@ -82,9 +83,12 @@ int runMesh(const MeshArgs& a) {
             X = m.X;
             if (!a.out.empty()) {
                 const std::string oe = lowerExt(a.out);
-                if (oe == ".vtu") writeVtu(a.out, m);
-                else if (oe == ".msh") writeMsh22(a.out, m);
-                else throw InputError(a.out, 0, "unknown output extension '" + oe + "' (expected .vtu or .msh)");
+                if (oe == ".vtu")
+                    writeVtu(a.out, m);
+                else if (oe == ".msh")
+                    writeMsh22(a.out, m);
+                else
+                    throw InputError(a.out, 0, "unknown output extension '" + oe + "' (expected .vtu or .msh)");
                 j["written"] = a.out;
             }
         }
@@ -115,11 +119,12 @@ int runMesh(const MeshArgs& a) {
     }
 }
 
-} // namespace
+}  // namespace
 
 void addMeshCommand(CLI::App& app) {
     auto args = std::make_shared<MeshArgs>();
-    CLI::App* cmd = app.add_subcommand("mesh", "Read a tet or surface mesh, check it, print its statistics, convert it");
+    CLI::App* cmd =
+        app.add_subcommand("mesh", "Read a tet or surface mesh, check it, print its statistics, convert it");
     cmd->add_option("MESH", args->mesh,
                     "Mesh file: tets from .msh (Gmsh 1, 2.2, 4.1), .node/.ele (TetGen), .mesh (MEDIT), .vtu; "
                     "surfaces from .obj, .off, .stl")
@@ -132,4 +137,4 @@ void addMeshCommand(CLI::App& app) {
     cmd->callback([args] { setExitCode(runMesh(*args)); });
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

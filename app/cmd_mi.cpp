@@ -33,7 +33,6 @@ struct MiArgs {
     std::string vtu;
 };
 
-
 int runMi(const MiArgs& a) {
     try {
         if (!a.material.valid()) throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
@@ -65,17 +64,25 @@ int runMi(const MiArgs& a) {
         const double vSurf = enclosedVolume(s), vEmb = r.embeddedVolume();
         nlohmann::json j;
         j["file"] = a.surface;
-        j["surface"] = {{"vertices", s.vertices()}, {"triangles", s.faces()}, {"closed", check.closed()},
-                        {"open_edges", check.openEdges}, {"non_manifold_edges", check.nonManifoldEdges},
+        j["surface"] = {{"vertices", s.vertices()},
+                        {"triangles", s.faces()},
+                        {"closed", check.closed()},
+                        {"open_edges", check.openEdges},
+                        {"non_manifold_edges", check.nonManifoldEdges},
                         {"misoriented_edges", check.misorientedEdges}};
-        j["lattice"] = {{"h", r.h}, {"cells", {r.cells.x(), r.cells.y(), r.cells.z()}}, {"nodes", r.lattice.nodes()},
-                        {"elements", r.lattice.elements()}, {"split", "kuhn6"}};
-        j["node_classes"] = {{"inside", r.count(NodeClass::Inside)}, {"outside", r.count(NodeClass::Outside)},
+        j["lattice"] = {{"h", r.h},
+                        {"cells", {r.cells.x(), r.cells.y(), r.cells.z()}},
+                        {"nodes", r.lattice.nodes()},
+                        {"elements", r.lattice.elements()},
+                        {"split", "kuhn6"}};
+        j["node_classes"] = {{"inside", r.count(NodeClass::Inside)},
+                             {"outside", r.count(NodeClass::Outside)},
                              {"boundary", r.count(NodeClass::Boundary)}};
         j["nodes"] = r.model.nodes();
         j["dofs"] = r.model.freeDofs();
         j["fix_outside"] = a.fixOutside;
-        j["elements"] = {{"inside", r.count(ElementClass::Inside)}, {"interface", r.count(ElementClass::Interface)},
+        j["elements"] = {{"inside", r.count(ElementClass::Inside)},
+                         {"interface", r.count(ElementClass::Interface)},
                          {"outside", r.count(ElementClass::Outside)}};
         j["volume_embedded"] = vEmb;
         j["volume_surface"] = vSurf;
@@ -96,21 +103,34 @@ int runMi(const MiArgs& a) {
         j["dt_background_exact"] = dtBg;
         if (a.keepStep) {
             const KeepStepResult& ks = r.massScaling;
-            j["keep_step"] = {{"dt_before", ks.dtBefore}, {"added_mass", ks.addedMass}, {"mass_fraction", ks.massFraction},
-                              {"nodes", ks.nodes}, {"rounds", ks.rounds}, {"reached", ks.reached}};
+            j["keep_step"] = {
+                {"dt_before", ks.dtBefore}, {"added_mass", ks.addedMass}, {"mass_fraction", ks.massFraction},
+                {"nodes", ks.nodes},        {"rounds", ks.rounds},        {"reached", ks.reached}};
         }
         j["material"] = {{"E", a.material.E}, {"nu", a.material.nu}, {"rho", a.material.rho}};
         const MiTimings& st = r.seconds;
-        j["seconds"] = {{"read", tRead},       {"lattice", st.lattice}, {"hash", st.hash},   {"nodes", st.nodes},
-                        {"volumes", st.volumes}, {"refine", st.refine}, {"model", st.model}, {"embed", st.embed},
-                        {"setup", st.total() - st.refine - st.keepStep}, {"keep_step", st.keepStep},
-                        {"dt_certified", tCert}, {"dt_exact", tExact}, {"dt_background", tBg}};
+        j["seconds"] = {{"read", tRead},
+                        {"lattice", st.lattice},
+                        {"hash", st.hash},
+                        {"nodes", st.nodes},
+                        {"volumes", st.volumes},
+                        {"refine", st.refine},
+                        {"model", st.model},
+                        {"embed", st.embed},
+                        {"setup", st.total() - st.refine - st.keepStep},
+                        {"keep_step", st.keepStep},
+                        {"dt_certified", tCert},
+                        {"dt_exact", tExact},
+                        {"dt_background", tBg}};
 
         if (!a.vtu.empty()) {
-            Field frac{"fraction", std::vector<double>(r.model.fraction.data(), r.model.fraction.data() + r.model.elements())};
+            Field frac{"fraction",
+                       std::vector<double>(r.model.fraction.data(), r.model.fraction.data() + r.model.elements())};
             Field cls{"interface", std::vector<double>(static_cast<size_t>(r.model.elements()))};
             for (int e = 0; e < r.model.elements(); ++e)
-                cls.values[static_cast<size_t>(e)] = r.elementClass[static_cast<size_t>(r.latticeElement[static_cast<size_t>(e)])] == ElementClass::Interface;
+                cls.values[static_cast<size_t>(e)] =
+                    r.elementClass[static_cast<size_t>(r.latticeElement[static_cast<size_t>(e)])] ==
+                    ElementClass::Interface;
             writeVtu(a.vtu, restMesh(r.model), {frac, cls});
             j["written"] = a.vtu;
         }
@@ -121,18 +141,19 @@ int runMi(const MiArgs& a) {
         std::printf("surface:   %s (%d vertices, %d triangles%s)\n", a.surface.c_str(), s.vertices(), s.faces(),
                     check.closed() ? ", closed" : "");
         if (!check.closed())
-            std::printf("           not closed: %d open, %d non-manifold, %d misoriented edges; inside shares come from\n"
-                        "           %zu refinement levels with winding numbers instead of exact clipping\n",
-                        check.openEdges, check.nonManifoldEdges, check.misorientedEdges,
-                        r.fractionRefined.empty() ? 0 : r.fractionRefined.size() - 1);
-        std::printf("lattice:   h = %.4g m, %d x %d x %d cells, %d nodes, %d tets (Kuhn, 6 per cube)\n", r.h, r.cells.x(),
-                    r.cells.y(), r.cells.z(), r.lattice.nodes(), r.lattice.elements());
+            std::printf(
+                "           not closed: %d open, %d non-manifold, %d misoriented edges; inside shares come from\n"
+                "           %zu refinement levels with winding numbers instead of exact clipping\n",
+                check.openEdges, check.nonManifoldEdges, check.misorientedEdges,
+                r.fractionRefined.empty() ? 0 : r.fractionRefined.size() - 1);
+        std::printf("lattice:   h = %.4g m, %d x %d x %d cells, %d nodes, %d tets (Kuhn, 6 per cube)\n", r.h,
+                    r.cells.x(), r.cells.y(), r.cells.z(), r.lattice.nodes(), r.lattice.elements());
         std::printf("nodes:     %d inside, %d outside, %d boundary (lattice)\n", r.count(NodeClass::Inside),
                     r.count(NodeClass::Outside), r.count(NodeClass::Boundary));
         std::printf("elements:  %d inside, %d interface, %d outside\n", r.count(ElementClass::Inside),
                     r.count(ElementClass::Interface), r.count(ElementClass::Outside));
-        std::printf("model:     %d nodes, %d elements, %d dofs%s\n", r.model.nodes(), r.model.elements(), r.model.freeDofs(),
-                    a.fixOutside ? " (outside corners of interface tets fixed)" : "");
+        std::printf("model:     %d nodes, %d elements, %d dofs%s\n", r.model.nodes(), r.model.elements(),
+                    r.model.freeDofs(), a.fixOutside ? " (outside corners of interface tets fixed)" : "");
         std::printf("volume:    embedded %.6g m^3, surface %.6g m^3, error %+.3e\n", vEmb, vSurf,
                     vSurf != 0 ? (vEmb - vSurf) / vSurf : 0.0);
         for (const auto& lv : j.value("volume_refined", nlohmann::json::array()))
@@ -140,13 +161,15 @@ int runMi(const MiArgs& a) {
                 std::printf("           refined %d levels: %.6g m^3, error vs exact %+.3e\n", lv["level"].get<int>(),
                             lv["volume"].get<double>(), lv["error_vs_exact"].get<double>());
             else
-                std::printf("           refined %d levels: %.6g m^3\n", lv["level"].get<int>(), lv["volume"].get<double>());
+                std::printf("           refined %d levels: %.6g m^3\n", lv["level"].get<int>(),
+                            lv["volume"].get<double>());
         std::printf("dt:        exact %.4f ms, certified %.4f ms; background lattice exact %.4f ms (ratio %.3f)\n",
                     ex.dt * 1e3, dtCert * 1e3, dtBg * 1e3, ex.dt / dtBg);
         if (a.keepStep) {
             const KeepStepResult& ks = r.massScaling;
-            std::printf("keep step: exact %.6f ms before; %.3e kg added (%.3e of the mass) on %d nodes, %d eigen-solves\n",
-                        ks.dtBefore * 1e3, ks.addedMass, ks.massFraction, ks.nodes, ks.rounds);
+            std::printf(
+                "keep step: exact %.6f ms before; %.3e kg added (%.3e of the mass) on %d nodes, %d eigen-solves\n",
+                ks.dtBefore * 1e3, ks.addedMass, ks.massFraction, ks.nodes, ks.rounds);
         }
         std::printf("seconds:   read %.3f, lattice %.3f, hash %.3f, nodes %.3f, volumes %.3f, model %.3f, embed %.3f"
                     " (set-up %.3f); refine %.3f; keep step %.3f; dt exact %.3f, certified %.3f, background %.3f\n",
@@ -163,7 +186,7 @@ int runMi(const MiArgs& a) {
     }
 }
 
-} // namespace
+}  // namespace
 
 void addMiCommand(CLI::App& app) {
     auto args = std::make_shared<MiArgs>();
@@ -172,13 +195,15 @@ void addMiCommand(CLI::App& app) {
               "become virtual elements; report counts, enclosed volume, dt of the embedded model and of the lattice");
     cmd->add_option("SURFACE", args->surface, "Surface mesh (.obj, .off, .stl)")->required();
     auto* cells = cmd->add_option("--cells", args->cells, "Lattice cells across the surface's longest side")
-                      ->check(CLI::Range(1, 1000))->capture_default_str();
+                      ->check(CLI::Range(1, 1000))
+                      ->capture_default_str();
     auto* h = cmd->add_option("--h", args->h, "Lattice cell edge [m] (after --scale)")->check(CLI::PositiveNumber);
     cells->excludes(h);
     cmd->add_option("--scale", args->scale, "Multiply every coordinate by S to get meters")->check(CLI::PositiveNumber);
     cmd->add_option("--refine", args->refine,
                     "Also compute interface volumes by L levels of refinement (thesis: 5) and report their error "
-                    "against the exact volumes")->capture_default_str();
+                    "against the exact volumes")
+        ->capture_default_str();
     cmd->add_flag("--fix-outside", args->fixOutside,
                   "Fix the outside corners of interface tets (the thesis's rule, sec. 6.3; pins the object's boundary "
                   "layer, the step can only grow); default: they stay free control points");
@@ -191,8 +216,9 @@ void addMiCommand(CLI::App& app) {
     cmd->add_flag("--json", args->json,
                   "Print one JSON object: nodes, dofs, elements {inside, interface, outside}, volume_embedded, "
                   "volume_surface [m^3], dt_exact, dt_certified, dt_background_exact [s], seconds {per stage}, ...");
-    cmd->add_option("--vtu", args->vtu, "Write the embedded model with per-element fraction and interface flag to OUT.vtu");
+    cmd->add_option("--vtu", args->vtu,
+                    "Write the embedded model with per-element fraction and interface flag to OUT.vtu");
     cmd->callback([args] { setExitCode(runMi(*args)); });
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

@@ -77,7 +77,7 @@ int runRender(const RenderArgs& a) {
     }
 }
 
-} // namespace
+}  // namespace
 
 void addRenderCommand(CLI::App& app) {
     auto args = std::make_shared<RenderArgs>();
@@ -97,4 +97,4 @@ void addRenderCommand(CLI::App& app) {
     cmd->callback([args] { setExitCode(runRender(*args)); });
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

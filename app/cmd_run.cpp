@@ -17,7 +17,9 @@ void addRunCommand(CLI::App& app) {
     cmd->add_option("scene", scene, "Scene file (JSON, see docs/scene-format.md)")->required();
     cmd->add_option("--out", opt.out, "Output folder")->required();
     cmd->add_flag("--no-render", noRender, "No frames and no GL context");
-    cmd->add_option("--threads", opt.threads, "Worker threads (0: chosen by measuring one thread against all cores as the run goes)")->check(CLI::Range(0, 1024));
+    cmd->add_option("--threads", opt.threads,
+                    "Worker threads (0: chosen by measuring one thread against all cores as the run goes)")
+        ->check(CLI::Range(0, 1024));
     cmd->add_option("--set", sets, "Override a scene value: key.path=value (JSON value)");
     cmd->add_flag("--quiet", opt.quiet, "No progress output");
     cmd->callback([] {
@@ -32,4 +34,4 @@ void addRunCommand(CLI::App& app) {
     });
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

@@ -41,8 +41,8 @@ struct ViewArgs {
     int frames = 0;             // > 0: draw this many frames, save the screenshot, exit
     std::string screenshot;     // where p (and the end of --frames) writes
     int threads = 0;
-    std::vector<double> toolAt; // x y z: the first tool held there from the start, as a mouse drag leaves it [m]
-    std::string report;         // report.json of the session, written at exit
+    std::vector<double> toolAt;  // x y z: the first tool held there from the start, as a mouse drag leaves it [m]
+    std::string report;          // report.json of the session, written at exit
 };
 
 #ifdef CUTSIM_HAVE_RENDER
@@ -50,7 +50,7 @@ struct ViewArgs {
 // A camera orbiting a target: drag rotates about the up axis and the screen's horizontal axis,
 // scroll changes the distance, right-drag moves the target in the view plane.
 struct Orbit {
-    Eigen::Vector3d target, dir, up; // dir: unit vector from target to eye
+    Eigen::Vector3d target, dir, up;  // dir: unit vector from target to eye
     double distance = 1, fovY = 40;
 
     explicit Orbit(const Camera& c)
@@ -64,7 +64,7 @@ struct Orbit {
         c.fovY = fovY;
         return c;
     }
-    void rotate(double dx, double dy) { // pixels
+    void rotate(double dx, double dy) {  // pixels
         const Eigen::Vector3d right = up.cross(dir).normalized();
         Eigen::Vector3d d = Eigen::AngleAxisd(-0.008 * dx, up) * dir;
         const Eigen::Vector3d tilted = Eigen::AngleAxisd(-0.008 * dy, right) * d;
@@ -120,8 +120,8 @@ int runView(const ViewArgs& a) {
     ro.width = win.framebufferWidth();
     ro.height = win.framebufferHeight();
     ro.xray = sc.capture.xray;
-    ro.wireframe = true; // the snapshot has edges only when wireframe is on
-    ro.hud = false;      // the panel shows the HUD values
+    ro.wireframe = true;  // the snapshot has edges only when wireframe is on
+    ro.hud = false;       // the panel shows the HUD values
     render::Renderer renderer(ro, render::RenderTarget::CurrentContext);
 
     SceneSnapshot scene(sc, sim->model(), sim->analyzer().estimates().r1r, sim->dt(), sim->surface());
@@ -184,7 +184,10 @@ int runView(const ViewArgs& a) {
         for (int key : win.takeKeys()) {
             switch (key) {
             case GLFW_KEY_SPACE: paused = !paused; break;
-            case GLFW_KEY_S: stepOnce = true; paused = true; break;
+            case GLFW_KEY_S:
+                stepOnce = true;
+                paused = true;
+                break;
             case GLFW_KEY_R: reset(); break;
             case GLFW_KEY_C: renderer.options().xray = !renderer.options().xray; break;
             case GLFW_KEY_W: scene.setWireframe(!scene.wireframe()); break;
@@ -203,7 +206,8 @@ int runView(const ViewArgs& a) {
             if (io.MouseWheel != 0) sim->holdTool(0, p - 0.05 * orbit.distance * io.MouseWheel * orbit.dir);
         } else if (!io.WantCaptureMouse) {
             if (ImGui::IsMouseDown(ImGuiMouseButton_Left)) orbit.rotate(io.MouseDelta.x, io.MouseDelta.y);
-            if (ImGui::IsMouseDown(ImGuiMouseButton_Right)) orbit.pan(io.MouseDelta.x, io.MouseDelta.y, renderer.height());
+            if (ImGui::IsMouseDown(ImGuiMouseButton_Right))
+                orbit.pan(io.MouseDelta.x, io.MouseDelta.y, renderer.height());
             if (io.MouseWheel != 0) orbit.zoom(io.MouseWheel);
         }
 
@@ -235,8 +239,9 @@ int runView(const ViewArgs& a) {
             if (!sim->record().cuts.empty()) {  // the last cut, scripted, x or blade
                 const auto& c = sim->record().cuts.back();
                 char msg[200];
-                std::snprintf(msg, sizeof msg, "%s: %d elements split, dt %.3e s (%s)", c["key"].get<std::string>().c_str(),
-                              c["split"].get<int>(), sim->dt(), c["limit_action"].get<std::string>().c_str());
+                std::snprintf(msg, sizeof msg, "%s: %d elements split, dt %.3e s (%s)",
+                              c["key"].get<std::string>().c_str(), c["split"].get<int>(), sim->dt(),
+                              c["limit_action"].get<std::string>().c_str());
                 message = msg;
             }
         }
@@ -288,7 +293,7 @@ int runView(const ViewArgs& a) {
                                     integratorName(kIntegrators[2]), integratorName(kIntegrators[3])};
         const bool integChanged = ImGui::Combo("integrator", &integrator, integNames, 4);
         ImGui::SliderFloat("dt fraction", &fraction, 0.05f, 1.2f, "%.2f");
-        if (integChanged || ImGui::IsItemDeactivatedAfterEdit()) // the slider applies on release
+        if (integChanged || ImGui::IsItemDeactivatedAfterEdit())  // the slider applies on release
             applyPolicy(kIntegrators[integrator], fraction);
         ImGui::SameLine();
         ImGui::TextDisabled("of %s", limitOfName(sc.dt.of));
@@ -338,7 +343,8 @@ int runView(const ViewArgs& a) {
         writeFileAtomic(a.report, report.dump(2) + "\n");
     }
     if (headless) {
-        std::printf("view: t = %.4f s, %ld steps, %d cuts", sim->state().time, sim->state().steps, sim->record().cutsMade);
+        std::printf("view: t = %.4f s, %ld steps, %d cuts", sim->state().time, sim->state().steps,
+                    sim->record().cutsMade);
         if (sim->contact())
             std::printf(", tool force %.4g N (max %.4g N)", sim->record().tool.force.norm(), maxToolForce);
         std::printf("\n");
@@ -349,14 +355,15 @@ int runView(const ViewArgs& a) {
 }
 #endif
 
-} // namespace
+}  // namespace
 
 void addViewCommand(CLI::App& app) {
     auto args = std::make_shared<ViewArgs>();
     CLI::App* cmd = app.add_subcommand(
-        "view", "Run a scene live in a window: drag rotates, scroll zooms, right-drag pans; keys: space pause/resume, "
-                "s single step, r reset, c critical elements, w wireframe, p screenshot, x next scripted cut, q or Esc quit. "
-                "Exit codes: 2 bad scene, 3 diverged, 4 refused step, 5 no display");
+        "view",
+        "Run a scene live in a window: drag rotates, scroll zooms, right-drag pans; keys: space pause/resume, "
+        "s single step, r reset, c critical elements, w wireframe, p screenshot, x next scripted cut, q or Esc quit. "
+        "Exit codes: 2 bad scene, 3 diverged, 4 refused step, 5 no display");
     cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
     cmd->add_option("--set", args->sets, "Override a scene value: key.path=value (JSON value)");
     cmd->add_option("--width", args->width, "Window width [px] (default: the scene's capture width)")
@@ -366,10 +373,14 @@ void addViewCommand(CLI::App& app) {
     cmd->add_option("--frames", args->frames,
                     "Draw N frames of 1/fps simulated seconds each, write --screenshot, exit (for scripts and tests)")
         ->check(CLI::Range(1, 1000000));
-    cmd->add_option("--screenshot", args->screenshot, "PNG that p (and the end of --frames) writes (default view_NNN.png)");
-    cmd->add_option("--threads", args->threads, "Worker threads (0: chosen by measuring one thread against all cores as the run goes)")->check(CLI::Range(0, 1024));
+    cmd->add_option("--screenshot", args->screenshot,
+                    "PNG that p (and the end of --frames) writes (default view_NNN.png)");
+    cmd->add_option("--threads", args->threads,
+                    "Worker threads (0: chosen by measuring one thread against all cores as the run goes)")
+        ->check(CLI::Range(0, 1024));
     cmd->add_option("--report", args->report, "Write the session's report.json (as `cutsim run` writes) here at exit");
-    cmd->add_option("--tool-at", args->toolAt, "x y z: hold the scene's first tool there from the start, as shift-drag leaves it [m]")
+    cmd->add_option("--tool-at", args->toolAt,
+                    "x y z: hold the scene's first tool there from the start, as shift-drag leaves it [m]")
         ->expected(3);
     cmd->callback([args] {
 #ifdef CUTSIM_HAVE_RENDER
@@ -389,4 +400,4 @@ void addViewCommand(CLI::App& app) {
     });
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

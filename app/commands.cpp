@@ -22,4 +22,4 @@ void registerCommands(CLI::App& app) {
     addBenchCommand(app);
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

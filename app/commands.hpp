@@ -2,7 +2,9 @@
 // callback runs it and stores the exit code (bad input: message on stderr, code 1 or 2).
 #pragma once
 
-namespace CLI { class App; }
+namespace CLI {
+class App;
+}
 
 namespace cutsim::app {
 
@@ -10,10 +12,10 @@ void registerCommands(CLI::App& app);
 int exitCode();
 void setExitCode(int code);
 
-void addDtCommand(CLI::App& app);     // cmd_dt.cpp: time-step analysis of a mesh
-void addMeshCommand(CLI::App& app);   // cmd_mesh.cpp: mesh conversion and checks
-void addRunCommand(CLI::App& app);    // cmd_run.cpp: run a scene
-void addViewCommand(CLI::App& app);   // cmd_view.cpp: run a scene live in a window
-void addMiCommand(CLI::App& app);     // cmd_mi.cpp: mesh intersection of a surface
+void addDtCommand(CLI::App& app);    // cmd_dt.cpp: time-step analysis of a mesh
+void addMeshCommand(CLI::App& app);  // cmd_mesh.cpp: mesh conversion and checks
+void addRunCommand(CLI::App& app);   // cmd_run.cpp: run a scene
+void addViewCommand(CLI::App& app);  // cmd_view.cpp: run a scene live in a window
+void addMiCommand(CLI::App& app);    // cmd_mi.cpp: mesh intersection of a surface
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

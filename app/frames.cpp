@@ -23,7 +23,10 @@ Camera cameraAt(const std::vector<CameraKey>& keys, double t) {
     const CameraKey* b = a;
     for (size_t i = 0; i < keys.size(); ++i) {
         if (keys[i].time <= t) a = &keys[i];
-        if (keys[i].time >= t) { b = &keys[i]; break; }
+        if (keys[i].time >= t) {
+            b = &keys[i];
+            break;
+        }
         b = &keys[i];
     }
     const double w = b->time > a->time ? std::clamp((t - a->time) / (b->time - a->time), 0.0, 1.0) : 0.0;
@@ -33,7 +36,7 @@ Camera cameraAt(const std::vector<CameraKey>& keys, double t) {
     c.fovY = (1 - w) * a->fov + w * b->fov;
     return c;
 }
-} // namespace
+}  // namespace
 
 SceneSnapshot::SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen::VectorXd& elementDt, double dt,
                              const EmbeddedSurface* surface)
@@ -91,7 +94,7 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
         values = elementDt_ / dt_;  // element's estimated stable step over the step used
         so.elementValues = &values;
         so.name = "element dt / dt";
-        so.unit = std::string(1, '-'); // not = "-": GCC 12 -Wrestrict false positive
+        so.unit = std::string(1, '-');  // not = "-": GCC 12 -Wrestrict false positive
     } else if (cmap == "stress") {
         values = vonMisesStress(model, state);
         so.elementValues = &values;
@@ -132,7 +135,8 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
     h.realTimeFactor = info.wall > 0 ? info.time / info.wall : 0;
     h.criticalElements = info.criticalElements;
     h.cuts = info.cuts;
-    h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) + " nodes");
+    h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) +
+                      " nodes");
     return snap;
 }
 
@@ -156,12 +160,14 @@ public:
         std::filesystem::create_directories(dir_);
         if (sc.capture.video) {
             if (render::findOnPath("ffmpeg").empty()) {
-                std::fprintf(stderr, "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
+                std::fprintf(stderr,
+                             "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
             } else if (sc.capture.width % 2 || sc.capture.height % 2) {
                 std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
             } else {
                 videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
-                video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc.capture.width, sc.capture.height, sc.capture.fps);
+                video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc.capture.width, sc.capture.height,
+                                                                sc.capture.fps);
             }
         }
     }
@@ -172,8 +178,8 @@ public:
         if (!sc_.tools.empty()) {
             HudValues& h = snap.hud;
             char line[96];
-            std::snprintf(line, sizeof line, "tool F   %.3f N (%.3f, %.3f, %.3f)", info.toolForce.norm(), info.toolForce.x(),
-                          info.toolForce.y(), info.toolForce.z());
+            std::snprintf(line, sizeof line, "tool F   %.3f N (%.3f, %.3f, %.3f)", info.toolForce.norm(),
+                          info.toolForce.x(), info.toolForce.y(), info.toolForce.z());
             h.lines.push_back(line);
             h.forcePlot = info.forceHistory;
         }
@@ -182,8 +188,10 @@ public:
         char name[32];
         std::snprintf(name, sizeof name, "frame_%06d.png", frames_);
         const bool png = sc_.capture.pngEvery > 0 && frames_ % sc_.capture.pngEvery == 0;
-        if (video_ && png) video_->addFrame(img);
-        else if (video_) video_->addFrame(std::move(img));
+        if (video_ && png)
+            video_->addFrame(img);
+        else if (video_)
+            video_->addFrame(std::move(img));
         if (png) pngs_.push((dir_ / name).string(), std::move(img));
         ++frames_;
         encode_ = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -207,14 +215,14 @@ private:
     std::filesystem::path dir_;
     SceneSnapshot scene_;
     std::unique_ptr<render::Renderer> renderer_;
-    render::PngWriter pngs_{8}; // one encoder thread per core
+    render::PngWriter pngs_{8};  // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     std::string videoPath_;
     int frames_ = 0;
     double encode_ = 0;
 };
 
-} // namespace
+}  // namespace
 #endif
 
 std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
@@ -233,4 +241,4 @@ std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::strin
 #endif
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

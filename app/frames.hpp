@@ -14,16 +14,16 @@
 namespace cutsim::app {
 
 struct FrameInfo {
-    double time = 0;          // simulated time [s]
-    double dt = 0;            // step used [s]
-    double dtCertified = 0;   // certified limit [s]
-    double dtExact = 0;       // exact limit [s] (NaN when unknown)
+    double time = 0;         // simulated time [s]
+    double dt = 0;           // step used [s]
+    double dtCertified = 0;  // certified limit [s]
+    double dtExact = 0;      // exact limit [s] (NaN when unknown)
     int criticalElements = 0;
     int cuts = 0;
-    double wall = 0;          // wall time since the loop started [s]
-    std::vector<ToolShape> tools;        // tools to draw
-    Eigen::Vector3d toolForce = Eigen::Vector3d::Zero(); // reaction force on the tools [N]
-    std::vector<float> forceHistory;     // recent |tool force| samples, oldest first [N]
+    double wall = 0;                                      // wall time since the loop started [s]
+    std::vector<ToolShape> tools;                         // tools to draw
+    Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();  // reaction force on the tools [N]
+    std::vector<float> forceHistory;                      // recent |tool force| samples, oldest first [N]
 };
 
 // What a frame of a scene shows (surface, colour map, critical elements, HUD values), built from
@@ -37,14 +37,14 @@ public:
     RenderSnapshot& update(const Model& model, const State& state, const FrameInfo& info);
 
     // Changes that rebuild the surface on the next update.
-    void setStep(double dt, double criticalFactor);     // colours and critical elements follow dt
+    void setStep(double dt, double criticalFactor);  // colours and critical elements follow dt
     // After a cut: the new mesh, the surface to draw, and the new per-element limits (nElems) [s].
     void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt, double dt);
-    void setColormap(const std::string& name);         // timestep | displacement | stress | none
+    void setColormap(const std::string& name);  // timestep | displacement | stress | none
     void setWireframe(bool on);
     const std::string& colormap() const { return colormap_; }
     bool wireframe() const { return wireframe_; }
-    Camera defaultCamera(const Model& model, double time); // the scene's camera at time, or framing the object
+    Camera defaultCamera(const Model& model, double time);  // the scene's camera at time, or framing the object
 
 private:
     const SceneDef& sc_;
@@ -64,10 +64,10 @@ class FrameSink {
 public:
     virtual ~FrameSink() = default;
     virtual void frame(const Model& model, const State& state, const FrameInfo& info) = 0;
-    virtual void finish() = 0;                    // flush PNGs, close the video
+    virtual void finish() = 0;  // flush PNGs, close the video
     virtual int frames() const = 0;
-    virtual std::string videoPath() const = 0;    // "" when no video was made
-    virtual double lastEncodeSeconds() const = 0; // part of the last frame() spent handing off/encoding
+    virtual std::string videoPath() const = 0;     // "" when no video was made
+    virtual double lastEncodeSeconds() const = 0;  // part of the last frame() spent handing off/encoding
     // After a cut: the surface to draw from now on, and the new per-element limits (nElems) [s].
     virtual void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt,
                                  double dt) = 0;
@@ -80,4 +80,4 @@ std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::strin
                                          const Eigen::VectorXd& elementDt, double dt,
                                          const EmbeddedSurface* surface = nullptr);
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

@@ -64,13 +64,15 @@ void writeFinalVtu(const Simulation& sim, const std::string& path) {
     deformed.tets = model.tets;
     const auto& est = sim.analyzer().estimates();
     std::vector<double> r1r(est.r1r.data(), est.r1r.data() + est.r1r.size()), crit(r1r.size());
-    for (size_t e = 0; e < r1r.size(); ++e) crit[e] = r1r[e] < sim.scene().capture.criticalFactor * sim.dt() ? 1.0 : 0.0;
+    for (size_t e = 0; e < r1r.size(); ++e)
+        crit[e] = r1r[e] < sim.scene().capture.criticalFactor * sim.dt() ? 1.0 : 0.0;
     std::vector<double> disp(static_cast<size_t>(model.nodes()));
-    for (int i = 0; i < model.nodes(); ++i) disp[static_cast<size_t>(i)] = (sim.state().x.col(i) - model.X.col(i)).norm();
+    for (int i = 0; i < model.nodes(); ++i)
+        disp[static_cast<size_t>(i)] = (sim.state().x.col(i) - model.X.col(i)).norm();
     writeVtu(path, deformed, {{"dt_r1r", r1r}, {"critical", crit}}, {{"displacement", disp}});
 }
 
-} // namespace
+}  // namespace
 
 int runScene(const SceneDef& sc, const RunOptions& opt) {
     Stopwatch wall;
@@ -92,7 +94,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         fs::remove(probe);
     }
     std::unique_ptr<FrameSink> sink;
-    if (capturing) sink = makeFrameSink(sc, opt.out, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+    if (capturing)
+        sink = makeFrameSink(sc, opt.out, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
 
     // A frame of the state now; its render and encode time go to the run's stages.
     const Stopwatch loop;
@@ -157,4 +160,4 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     return static_cast<int>(exitCodeOf(sim.status()));
 }
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

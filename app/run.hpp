@@ -9,14 +9,14 @@
 namespace cutsim::app {
 
 struct RunOptions {
-    std::string out;          // output folder
-    bool render = true;       // false: no GL context, no frames
-    int threads = 0;          // 0: chosen by measuring (sim/simulation.cpp ThreadTuner)
-    bool quiet = false;       // no progress output
+    std::string out;     // output folder
+    bool render = true;  // false: no GL context, no frames
+    int threads = 0;     // 0: chosen by measuring (sim/simulation.cpp ThreadTuner)
+    bool quiet = false;  // no progress output
 };
 
 // Runs a scene; returns the process exit code (ExitCode: 0 ok, 3 diverged, 4 refused step).
 // Throws InputError for bad input before anything is written.
 int runScene(const SceneDef& scene, const RunOptions& opt);
 
-} // namespace cutsim::app
+}  // namespace cutsim::app

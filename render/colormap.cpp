@@ -12,7 +12,7 @@ constexpr Rgb8 kViridis[] = {{0x44, 0x01, 0x54}, {0x47, 0x2d, 0x7b}, {0x3b, 0x52
 // Moreland 2009, "Diverging color maps for scientific visualization", cool-warm.
 constexpr Rgb8 kCoolWarm[] = {{59, 76, 192}, {141, 176, 254}, {221, 221, 221}, {244, 154, 123}, {180, 4, 38}};
 
-} // namespace
+}  // namespace
 
 std::span<const Rgb8> colorMapTable(ColorMapKind kind) {
     if (kind == ColorMapKind::Diverging) return kCoolWarm;
@@ -31,4 +31,4 @@ std::array<float, 3> colorMapLookup(ColorMapKind kind, double t) {
     return {mix(a.r, b.r), mix(a.g, b.g), mix(a.b, b.b)};
 }
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

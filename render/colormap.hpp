@@ -9,8 +9,8 @@
 namespace cutsim::render {
 
 enum class ColorMapKind : std::uint8_t {
-    Sequential, // viridis, 9 control points (matplotlib's viridis at 0, 1/8, ..., 1)
-    Diverging,  // Moreland's cool-warm, 5 control points, light grey at the centre
+    Sequential,  // viridis, 9 control points (matplotlib's viridis at 0, 1/8, ..., 1)
+    Diverging,   // Moreland's cool-warm, 5 control points, light grey at the centre
 };
 
 struct Rgb8 {
@@ -23,4 +23,4 @@ std::span<const Rgb8> colorMapTable(ColorMapKind kind);
 // Colour at t in [0, 1] (clamped), components in [0, 1].
 std::array<float, 3> colorMapLookup(ColorMapKind kind, double t);
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

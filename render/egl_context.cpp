@@ -33,7 +33,10 @@ EGLDisplay openDisplay(std::string& platform) {
     // 1. Mesa's surfaceless platform: no display server, no device node needed.
     if (getPlatformDisplay && hasExtension(clientExt, "EGL_MESA_platform_surfaceless")) {
         EGLDisplay d = getPlatformDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-        if (tryInit(d)) { platform = "surfaceless"; return d; }
+        if (tryInit(d)) {
+            platform = "surfaceless";
+            return d;
+        }
     }
     // 2. The first EGL device (headless GPU drivers).
     auto queryDevices = reinterpret_cast<PFNEGLQUERYDEVICESEXTPROC>(eglGetProcAddress("eglQueryDevicesEXT"));
@@ -42,16 +45,22 @@ EGLDisplay openDisplay(std::string& platform) {
         EGLint n = 0;
         if (queryDevices(8, devices, &n) && n > 0) {
             EGLDisplay d = getPlatformDisplay(EGL_PLATFORM_DEVICE_EXT, devices[0], nullptr);
-            if (tryInit(d)) { platform = "device"; return d; }
+            if (tryInit(d)) {
+                platform = "device";
+                return d;
+            }
         }
     }
     // 3. Whatever the default display is.
     EGLDisplay d = eglGetDisplay(EGL_DEFAULT_DISPLAY);
-    if (tryInit(d)) { platform = "default"; return d; }
+    if (tryInit(d)) {
+        platform = "default";
+        return d;
+    }
     return EGL_NO_DISPLAY;
 }
 
-} // namespace
+}  // namespace
 
 EglContext::EglContext() {
     EGLDisplay dpy = openDisplay(platform_);
@@ -72,8 +81,9 @@ EglContext::EglContext() {
         eglChooseConfig(dpy, attrs, &config, 1, &n);
         if (n < 1) config = EGL_NO_CONFIG_KHR;
     }
-    const EGLint ctxAttrs[] = {EGL_CONTEXT_MAJOR_VERSION, 3, EGL_CONTEXT_MINOR_VERSION, 3,
-                               EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+    const EGLint ctxAttrs[] = {
+        EGL_CONTEXT_MAJOR_VERSION,           3,       EGL_CONTEXT_MINOR_VERSION, 3, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+        EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
     EGLContext ctx = eglCreateContext(dpy, config, EGL_NO_CONTEXT, ctxAttrs);
     if (ctx == EGL_NO_CONTEXT) {
         eglTerminate(dpy);
@@ -116,4 +126,4 @@ void EglContext::makeCurrent() {
                    static_cast<EGLContext>(context_));
 }
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

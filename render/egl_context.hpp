@@ -15,14 +15,14 @@ public:
     EglContext& operator=(const EglContext&) = delete;
 
     void makeCurrent();
-    const std::string& platform() const { return platform_; }   // which display path worked
-    const std::string& renderer() const { return renderer_; }   // GL_RENDERER, e.g. "llvmpipe ..."
-    const std::string& version() const { return version_; }     // GL_VERSION
+    const std::string& platform() const { return platform_; }  // which display path worked
+    const std::string& renderer() const { return renderer_; }  // GL_RENDERER, e.g. "llvmpipe ..."
+    const std::string& version() const { return version_; }    // GL_VERSION
 
 private:
-    void* display_ = nullptr; // EGLDisplay
-    void* context_ = nullptr; // EGLContext
+    void* display_ = nullptr;  // EGLDisplay
+    void* context_ = nullptr;  // EGLContext
     std::string platform_, renderer_, version_;
 };
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

@@ -52,7 +52,7 @@ bool encodePng(const Image& img, std::vector<unsigned char>* out, char* err) {
     return true;
 }
 
-} // namespace
+}  // namespace
 
 void writePng(const std::string& path, const Image& img) {
     if (img.width <= 0 || img.height <= 0 || img.rgba.size() != 4 * static_cast<size_t>(img.width) * img.height)
@@ -135,7 +135,7 @@ void PngWriter::run() {
     std::unique_lock lock(mutex_);
     for (;;) {
         changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
-        if (queue_.empty()) return; // stop requested and nothing left
+        if (queue_.empty()) return;  // stop requested and nothing left
         auto job = std::move(queue_.front());
         queue_.pop_front();
         ++busy_;
@@ -149,7 +149,7 @@ void PngWriter::run() {
         lock.lock();
         --busy_;
         if (err) {
-            if (!error_) error_ = err; // the first error is the informative one
+            if (!error_) error_ = err;  // the first error is the informative one
         } else {
             ++written_;
         }
@@ -157,4 +157,4 @@ void PngWriter::run() {
     }
 }
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

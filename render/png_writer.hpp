@@ -29,26 +29,26 @@ class PngWriter {
 public:
     // threads = 0: one per core.
     explicit PngWriter(std::size_t capacity = 4, unsigned threads = 0);
-    ~PngWriter(); // finishes the queued frames; errors there are dropped (call flush to see them)
+    ~PngWriter();  // finishes the queued frames; errors there are dropped (call flush to see them)
     PngWriter(const PngWriter&) = delete;
     PngWriter& operator=(const PngWriter&) = delete;
 
     void push(std::string path, Image img);
-    void flush(); // waits until every queued frame is written
+    void flush();  // waits until every queued frame is written
     std::size_t written() const;
 
 private:
     void run();
-    void rethrow(); // with the lock held
+    void rethrow();  // with the lock held
     std::size_t capacity_;
     mutable std::mutex mutex_;
     std::condition_variable changed_;
     std::deque<std::pair<std::string, Image>> queue_;
-    int busy_ = 0;          // frames being encoded
+    int busy_ = 0;  // frames being encoded
     bool stop_ = false;
     std::size_t written_ = 0;
     std::exception_ptr error_;
     std::vector<std::thread> threads_;
 };
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

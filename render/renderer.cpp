@@ -136,7 +136,7 @@ Vec3f rgb(const std::array<std::uint8_t, 3>& c) { return Vec3f(c[0] / 255.0f, c[
 Mat4f lookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
     Vec3d f = (target - eye).normalized();
     Vec3d s = f.cross(up).normalized();
-    if (!s.allFinite()) s = f.unitOrthogonal(); // up parallel to the view direction
+    if (!s.allFinite()) s = f.unitOrthogonal();  // up parallel to the view direction
     Vec3d u = s.cross(f);
     Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
     m.block<1, 3>(0, 0) = s.transpose();
@@ -182,7 +182,8 @@ void toolTriangles(const ToolShape& t, std::vector<MeshVertex>& out) {
             return world(Vec3d((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z()));
         };
         // Each face as two triangles, counter-clockwise from outside.
-        static constexpr int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+        static constexpr int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                                            {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
         for (const auto& f : faces) {
             pushTriangle(out, corner(f[0]), corner(f[1]), corner(f[2]));
             pushTriangle(out, corner(f[0]), corner(f[2]), corner(f[3]));
@@ -226,16 +227,16 @@ double niceStep(double x) {
     return (m >= 5 ? 5 : m >= 2 ? 2 : 1) * p;
 }
 
-} // namespace
+}  // namespace
 
 // GL objects.
 struct Renderer::Gl {
-    GLuint msFbo = 0, msColour = 0, msDepth = 0; // multisampled target
-    GLuint outFbo = 0, outColour = 0;            // resolved, read back
+    GLuint msFbo = 0, msColour = 0, msDepth = 0;  // multisampled target
+    GLuint outFbo = 0, outColour = 0;             // resolved, read back
     GLuint meshProg = 0, lineProg = 0;
     GLuint vao = 0, vbo = 0;
     ImGuiContext* imgui = nullptr;
-    std::vector<MeshVertex> verts; // reused between frames
+    std::vector<MeshVertex> verts;     // reused between frames
     std::vector<MeshVertex> critTris;  // critical elements' faces and edges, this frame
     std::vector<float> critLines;
     std::vector<float> lines;
@@ -316,7 +317,7 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     g.imgui = ImGui::CreateContext();
     ImGui::SetCurrentContext(g.imgui);
     ImGuiIO& io = ImGui::GetIO();
-    io.IniFilename = nullptr; // no imgui.ini next to the run
+    io.IniFilename = nullptr;  // no imgui.ini next to the run
     io.LogFilename = nullptr;
     io.DisplaySize = ImVec2(static_cast<float>(opts_.width), static_cast<float>(opts_.height));
     ImGui::StyleColorsDark();
@@ -361,7 +362,8 @@ void Renderer::present(unsigned fbo) const {
     makeCurrent();
     glBindFramebuffer(GL_READ_FRAMEBUFFER, gl_->outFbo);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, fbo);
-    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT,
+                      GL_NEAREST);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
@@ -413,7 +415,7 @@ void surfaceVertices(const RenderSnapshot& snap, bool useMap, std::vector<MeshVe
     const bool given = snap.normals.cols() == n;
     const int nf = snap.faces();
     Eigen::Matrix3Xf faceN(3, given ? 0 : nf);
-    std::vector<int> start, vertexFaces; // vertex -> faces (CSR)
+    std::vector<int> start, vertexFaces;  // vertex -> faces (CSR)
     if (!given) {
         start.assign(static_cast<size_t>(n) + 1, 0);
         for (int f = 0; f < nf; ++f) {
@@ -427,9 +429,10 @@ void surfaceVertices(const RenderSnapshot& snap, bool useMap, std::vector<MeshVe
         vertexFaces.resize(static_cast<size_t>(start.back()));
         std::vector<int> fill(start.begin(), start.end() - 1);
         for (int f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k) vertexFaces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
+            for (int k = 0; k < 3; ++k)
+                vertexFaces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
     }
-    constexpr float kCosCrease = 0.64f; // about 50 degrees
+    constexpr float kCosCrease = 0.64f;  // about 50 degrees
     verts.clear();
     verts.reserve(3 * static_cast<size_t>(nf));
     for (int f = 0; f < nf; ++f) {
@@ -470,7 +473,7 @@ void criticalGeometry(const RenderSnapshot& snap, std::vector<MeshVertex>& tris,
     }
 }
 
-} // namespace
+}  // namespace
 
 // Scene bounds (surface, critical tets and tools) and a camera whose near and far planes hug the
 // scene and the floor around it.
@@ -639,7 +642,8 @@ void Renderer::draw(const RenderSnapshot& snap) {
     // Resolve the samples into the read-back target.
     glBindFramebuffer(GL_READ_FRAMEBUFFER, g.msFbo);
     glBindFramebuffer(GL_DRAW_FRAMEBUFFER, g.outFbo);
-    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT,
+                      GL_NEAREST);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
@@ -650,7 +654,7 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
     ImGui::SetCurrentContext(g.imgui);
     ImGuiIO& io = ImGui::GetIO();
     io.DisplaySize = ImVec2(static_cast<float>(opts_.width), static_cast<float>(opts_.height));
-    io.DeltaTime = 1.0f / 30.0f; // fixed: frames must not depend on wall-clock time
+    io.DeltaTime = 1.0f / 30.0f;  // fixed: frames must not depend on wall-clock time
 
     auto hudWindow = [&] {
         const HudValues& h = snap.hud;
@@ -716,7 +720,8 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
             const float y = r.y1 - (r.y1 - r.y0) * float(k) / 4.0f;
             const double v = snap.scalarMin + (snap.scalarMax - snap.scalarMin) * k / 4.0;
             char buf[32];
-            std::snprintf(buf, sizeof buf, "%.3g", std::abs(v) < 1e-12 * std::abs(snap.scalarMax - snap.scalarMin) ? 0.0 : v);
+            std::snprintf(buf, sizeof buf, "%.3g",
+                          std::abs(v) < 1e-12 * std::abs(snap.scalarMax - snap.scalarMin) ? 0.0 : v);
             dl->AddLine(ImVec2(r.x1, y), ImVec2(r.x1 + 4, y), text);
             dl->AddText(ImVec2(r.x1 + 7, y - 0.5f * lineH), text, buf);
         }
@@ -751,4 +756,4 @@ Image Renderer::read() const {
     return img;
 }
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

@@ -16,19 +16,19 @@ namespace cutsim::render {
 class EglContext;
 
 struct RenderOptions {
-    int width = 1280;            // frame size [px]
+    int width = 1280;  // frame size [px]
     int height = 720;
-    int samples = 4;             // MSAA samples (clamped to what GL offers; 1 = none)
-    bool lighting = true;        // false: flat colours exactly as the map gives them (pixel tests)
-    bool wireframe = true;       // draw RenderSnapshot::edges when there are any
-    bool xray = true;            // draw critical elements through the surface
-    bool floor = true;           // floor grid under the surface, for depth cues
-    bool legend = true;          // colour bar with ticks when the snapshot has a scalar
-    bool hud = false;            // ImGui window with the HUD values
-    std::array<std::uint8_t, 3> background{38, 41, 46};       // clear colour
-    std::array<std::uint8_t, 3> surfaceColour{222, 184, 166}; // surface without a scalar
-    std::array<std::uint8_t, 3> cutColour{196, 60, 84};       // faces made by a cut
-    std::array<std::uint8_t, 3> criticalColour{255, 30, 30};  // critical elements
+    int samples = 4;        // MSAA samples (clamped to what GL offers; 1 = none)
+    bool lighting = true;   // false: flat colours exactly as the map gives them (pixel tests)
+    bool wireframe = true;  // draw RenderSnapshot::edges when there are any
+    bool xray = true;       // draw critical elements through the surface
+    bool floor = true;      // floor grid under the surface, for depth cues
+    bool legend = true;     // colour bar with ticks when the snapshot has a scalar
+    bool hud = false;       // ImGui window with the HUD values
+    std::array<std::uint8_t, 3> background{38, 41, 46};        // clear colour
+    std::array<std::uint8_t, 3> surfaceColour{222, 184, 166};  // surface without a scalar
+    std::array<std::uint8_t, 3> cutColour{196, 60, 84};        // faces made by a cut
+    std::array<std::uint8_t, 3> criticalColour{255, 30, 30};   // critical elements
     std::array<std::uint8_t, 3> toolColour{176, 184, 200};
 };
 
@@ -39,9 +39,9 @@ struct PixelRect {
 
 // Where a Renderer gets its GL context.
 enum class RenderTarget : std::uint8_t {
-    Offscreen,      // its own EGL context, no display needed
-    CurrentContext, // the context current on this thread (e.g. a GLFW window's); it must stay
-                    // current whenever the Renderer is used
+    Offscreen,       // its own EGL context, no display needed
+    CurrentContext,  // the context current on this thread (e.g. a GLFW window's); it must stay
+                     // current whenever the Renderer is used
 };
 
 class Renderer {
@@ -72,10 +72,10 @@ public:
     const RenderOptions& options() const { return opts_; }
     int width() const { return opts_.width; }
     int height() const { return opts_.height; }
-    int samples() const { return samples_; }       // MSAA samples in use
-    const EglContext& context() const { return *ctx_; } // Offscreen only
-    const std::string& glRenderer() const { return glRenderer_; } // GL_RENDERER
-    PixelRect legendRect() const;                  // where the legend bar is drawn
+    int samples() const { return samples_; }                       // MSAA samples in use
+    const EglContext& context() const { return *ctx_; }            // Offscreen only
+    const std::string& glRenderer() const { return glRenderer_; }  // GL_RENDERER
+    PixelRect legendRect() const;                                  // where the legend bar is drawn
 
 private:
     struct Gl;
@@ -87,13 +87,13 @@ private:
     void drawCriticalXray();
     void drawHudAndLegend(const RenderSnapshot& snap);
     void makeCurrent() const;
-    void allocateTargets(); // framebuffers at opts_ size
+    void allocateTargets();  // framebuffers at opts_ size
     RenderOptions opts_;
     std::string glRenderer_;
     int samples_ = 1;
     std::unique_ptr<EglContext> ctx_;
     std::unique_ptr<Gl> gl_;
-    bool hudShown_ = false; // ImGui hides a new window on its first frame
+    bool hudShown_ = false;  // ImGui hides a new window on its first frame
 };
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

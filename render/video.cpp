@@ -16,7 +16,7 @@ std::string findOnPath(const std::string& program) {
     std::stringstream dirs(path);
     std::string dir;
     while (std::getline(dirs, dir, ':')) {
-        if (dir.empty()) continue; // an empty entry would mean the current folder: not trusted
+        if (dir.empty()) continue;  // an empty entry would mean the current folder: not trusted
         const std::string full = dir + "/" + program;
         if (::access(full.c_str(), X_OK) == 0) return full;
     }
@@ -30,13 +30,13 @@ std::string shellQuote(const std::string& s) {
     for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
     return q + "'";
 }
-} // namespace
+}  // namespace
 
 VideoEncoder::VideoEncoder(const std::string& path, int width, int height, double fps)
     : path_(path), tmp_(path + ".tmp"), width_(width), height_(height) {
     if (width <= 0 || height <= 0 || width % 2 || height % 2)
-        throw std::runtime_error("video size must be positive and even (H.264 yuv420p), got " +
-                                 std::to_string(width) + "x" + std::to_string(height));
+        throw std::runtime_error("video size must be positive and even (H.264 yuv420p), got " + std::to_string(width) +
+                                 "x" + std::to_string(height));
     const std::string ffmpeg = findOnPath("ffmpeg");
     if (ffmpeg.empty())
         throw std::runtime_error("cannot write video " + path +
@@ -45,7 +45,8 @@ VideoEncoder::VideoEncoder(const std::string& path, int width, int height, doubl
     std::signal(SIGPIPE, SIG_IGN);
     std::ostringstream cmd;
     cmd << shellQuote(ffmpeg) << " -hide_banner -loglevel error -y -f rawvideo -pix_fmt rgba -s " << width << "x"
-        << height << " -r " << fps << " -i - -c:v libx264 -preset veryfast -pix_fmt yuv420p -f mp4 " << shellQuote(tmp_);
+        << height << " -r " << fps << " -i - -c:v libx264 -preset veryfast -pix_fmt yuv420p -f mp4 "
+        << shellQuote(tmp_);
     pipe_ = ::popen(cmd.str().c_str(), "w");
     if (!pipe_) throw std::runtime_error("cannot start ffmpeg for " + path);
     writer_ = std::thread([this] { run(); });
@@ -55,16 +56,18 @@ void VideoEncoder::run() {
     std::unique_lock lock(mutex_);
     for (;;) {
         changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
-        if (queue_.empty()) return; // stop requested and nothing left
+        if (queue_.empty()) return;  // stop requested and nothing left
         Image img = std::move(queue_.front());
         queue_.pop_front();
         changed_.notify_all();
-        if (failed_) continue; // drain: ffmpeg is gone
+        if (failed_) continue;  // drain: ffmpeg is gone
         lock.unlock();
         const bool ok = std::fwrite(img.rgba.data(), 1, img.rgba.size(), pipe_) == img.rgba.size();
         lock.lock();
-        if (ok) ++frames_;
-        else failed_ = true;
+        if (ok)
+            ++frames_;
+        else
+            failed_ = true;
         changed_.notify_all();
     }
 }
@@ -121,4 +124,4 @@ void VideoEncoder::finish() {
     }
 }
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

@@ -22,18 +22,18 @@ public:
     // Starts ffmpeg writing path.tmp (renamed to path by finish). Width and height must be even
     // (yuv420p). Throws std::runtime_error when ffmpeg is not on PATH or cannot start.
     VideoEncoder(const std::string& path, int width, int height, double fps = 30);
-    ~VideoEncoder(); // without finish: stops ffmpeg and removes the temporary file
+    ~VideoEncoder();  // without finish: stops ffmpeg and removes the temporary file
     VideoEncoder(const VideoEncoder&) = delete;
     VideoEncoder& operator=(const VideoEncoder&) = delete;
 
     // Queues a frame (blocks while 4 wait); throws if the size differs or ffmpeg stopped.
     void addFrame(Image img);
-    void finish();                   // waits for ffmpeg, renames; throws with its exit status
-    int frames() const { return frames_; } // frames written to ffmpeg
+    void finish();                          // waits for ffmpeg, renames; throws with its exit status
+    int frames() const { return frames_; }  // frames written to ffmpeg
 
 private:
-    void run();       // writer thread
-    void stopWriter(); // lets the writer finish the queue and joins it
+    void run();         // writer thread
+    void stopWriter();  // lets the writer finish the queue and joins it
     std::string path_, tmp_;
     int width_, height_;
     std::atomic<int> frames_ = 0;
@@ -45,4 +45,4 @@ private:
     std::thread writer_;
 };
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

@@ -15,7 +15,7 @@
 namespace cutsim::render {
 namespace {
 
-std::string g_glfwError; // last GLFW error, for the exception message
+std::string g_glfwError;  // last GLFW error, for the exception message
 
 void onGlfwError(int, const char* msg) { g_glfwError = msg ? msg : "unknown GLFW error"; }
 
@@ -29,7 +29,7 @@ std::string noDisplayMessage() {
            "for offscreen frames";
 }
 
-} // namespace
+}  // namespace
 
 Window::Window(const std::string& title, int width, int height, bool vsync) {
     glfwSetErrorCallback(onGlfwError);
@@ -39,7 +39,7 @@ Window::Window(const std::string& title, int width, int height, bool vsync) {
     glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
     glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
     glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-    glfwWindowHint(GLFW_SAMPLES, 0); // the Renderer multisamples offscreen
+    glfwWindowHint(GLFW_SAMPLES, 0);  // the Renderer multisamples offscreen
     window_ = glfwCreateWindow(width, height, title.c_str(), nullptr, nullptr);
     if (!window_) {
         const std::string msg = g_glfwError;
@@ -90,7 +90,7 @@ bool Window::shouldClose() const { return glfwWindowShouldClose(window_); }
 void Window::close() { glfwSetWindowShouldClose(window_, GLFW_TRUE); }
 
 void Window::beginFrame() {
-    ImGui::SetCurrentContext(ui_); // the backend's callbacks feed the current context
+    ImGui::SetCurrentContext(ui_);  // the backend's callbacks feed the current context
     glfwPollEvents();
     ImGui_ImplOpenGL3_NewFrame();
     ImGui_ImplGlfw_NewFrame();
@@ -98,7 +98,7 @@ void Window::beginFrame() {
 }
 
 void Window::endFrame() {
-    ImGui::SetCurrentContext(ui_); // a Renderer switches to its own context while drawing
+    ImGui::SetCurrentContext(ui_);  // a Renderer switches to its own context while drawing
     ImGui::Render();
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
     glViewport(0, 0, framebufferWidth(), framebufferHeight());
@@ -132,7 +132,8 @@ Image Window::readBackBuffer() const {
     img.rgba.resize(raw.size());
     // GL's first row is the bottom one.
     for (int y = 0; y < img.height; ++y)
-        std::copy_n(raw.data() + row * static_cast<size_t>(img.height - 1 - y), row, img.rgba.data() + row * static_cast<size_t>(y));
+        std::copy_n(raw.data() + row * static_cast<size_t>(img.height - 1 - y), row,
+                    img.rgba.data() + row * static_cast<size_t>(y));
     // The window's alpha channel is not part of the picture.
     for (size_t p = 3; p < img.rgba.size(); p += 4) img.rgba[p] = 255;
     return img;
@@ -142,8 +143,8 @@ std::vector<int> Window::takeKeys() {
     std::vector<int> k;
     k.swap(keys_);
     ImGui::SetCurrentContext(ui_);
-    if (ImGui::GetIO().WantCaptureKeyboard) k.clear(); // typing into a widget
+    if (ImGui::GetIO().WantCaptureKeyboard) k.clear();  // typing into a widget
     return k;
 }
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

@@ -30,14 +30,14 @@ public:
     Window& operator=(const Window&) = delete;
 
     bool shouldClose() const;
-    void close();                 // shouldClose() is true from now on
+    void close();  // shouldClose() is true from now on
     // Polls events and starts the window's ImGui frame; inputs ImGui wants are not reported below.
     void beginFrame();
-    void endFrame();              // draws the ImGui frame into the back buffer
+    void endFrame();  // draws the ImGui frame into the back buffer
     void swap();
     int framebufferWidth() const;
     int framebufferHeight() const;
-    Image readBackBuffer() const; // RGBA, top row first; call after endFrame, before swap
+    Image readBackBuffer() const;  // RGBA, top row first; call after endFrame, before swap
 
     // Keys pressed since the last call (GLFW key codes), not counting those ImGui took.
     std::vector<int> takeKeys();
@@ -50,4 +50,4 @@ private:
     std::vector<int> keys_;
 };
 
-} // namespace cutsim::render
+}  // namespace cutsim::render

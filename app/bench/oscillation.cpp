@@ -42,12 +42,14 @@ void refine(const std::vector<double>& t, const std::vector<double>& y, Oscillat
         }
         p.head<3>() = A.ldlt().solve(rhs);
     }
-    auto cost = [&](const Eigen::Matrix<double, 5, 1>& q, Eigen::Matrix<double, 5, 5>* JtJ, Eigen::Matrix<double, 5, 1>* Jtr) {
+    auto cost = [&](const Eigen::Matrix<double, 5, 1>& q, Eigen::Matrix<double, 5, 5>* JtJ,
+                    Eigen::Matrix<double, 5, 1>* Jtr) {
         double sum = 0;
         JtJ->setZero();
         Jtr->setZero();
         for (size_t k = 0; k < n; ++k) {
-            const double tau = t[k] - tMid, e = std::exp(-q(3) * tau), c = std::cos(q(4) * tau), s = std::sin(q(4) * tau);
+            const double tau = t[k] - tMid, e = std::exp(-q(3) * tau), c = std::cos(q(4) * tau),
+                         s = std::sin(q(4) * tau);
             const double osc = e * (q(1) * c + q(2) * s), res = y[k] - q(0) - osc;
             sum += res * res;
             Eigen::Matrix<double, 5, 1> g;
@@ -84,7 +86,7 @@ void refine(const std::vector<double>& t, const std::vector<double>& y, Oscillat
     }
 }
 
-} // namespace
+}  // namespace
 
 Oscillation fitOscillation(const std::vector<double>& t, const std::vector<double>& y) {
     Oscillation r;
@@ -98,7 +100,10 @@ Oscillation fitOscillation(const std::vector<double>& t, const std::vector<doubl
     if (up.size() >= 2) {
         double s = 0, w = 0;
         for (size_t k = 1; k < y.size(); ++k)
-            if (t[k] > up.front() && t[k] <= up.back()) { s += y[k] * (t[k] - t[k - 1]); w += t[k] - t[k - 1]; }
+            if (t[k] > up.front() && t[k] <= up.back()) {
+                s += y[k] * (t[k] - t[k - 1]);
+                w += t[k] - t[k - 1];
+            }
         if (w > 0) mean = s / w;
         up = crossings(t, y, mean, true);
     }
@@ -112,10 +117,16 @@ Oscillation fitOscillation(const std::vector<double>& t, const std::vector<doubl
     for (size_t c = 1; c < both.size(); ++c) {
         double amp = 0, at = 0;
         for (; k < y.size() && t[k] < both[c]; ++k)
-            if (t[k] > both[c - 1] && std::abs(y[k] - mean) > amp) { amp = std::abs(y[k] - mean); at = t[k]; }
+            if (t[k] > both[c - 1] && std::abs(y[k] - mean) > amp) {
+                amp = std::abs(y[k] - mean);
+                at = t[k];
+            }
         if (amp <= 0) continue;
         const double ly = std::log(amp);
-        sx += at; sy += ly; sxx += at * at; sxy += at * ly;
+        sx += at;
+        sy += ly;
+        sxx += at * at;
+        sxy += at * ly;
         ++r.halfCycles;
     }
     const double n = r.halfCycles, det = n * sxx - sx * sx;
@@ -149,4 +160,4 @@ double backwardEulerDtForError(double w, double wRef, double target) {
     return lo;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

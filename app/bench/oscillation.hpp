@@ -36,4 +36,4 @@ double modeError(std::complex<double> s, double wRef);
 // 0 when the mode alone (the mesh's error) is already target or more off.
 double backwardEulerDtForError(double w, double wRef, double target);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -40,7 +40,8 @@ void pieceOf(const Model& m, int e, RandomCutRun& r) {
     std::vector<int> p(static_cast<size_t>(m.nodes()));
     for (int i = 0; i < m.nodes(); ++i) p[static_cast<size_t>(i)] = i;
     auto find = [&](int i) {
-        while (p[static_cast<size_t>(i)] != i) i = p[static_cast<size_t>(i)] = p[static_cast<size_t>(p[static_cast<size_t>(i)])];
+        while (p[static_cast<size_t>(i)] != i)
+            i = p[static_cast<size_t>(i)] = p[static_cast<size_t>(p[static_cast<size_t>(i)])];
         return i;
     };
     for (int k = 0; k < m.elements(); ++k)
@@ -58,7 +59,7 @@ void pieceOf(const Model& m, int e, RandomCutRun& r) {
     for (int i = 0; i < m.nodes(); ++i) r.pieceFixed += m.fixed[static_cast<size_t>(i)] && find(i) == root;
 }
 
-} // namespace
+}  // namespace
 
 CutSurface randomCutPlane(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::mt19937& rng) {
     std::uniform_real_distribution<double> uni(0, 1);
@@ -109,8 +110,9 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
             out.maxLimited = std::max(out.maxLimited, s.flags.limited);
             if (s.flags.nonFinite > 0 || !(vmax < kBlowUpSpeed)) {
                 out.failed = true;
-                out.failure = "cut " + std::to_string(c) + ", step " + std::to_string(k) + " after it: " +
-                              std::to_string(s.flags.nonFinite) + " non-finite nodes, max speed " + std::to_string(vmax) + " m/s";
+                out.failure = "cut " + std::to_string(c) + ", step " + std::to_string(k) +
+                              " after it: " + std::to_string(s.flags.nonFinite) + " non-finite nodes, max speed " +
+                              std::to_string(vmax) + " m/s";
                 return out;
             }
         }
@@ -131,17 +133,19 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
 std::string describeRun(int run, const RandomCutRun& r) {
     char buf[500];
     if (!r.inverted) {
-        std::snprintf(buf, sizeof buf, "run %d: %d cuts%s%s; no inversion; stretch limiting in %ld steps, at most %d elements",
-                      run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "", r.limitedSteps,
+        std::snprintf(buf, sizeof buf,
+                      "run %d: %d cuts%s%s; no inversion; stretch limiting in %ld steps, at most %d elements", run,
+                      r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "", r.limitedSteps,
                       r.maxLimited);
         return buf;
     }
-    std::snprintf(buf, sizeof buf,
-                  "run %d: %d cuts%s%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
-                  "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes; stretch limiting in %ld steps",
-                  run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "",
-                  r.invertedAtEnd ? ", still inverted at the end" : ", recovered", r.invCut, r.invStep, r.invElem,
-                  r.invFraction, r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed, r.limitedSteps);
+    std::snprintf(
+        buf, sizeof buf,
+        "run %d: %d cuts%s%s%s; first inversion after cut %d step %d: element %d fraction %.3g, %d prescribed "
+        "corners, piece of %d elements (%.3g of the volume) with %d prescribed nodes; stretch limiting in %ld steps",
+        run, r.cuts, r.failed ? ", blew up at " : "", r.failed ? r.failure.c_str() : "",
+        r.invertedAtEnd ? ", still inverted at the end" : ", recovered", r.invCut, r.invStep, r.invElem, r.invFraction,
+        r.invFixedCorners, r.pieceElems, r.pieceVolume, r.pieceFixed, r.limitedSteps);
     return buf;
 }
 
@@ -169,4 +173,4 @@ RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsi
     return st;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

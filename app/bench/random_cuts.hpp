@@ -14,20 +14,20 @@
 
 namespace cutsim {
 
-inline constexpr double kBlowUpSpeed = 50;   // a node faster than this has blown up [m/s]
+inline constexpr double kBlowUpSpeed = 50;  // a node faster than this has blown up [m/s]
 
 struct RandomCutStats {
     int runs = 0, cuts = 0;
-    int failures = 0;        // runs that blew up: a non-finite value or a speed above kBlowUpSpeed
-    int invertedRuns = 0;    // runs in which some element had det F <= 0, even for one step
-    int invertedAtEnd = 0;   // of those, runs with an element still inverted at their last step
-    int limitedRuns = 0;     // runs in which stretch limiting corrected an element
-    long limitedSteps = 0;   // steps in which it did
-    double maxSpeed = 0;     // [m/s]
+    int failures = 0;       // runs that blew up: a non-finite value or a speed above kBlowUpSpeed
+    int invertedRuns = 0;   // runs in which some element had det F <= 0, even for one step
+    int invertedAtEnd = 0;  // of those, runs with an element still inverted at their last step
+    int limitedRuns = 0;    // runs in which stretch limiting corrected an element
+    long limitedSteps = 0;  // steps in which it did
+    double maxSpeed = 0;    // [m/s]
     long steps = 0;
-    double minDtRatio = 1;   // smallest exact dt after a cut over the uncut one [-]
-    double maxVolumeError = 0; // largest |volume after - before| / before of a cut [-]
-    double maxMassError = 0;   // largest |mass after - before| / before of a cut [-]
+    double minDtRatio = 1;      // smallest exact dt after a cut over the uncut one [-]
+    double maxVolumeError = 0;  // largest |volume after - before| / before of a cut [-]
+    double maxMassError = 0;    // largest |mass after - before| / before of a cut [-]
     std::string firstFailure;
 };
 
@@ -35,15 +35,15 @@ struct RandomCutStats {
 struct RandomCutRun {
     int cuts = 0;
     long steps = 0;
-    bool failed = false;        // a non-finite value or a speed above kBlowUpSpeed
-    bool inverted = false;      // some element had det F <= 0
-    bool invertedAtEnd = false; // an element still had det F <= 0 at the last step
-    long limitedSteps = 0;      // steps in which stretch limiting corrected an element
-    int maxLimited = 0;         // most elements it corrected in one step
-    double maxSpeed = 0;        // [m/s]
-    double minDtRatio = 1;      // smallest exact dt after a cut over the uncut one [-]
-    double maxVolumeError = 0, maxMassError = 0; // relative, over the cuts [-]
-    std::string failure;        // where it blew up
+    bool failed = false;                          // a non-finite value or a speed above kBlowUpSpeed
+    bool inverted = false;                        // some element had det F <= 0
+    bool invertedAtEnd = false;                   // an element still had det F <= 0 at the last step
+    long limitedSteps = 0;                        // steps in which stretch limiting corrected an element
+    int maxLimited = 0;                           // most elements it corrected in one step
+    double maxSpeed = 0;                          // [m/s]
+    double minDtRatio = 1;                        // smallest exact dt after a cut over the uncut one [-]
+    double maxVolumeError = 0, maxMassError = 0;  // relative, over the cuts [-]
+    std::string failure;                          // where it blew up
     // The first inverted element: after which cut (0: before any), at which step after it, its
     // fraction, its prescribed corners, and the piece it belongs to (elements, volume share of
     // the object, prescribed nodes).
@@ -67,7 +67,7 @@ Model randomCutBarModel();
 // limit, and the stretch limiting of the scenes (0: off, inversions only counted).
 struct RandomCutOptions {
     MassLumping lumping = MassLumping::Enrichment;
-    double dtFactor = 0.9;                          // step / exact dt of the current model [-]
+    double dtFactor = 0.9;                      // step / exact dt of the current model [-]
     double minStretch = 0;                      // StepOptions::minStretch, 0: off [-]
     double fuseReach = CutOptions{}.fuseReach;  // CutOptions::fuseReach [-]
 };
@@ -90,4 +90,4 @@ std::string describeRun(int run, const RandomCutRun& r);
 RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsigned seed,
                              const RandomCutOptions& opt = {}, std::vector<std::string>* log = nullptr);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -22,7 +22,7 @@ struct Collect : btDbvt::ICollide {
     void Process(const btDbvtNode* leaf) override { out->push_back(leaf->dataAsInt); }
 };
 
-} // namespace
+}  // namespace
 
 struct ElementBroadphase::Impl {
     double margin = 0;
@@ -71,4 +71,4 @@ void ElementBroadphase::query(const Eigen::Vector3d& lo, const Eigen::Vector3d& 
     std::sort(out.begin(), out.end());
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -32,4 +32,4 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -47,7 +47,7 @@ struct Acc {
     }
 };
 
-} // namespace
+}  // namespace
 
 ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& X,
                             double spacing) {
@@ -129,10 +129,11 @@ namespace {
 // 1 / (w_p^T M^-1 w_p) over the free nodes [kg]; infinity when the point moves no free node
 double effectiveMass(const ContactPoints& pts, const Eigen::VectorXd& invMass, int p) {
     double s = 0;
-    for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i) s += pts.weights(i, p) * pts.weights(i, p) * invMass(pts.nodes(i, p));
+    for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i)
+        s += pts.weights(i, p) * pts.weights(i, p) * invMass(pts.nodes(i, p));
     return s > 0 ? 1.0 / s : std::numeric_limits<double>::infinity();
 }
-} // namespace
+}  // namespace
 
 void scaleByMass(ContactPoints& pts, const Eigen::VectorXd& invMass, double mRef) {
     pts.scale.resize(pts.points());
@@ -181,7 +182,8 @@ double stableStiffness(const ContactPoints& pts, const Model& model, double dt, 
     eigs.init();
     eigs.compute(Spectra::SortRule::LargestAlge, 2000, 1e-10);
     if (eigs.info() != Spectra::CompInfo::Successful)
-        throw EigenSolveError("contact stiffness limit: Lanczos did not converge (" + std::to_string(nf) + " free DOFs)");
+        throw EigenSolveError("contact stiffness limit: Lanczos did not converge (" + std::to_string(nf) +
+                              " free DOFs)");
     const double nu = eigs.eigenvalues()(0);
     return nu > 0 ? 1.0 / nu : std::numeric_limits<double>::infinity();
 }
@@ -216,7 +218,7 @@ struct Collect : btDbvt::ICollide {
     void Process(const btDbvtNode* leaf) override { out->push_back(leaf->dataAsInt); }
 };
 
-} // namespace
+}  // namespace
 
 struct ContactWorld::Impl {
     std::vector<ToolDef> tools;
@@ -227,9 +229,9 @@ struct ContactWorld::Impl {
     btCollisionWorld world{&dispatcher, &broadphase, &config};
     std::vector<std::unique_ptr<btConvexShape>> shapes;
     std::vector<std::unique_ptr<btCollisionObject>> objects;
-    std::vector<int> partTool;        // tool of each part
-    std::vector<int> partIndex;       // index of the part within its tool
-    std::vector<double> partRadius;   // radius of a sphere about the part origin holding the part [m]
+    std::vector<int> partTool;       // tool of each part
+    std::vector<int> partIndex;      // index of the part within its tool
+    std::vector<double> partRadius;  // radius of a sphere about the part origin holding the part [m]
 
     ContactPoints pts;
     std::vector<int> ignoredCut;      // per tool: the cut whose faces it does not touch, or -1
@@ -239,9 +241,9 @@ struct ContactWorld::Impl {
     Eigen::Matrix3Xd xp;              // point positions (3 x nPoints) [m]; vertices every step, others on demand
     std::vector<int> stamp;           // last query that visited each point (nPoints)
     int query = 0;
-    std::vector<int> candidates;      // triangles, then points
+    std::vector<int> candidates;  // triangles, then points
     btNodeStack stack;
-    std::vector<btTransform> now, next; // part transforms at t and t + dt
+    std::vector<btTransform> now, next;  // part transforms at t and t + dt
     ContactStep last;
 
     void clearTree() {
@@ -269,8 +271,9 @@ ContactWorld::ContactWorld(std::vector<ToolDef> tools) : impl_(std::make_unique<
             m.partTool.push_back(static_cast<int>(t));
             m.partIndex.push_back(static_cast<int>(i));
             const ToolPart& q = parts[i];
-            double rad = q.shape == ToolShape::Kind::Sphere ? q.size.x()
-                       : q.shape == ToolShape::Kind::Capsule ? q.size.x() + q.size.y() : q.size.norm();
+            double rad = q.shape == ToolShape::Kind::Sphere    ? q.size.x()
+                         : q.shape == ToolShape::Kind::Capsule ? q.size.x() + q.size.y()
+                                                               : q.size.norm();
             if (q.hull) {
                 rad = 0;
                 for (int k = 0; k < m.tools[t].hull.cols(); ++k) rad = std::max(rad, m.tools[t].hull.col(k).norm());
@@ -327,8 +330,10 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
     for (int p = 0; p < nv; ++p) interpolate(p);
     // 2. refit the triangle tree: a leaf moves only when its triangle left the fattened box
     auto triBox = [&](int t) {
-        const Eigen::Vector3d a = m.xp.col(P.triangles(0, t)), b = m.xp.col(P.triangles(1, t)), c = m.xp.col(P.triangles(2, t));
-        return btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))), bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
+        const Eigen::Vector3d a = m.xp.col(P.triangles(0, t)), b = m.xp.col(P.triangles(1, t)),
+                              c = m.xp.col(P.triangles(2, t));
+        return btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))),
+                                    bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
     };
     if (static_cast<int>(m.leaves.size()) != nt) {
         m.clearTree();
@@ -379,7 +384,8 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
         // the candidate triangles' points, each once; edge and face points interpolated now
         // faces of a cut this tool does not touch: dropped here, their points reached through
         // other candidate faces only
-        const int ignored = m.ignoredCut.empty() || P.triCut.empty() ? -1 : m.ignoredCut[static_cast<size_t>(m.partTool[o])];
+        const int ignored =
+            m.ignoredCut.empty() || P.triCut.empty() ? -1 : m.ignoredCut[static_cast<size_t>(m.partTool[o])];
         if (ignored >= 0)
             m.candidates.erase(std::remove_if(m.candidates.begin(), m.candidates.end(),
                                               [&](int t) { return P.triCut[static_cast<size_t>(t)] == ignored; }),
@@ -411,12 +417,13 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
             btGjkEpaSolver2::sResults res;
             const btScalar d = btGjkEpaSolver2::SignedDistance(xp, 0, shape, now[o], res);
             if (!(d < 0) || !std::isfinite(d)) continue;
-            const Eigen::Vector3d n = eig(res.normal);   // the way out of the tool
+            const Eigen::Vector3d n = eig(res.normal);  // the way out of the tool
             if (!n.allFinite() || std::abs(n.norm() - 1) > 1e-6) continue;
             // velocity of the point, and of the tool's material point at xp over this step
             Eigen::Vector3d vp = Eigen::Vector3d::Zero();
             for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) vp += P.weights(i, p) * v.col(P.nodes(i, p));
-            const Eigen::Vector3d vTool = dt > 0 ? Eigen::Vector3d((eig(toolNext * xp) - eig(xp)) / dt) : Eigen::Vector3d::Zero();
+            const Eigen::Vector3d vTool =
+                dt > 0 ? Eigen::Vector3d((eig(toolNext * xp) - eig(xp)) / dt) : Eigen::Vector3d::Zero();
             const double vn = n.dot(vp - vTool);
             const double fn = P.scale(p) * std::max(0.0, tool.stiffness * (-d) - tool.damping * vn);
             const Eigen::Vector3d fp = fn * n;
@@ -428,4 +435,4 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
     }
 }
 
-} // namespace cutsim
+}  // namespace cutsim

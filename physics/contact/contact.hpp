@@ -34,14 +34,14 @@ namespace cutsim {
 // triangle's box, so a tree over triangle boxes finds them.
 struct ContactPoints {
     static constexpr int kMaxNodes = 12;
-    Eigen::Matrix<int, kMaxNodes, Eigen::Dynamic> nodes;      // node indices (12 x nPoints); unused slots: node 0
-    Eigen::Matrix<double, kMaxNodes, Eigen::Dynamic> weights; // interpolation weights (12 x nPoints) [-]; unused: 0
+    Eigen::Matrix<int, kMaxNodes, Eigen::Dynamic> nodes;       // node indices (12 x nPoints); unused slots: node 0
+    Eigen::Matrix<double, kMaxNodes, Eigen::Dynamic> weights;  // interpolation weights (12 x nPoints) [-]; unused: 0
     std::vector<std::uint8_t> count;                           // used slots of each point, packed first (nPoints)
-    Eigen::Matrix3Xi triangles;   // surface triangles as vertex point indices (3 x nTris)
-    std::vector<int> triStart;    // CSR: points of triangle t are triPoints[triStart[t] .. triStart[t+1]) (nTris + 1)
-    std::vector<int> triPoints;   // its vertices, edge points and face points
-    Eigen::VectorXd scale;        // penalty factor of each point (nPoints) [-]: 1, or scaleByMass's
-    std::vector<int> triCut;      // the cut that made each triangle, -1 for none (nTris; empty: none)
+    Eigen::Matrix3Xi triangles;                                // surface triangles as vertex point indices (3 x nTris)
+    std::vector<int> triStart;   // CSR: points of triangle t are triPoints[triStart[t] .. triStart[t+1]) (nTris + 1)
+    std::vector<int> triPoints;  // its vertices, edge points and face points
+    Eigen::VectorXd scale;       // penalty factor of each point (nPoints) [-]: 1, or scaleByMass's
+    std::vector<int> triCut;     // the cut that made each triangle, -1 for none (nTris; empty: none)
     int points() const { return static_cast<int>(nodes.cols()); }
 };
 
@@ -81,9 +81,9 @@ inline constexpr double kDefaultStiffnessFraction = 0.5;
 
 // What contact did in the last step.
 struct ContactStep {
-    std::vector<Eigen::Vector3d> reaction; // force of the tissue on each tool (nTools) [N]
-    int contacts = 0;                      // points inside a tool [-]
-    double maxDepth = 0;                   // deepest point inside a tool [m]
+    std::vector<Eigen::Vector3d> reaction;  // force of the tissue on each tool (nTools) [N]
+    int contacts = 0;                       // points inside a tool [-]
+    double maxDepth = 0;                    // deepest point inside a tool [m]
 };
 
 class ContactWorld {
@@ -118,4 +118,4 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -19,7 +19,8 @@ void bracket(const std::vector<ToolKey>& keys, double t, const ToolKey*& a, cons
         a = b = &keys.back();
         return;
     }
-    const auto it = std::upper_bound(keys.begin(), keys.end(), t, [](double x, const ToolKey& k) { return x < k.time; });
+    const auto it =
+        std::upper_bound(keys.begin(), keys.end(), t, [](double x, const ToolKey& k) { return x < k.time; });
     b = &*it;
     a = &*(it - 1);
     w = b->time > a->time ? (t - a->time) / (b->time - a->time) : 1.0;
@@ -68,7 +69,7 @@ void partAabb(const ToolPart& p, const ToolDef& tool, const Pose& pose, Eigen::V
     hi = hi.cwiseMax(c + half);
 }
 
-} // namespace
+}  // namespace
 
 Pose toolPose(const ToolDef& tool, double t) {
     const ToolKey *a, *b;
@@ -180,4 +181,4 @@ void bladeEdge(const ToolDef& tool, double t, Eigen::Vector3d& a, Eigen::Vector3
     b = p.apply(Eigen::Vector3d(h.x(), -h.y(), 0));
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -15,36 +15,37 @@ namespace cutsim {
 
 // A rigid pose: world point = position + orientation * local point.
 struct Pose {
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();              // [m]
-    Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity(); // local -> world
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();               // [m]
+    Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // local -> world
     Eigen::Vector3d apply(const Eigen::Vector3d& p) const { return position + orientation * p; }
 };
 
 struct ToolKey {
-    double time = 0;           // [s]
+    double time = 0;  // [s]
     Pose pose;
-    double opening = 0;        // grasper: gap between the jaws [m]
+    double opening = 0;  // grasper: gap between the jaws [m]
 };
 
 struct ToolDef {
     enum class Kind { Sphere, Capsule, Blade, Grasper, Hull } kind = Kind::Sphere;
     std::string name;
-    double radius = 0.01;      // sphere and capsule radius [m]
-    double length = 0.02;      // capsule: distance between the cap centres, along local z [m]
-    Eigen::Vector3d size = Eigen::Vector3d(0.04, 0.02, 0.001); // blade: full extents [m]; the cutting
-                               // edge is the local -y edge, along x; grasper: one jaw's full extents
-    Eigen::Matrix3Xd hull;     // hull: points in local coordinates (3 x nPoints) [m]
-    std::vector<ToolKey> keys; // in time order; the pose is held before the first and after the last
-    double stiffness = 0;      // penalty stiffness per contact point [N/m]; 0 = automatic (0.8 of the stable limit)
-    double damping = -1;       // penalty damping per contact point [N s/m]; < 0 = automatic
+    double radius = 0.01;  // sphere and capsule radius [m]
+    double length = 0.02;  // capsule: distance between the cap centres, along local z [m]
+    Eigen::Vector3d size =
+        Eigen::Vector3d(0.04, 0.02, 0.001);  // blade: full extents [m]; the cutting
+                                             // edge is the local -y edge, along x; grasper: one jaw's full extents
+    Eigen::Matrix3Xd hull;                   // hull: points in local coordinates (3 x nPoints) [m]
+    std::vector<ToolKey> keys;               // in time order; the pose is held before the first and after the last
+    double stiffness = 0;  // penalty stiffness per contact point [N/m]; 0 = automatic (0.8 of the stable limit)
+    double damping = -1;   // penalty damping per contact point [N s/m]; < 0 = automatic
 };
 
 // One convex piece of a tool in the tool's frame (a grasper has two).
 struct ToolPart {
-    ToolShape::Kind shape = ToolShape::Kind::Sphere; // drawn as; a hull is a Box of its bounds
-    bool hull = false;         // convex hull of ToolDef::hull instead of the shape
+    ToolShape::Kind shape = ToolShape::Kind::Sphere;  // drawn as; a hull is a Box of its bounds
+    bool hull = false;                                // convex hull of ToolDef::hull instead of the shape
     Eigen::Vector3d size = Eigen::Vector3d::Zero();   // as ToolShape::size [m]
-    Pose local;                // part frame in the tool frame
+    Pose local;                                       // part frame in the tool frame
 };
 
 // Pose of a tool at time t: linear interpolation of positions, slerp of orientations.
@@ -70,4 +71,4 @@ void sweptAabb(const ToolDef& tool, double t0, double t1, Eigen::Vector3d& lo, E
 // The blade's cutting edge (local -y edge along x) at time t: endpoints a, b [m].
 void bladeEdge(const ToolDef& tool, double t, Eigen::Vector3d& a, Eigen::Vector3d& b);
 
-} // namespace cutsim
+}  // namespace cutsim

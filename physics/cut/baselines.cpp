@@ -23,7 +23,8 @@ std::vector<BaselineRow> barCutBaselines(const BarOptions& opts) {
     const TetMesh bar = barMesh(opts);
     std::vector<BaselineRow> rows;
     for (const double kept : opts.kept) {
-        if (!(kept > 0 && kept <= 1)) throw InputError("bar baselines: kept share " + std::to_string(kept) + " not in (0, 1]");
+        if (!(kept > 0 && kept <= 1))
+            throw InputError("bar baselines: kept share " + std::to_string(kept) + " not in (0, 1]");
         for (const CutMethod method : {CutMethod::Subdivision, CutMethod::Remesh}) {
             if (method == CutMethod::Remesh && !opts.remesh) continue;
             TetMesh m;
@@ -47,8 +48,8 @@ std::vector<BaselineRow> barCutBaselines(const BarOptions& opts) {
     return rows;
 }
 
-std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutPlane>& planes,
-                                     CutMethod method, const Material& material) {
+std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutPlane>& planes, CutMethod method,
+                                     const Material& material) {
     std::vector<double> dts;
     TetMesh m = mesh;
     // Remeshing keeps the input's resolution through all cuts.
@@ -61,4 +62,4 @@ std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutP
     return dts;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -28,12 +28,12 @@ struct BaselineRow {
 // 2x2x9 cubes give the thesis's 90 nodes (216 tets against its 210, whose mesh is not given);
 // unit = 1 cm puts the uncut step at the thesis's order (0.638 ms).
 struct BarOptions {
-    double unit = 0.01;                        // bar length unit [m]
-    int nx = 2, ny = 2, nz = 9;                // cubes along x, y, z
+    double unit = 0.01;                              // bar length unit [m]
+    int nx = 2, ny = 2, nz = 9;                      // cubes along x, y, z
     std::vector<double> kept{1.0, 0.75, 0.5, 0.25};  // kept shares of the length, 1 = uncut
-    Material material;                         // thesis sec. 6.2: E 30 kPa, nu 0.3, rho 1000
-    ConformingOptions subdivision;             // snapping 0.1 as in the thesis; keep is forced to Positive
-    bool remesh = true;                        // also the TetGen rows (the slow ones)
+    Material material;                               // thesis sec. 6.2: E 30 kPa, nu 0.3, rho 1000
+    ConformingOptions subdivision;                   // snapping 0.1 as in the thesis; keep is forced to Positive
+    bool remesh = true;                              // also the TetGen rows (the slow ones)
 };
 
 // For each kept share and each method (subdivision, then remesh): cut the bar by the plane
@@ -49,7 +49,7 @@ double exactDtOf(const TetMesh& mesh, const Material& material = {});
 
 // Applies the planes in sequence with the method (both sides kept and separated) and returns the
 // exact critical step after each cut [s] (planes.size() values).
-std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutPlane>& planes,
-                                     CutMethod method, const Material& material = {});
+std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutPlane>& planes, CutMethod method,
+                                     const Material& material = {});
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -50,7 +50,7 @@ struct TetSink {
         if (std::min(w[1], w[5]) < std::min(w[2], w[4])) {  // quad w1 w2 w5 w4 split by w1-w5
             tet(w[0], w[1], w[2], w[5], s);
             tet(w[0], w[1], w[5], w[4], s);
-        } else {                                              // split by w2-w4
+        } else {  // split by w2-w4
             tet(w[0], w[1], w[2], w[4], s);
             tet(w[0], w[4], w[2], w[5], s);
         }
@@ -58,7 +58,7 @@ struct TetSink {
     }
 };
 
-} // namespace
+}  // namespace
 
 ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const ConformingOptions& opts) {
     const double nNorm = plane.normal.norm();
@@ -168,7 +168,10 @@ ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const
             const int v = mesh.tets(a, e);
             (sign[v] > 0 ? P[np++] : sign[v] < 0 ? N[nm++] : Z[nz++]) = v;
         }
-        if (np == 0 && nm == 0) { ++rep.collapsedTets; continue; }
+        if (np == 0 && nm == 0) {
+            ++rep.collapsedTets;
+            continue;
+        }
         if (np == 0 || nm == 0) {
             out.tet(mesh.tets(0, e), mesh.tets(1, e), mesh.tets(2, e), mesh.tets(3, e), np > 0 ? 1 : -1);
             continue;
@@ -282,4 +285,4 @@ int connectedPieces(const TetMesh& mesh, std::vector<int>* tetPiece) {
     return pieces;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -15,8 +15,8 @@ namespace cutsim {
 
 // An infinite cut plane; the positive side is the one the normal points to.
 struct CutPlane {
-    Eigen::Vector3d point = Eigen::Vector3d::Zero();   // a point on the plane [m]
-    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // unit normal [-]
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();    // a point on the plane [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit normal [-]
 };
 
 // Which part of the cut mesh to return.
@@ -27,8 +27,8 @@ enum class KeepSide : std::uint8_t {
 };
 
 struct ConformingOptions {
-    double snapFraction = 0.1;  // snap a node when |distance| < snapFraction * mean length of its
-                                // incident edges (thesis sec. 6.2: 0.1); 0 disables snapping [-]
+    double snapFraction = 0.1;        // snap a node when |distance| < snapFraction * mean length of its
+                                      // incident edges (thesis sec. 6.2: 0.1); 0 disables snapping [-]
     double onPlaneTolerance = 1e-12;  // |distance| <= this * bounding-box diagonal counts as on the
                                       // plane, so no cut point lands on a node [-]
     KeepSide keep = KeepSide::Both;
@@ -68,4 +68,4 @@ ConformingResult conformingCuts(const TetMesh& mesh, const std::vector<CutPlane>
 // Connected pieces (tets sharing a node) and each tet's piece index (nTets), pieces numbered from 0.
 int connectedPieces(const TetMesh& mesh, std::vector<int>* tetPiece = nullptr);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -45,7 +45,7 @@ Poly clipBy(const Poly& p, F&& f) {
     return clipPoly(p, v);
 }
 
-} // namespace
+}  // namespace
 
 EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
     if (!prepared_) return original;
@@ -189,7 +189,8 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             for (int k = 0; k < 4; ++k) {
                 const int n = adj_(k, q);
                 if (n < 0 || std::find(visited.begin(), visited.end(), n) != visited.end()) continue;
-                if (std::any_of(poly.begin(), poly.end(), [k](const Eigen::Vector4d& w) { return std::abs(w[k]) < 1e-9; })) {
+                if (std::any_of(poly.begin(), poly.end(),
+                                [k](const Eigen::Vector4d& w) { return std::abs(w[k]) < 1e-9; })) {
                     visited.push_back(n);
                     queue.push_back(n);
                 }
@@ -203,8 +204,10 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             continue;
         }
         for (const auto& [q, poly] : parts) {
-            if (isCut(q)) emitInCutParent(q, poly);
-            else emit(q, q, poly, -1);
+            if (isCut(q))
+                emitInCutParent(q, poly);
+            else
+                emit(q, q, poly, -1);
         }
     }
 
@@ -271,4 +274,4 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     return out;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

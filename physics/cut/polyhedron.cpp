@@ -125,7 +125,7 @@ void forEachFanTet(const ConvexPiece& p, F&& f) {
         for (size_t k = 1; k + 1 < face.v.size(); ++k) f(r, p.xi[face.v[0]], p.xi[face.v[k]], p.xi[face.v[k + 1]]);
 }
 
-} // namespace
+}  // namespace
 
 double volumeFraction(const ConvexPiece& piece) {
     if (piece.empty()) return 0;
@@ -201,7 +201,7 @@ double faceAreaFraction(const std::vector<FaceSide>& sides) {
         const Eigen::Vector2d& b = p[(k + 1) % p.size()];
         area2 += a[0] * b[1] - a[1] * b[0];
     }
-    return std::abs(area2); // the whole triangle has 2 x area 1
+    return std::abs(area2);  // the whole triangle has 2 x area 1
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -18,9 +18,9 @@ namespace cutsim {
 
 // A side of a cutting plane inside one parent tet: s(xi) = sum_a l_a(xi) s_a.
 struct Halfspace {
-    Eigen::Vector4d s = Eigen::Vector4d::Zero(); // signed distance at the parent's corners [m]
-    bool positive = false;                       // keeps s >= 0 (true) or s < 0 (false)
-    int cut = 0;                                 // id of the cut that made it
+    Eigen::Vector4d s = Eigen::Vector4d::Zero();  // signed distance at the parent's corners [m]
+    bool positive = false;                        // keeps s >= 0 (true) or s < 0 (false)
+    int cut = 0;                                  // id of the cut that made it
 
     // Value at a point; exact at a corner (corner >= 0) so ties at nodes are decided identically
     // by every element sharing the node.
@@ -55,7 +55,7 @@ void weightIntegrals(const ConvexPiece& piece, Eigen::Vector4d& first, Eigen::Ve
 
 // A side of a plane on one triangle: signed distances at its three corners.
 struct FaceSide {
-    Eigen::Vector3d s = Eigen::Vector3d::Zero(); // [m]
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();  // [m]
     bool positive = false;
 };
 
@@ -67,4 +67,4 @@ double faceAreaFraction(const std::vector<FaceSide>& sides);
 // Barycentric weights of a reference point.
 inline Eigen::Vector4d weightsOf(const Eigen::Vector3d& xi) { return {1.0 - xi.sum(), xi[0], xi[1], xi[2]}; }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -128,7 +128,8 @@ Plc buildPlc(const TetMesh& piece, const Eigen::Matrix3Xi& F, double coplanarTol
             for (size_t k = 0; k < m; ++k) {
                 const int v = poly[k];
                 ++uses[v];
-                const Eigen::Vector3d a = plc.points[poly[(k + m - 1) % m]], b = plc.points[v], c = plc.points[(poly[(k + 1) % m])];
+                const Eigen::Vector3d a = plc.points[poly[(k + m - 1) % m]], b = plc.points[v],
+                                      c = plc.points[(poly[(k + 1) % m])];
                 const bool line = (b - a).cross(c - b).norm() <= tol * (c - a).norm() && (b - a).dot(c - b) > 0;
                 straight[v] = straight[v] && isLoop && line;
             }
@@ -225,7 +226,8 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
         } catch (int c) {
             code = c;
         }
-        const int head[3] = {code, out.numberofpoints, code == 0 && out.numberofcorners == 4 ? out.numberoftetrahedra : 0};
+        const int head[3] = {code, out.numberofpoints,
+                             code == 0 && out.numberofcorners == 4 ? out.numberoftetrahedra : 0};
         bool ok = writeAll(fd[1], head, sizeof head);
         if (code == 0) {
             ok = ok && writeAll(fd[1], out.pointlist, sizeof(REAL) * 3 * static_cast<size_t>(head[1]));
@@ -242,8 +244,10 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
     char chunk[65536];
     for (;;) {
         const ssize_t n = ::read(fd[0], chunk, sizeof chunk);
-        if (n > 0) buf.insert(buf.end(), chunk, chunk + n);
-        else if (n == 0 || errno != EINTR) break;
+        if (n > 0)
+            buf.insert(buf.end(), chunk, chunk + n);
+        else if (n == 0 || errno != EINTR)
+            break;
     }
     ::close(fd[0]);
     int status = 0;
@@ -253,12 +257,14 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
         throw RemeshError("TetGen could not mesh " + what + ": it stopped on an error" +
                           (WIFSIGNALED(status) ? " (signal " + std::to_string(WTERMSIG(status)) + ")" : std::string()) +
                           "; TetGen 1.5 crashes while reporting bad input such as a self-intersecting surface"
-                          " (switches -" + switches + ")");
+                          " (switches -" +
+                          switches + ")");
     }
     std::memcpy(head, buf.data(), sizeof head);
     if (head[0] != 0)
         throw RemeshError("TetGen rejected " + what + ": " + tetgenReason(head[0]) + " (switches -" + switches + ")");
-    if (head[2] <= 0 || buf.size() != sizeof head + sizeof(double) * 3 * static_cast<size_t>(head[1]) + sizeof(int) * 4 * static_cast<size_t>(head[2]))
+    if (head[2] <= 0 || buf.size() != sizeof head + sizeof(double) * 3 * static_cast<size_t>(head[1]) +
+                                          sizeof(int) * 4 * static_cast<size_t>(head[2]))
         throw RemeshError("TetGen produced no tets for " + what + " (switches -" + switches + ")");
     const char* pts = buf.data() + sizeof head;
     const char* tts = pts + sizeof(double) * 3 * static_cast<size_t>(head[1]);
@@ -278,7 +284,7 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
 }
 #endif
 
-} // namespace
+}  // namespace
 
 RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts) {
 #ifndef CUTSIM_HAVE_TETGEN
@@ -308,7 +314,8 @@ RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts) {
         TetMesh sub;
         sub.X = mesh.X;  // unused nodes are harmless: buildPlc keeps only surface vertices
         sub.tets.resize(4, static_cast<Eigen::Index>(members[p].size()));
-        for (size_t k = 0; k < members[p].size(); ++k) sub.tets.col(static_cast<Eigen::Index>(k)) = mesh.tets.col(members[p][k]);
+        for (size_t k = 0; k < members[p].size(); ++k)
+            sub.tets.col(static_cast<Eigen::Index>(k)) = mesh.tets.col(members[p][k]);
         const Eigen::Matrix3Xi F = boundaryFaces(sub);
         const Plc plc = buildPlc(sub, F, opts.coplanarTolerance);
         rep.surfaceTriangles += static_cast<int>(F.cols());
@@ -344,4 +351,4 @@ RemeshResult remeshCut(const TetMesh& mesh, const CutPlane& plane, const RemeshO
     return remeshPieces(cut.mesh, ro);
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -26,23 +26,23 @@ struct RemeshOptions {
     // q1.414 = radius-edge ratio bound sqrt(2) (TetGen's quality default, well shaped tets),
     // a = volume bound (maxVolume below). "zQ" (0-based, quiet) and the volume are appended.
     std::string switches = "pq1.414";
-    double maxVolume = 0;        // largest tet volume [m^3]; 0: the mean tet volume of the input,
-                                 // so the new mesh has the input's resolution
+    double maxVolume = 0;             // largest tet volume [m^3]; 0: the mean tet volume of the input,
+                                      // so the new mesh has the input's resolution
     double coplanarTolerance = 1e-9;  // facets closer than this * piece diagonal to one plane are
                                       // merged into one polygon, so TetGen sees the cut as one face [-]
     KeepSide keep = KeepSide::Both;
 };
 
 struct RemeshReport {
-    int nodes = 0;            // nodes of the result
-    int tets = 0;             // tets of the result
-    int pieces = 0;           // connected pieces remeshed one by one
-    int surfaceTriangles = 0; // boundary triangles handed over, summed over pieces
-    int facets = 0;           // TetGen facets after merging coplanar triangles
-    double minVolume = 0;     // smallest tet volume [m^3]
-    double volumeBefore = 0;  // volume of the kept input pieces [m^3]
-    double volumeAfter = 0;   // volume of the result [m^3]
-    std::string switches;     // the full TetGen switch string of the last call
+    int nodes = 0;             // nodes of the result
+    int tets = 0;              // tets of the result
+    int pieces = 0;            // connected pieces remeshed one by one
+    int surfaceTriangles = 0;  // boundary triangles handed over, summed over pieces
+    int facets = 0;            // TetGen facets after merging coplanar triangles
+    double minVolume = 0;      // smallest tet volume [m^3]
+    double volumeBefore = 0;   // volume of the kept input pieces [m^3]
+    double volumeAfter = 0;    // volume of the result [m^3]
+    std::string switches;      // the full TetGen switch string of the last call
 };
 
 struct RemeshResult {
@@ -56,4 +56,4 @@ RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts = {});
 // Cuts mesh by the plane (conforming split, no snapping), keeps opts.keep and remeshes each piece.
 RemeshResult remeshCut(const TetMesh& mesh, const CutPlane& plane, const RemeshOptions& opts = {});
 
-} // namespace cutsim
+}  // namespace cutsim

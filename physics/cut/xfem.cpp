@@ -67,7 +67,8 @@ bool insideConvex(const std::vector<Eigen::Vector2d>& poly, const Eigen::Vector2
 
 // Convex hull (counter-clockwise) of a few points, Andrew's monotone chain.
 std::vector<Eigen::Vector2d> convexHull(std::vector<Eigen::Vector2d> p) {
-    std::sort(p.begin(), p.end(), [](const auto& a, const auto& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); });
+    std::sort(p.begin(), p.end(),
+              [](const auto& a, const auto& b) { return a[0] < b[0] || (a[0] == b[0] && a[1] < b[1]); });
     if (p.size() < 3) return p;
     std::vector<Eigen::Vector2d> h(2 * p.size());
     size_t k = 0;
@@ -92,7 +93,7 @@ int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
     return -1;
 }
 
-} // namespace
+}  // namespace
 
 const std::vector<int>& CutEngine::virtualsOf(int parent) const {
     auto it = children_.find(parent);
@@ -247,15 +248,15 @@ struct CutEngine::Pass {
     std::vector<int>* watchOut;              // elements met but not yet covered (a stroke's), or null
     CutResult& r;
     Eigen::Vector3d n = Eigen::Vector3d::Zero(), u = n, v = n;  // plane normal and in-plane axes
-    double d = 0;                            // plane offset n.x = d [m]
-    double tol = 1e-9;                       // in-polygon tolerance [m]
-    int E0 = 0;                              // elements before the pass
+    double d = 0;                                               // plane offset n.x = d [m]
+    double tol = 1e-9;                                          // in-polygon tolerance [m]
+    int E0 = 0;                                                 // elements before the pass
     struct NewElem {
         int src;
         Virtual virt;
     };
-    std::vector<NewElem> fresh;              // the second sides of split elements, to append
-    std::vector<int> parents, splitNow;      // parents cut and elements split by this pass
+    std::vector<NewElem> fresh;          // the second sides of split elements, to append
+    std::vector<int> parents, splitNow;  // parents cut and elements split by this pass
 
     // Signed distance of a node, frozen for the whole cut (a blade stroke) so that elements cut at
     // different sweeps see the same values at their shared nodes.
@@ -366,8 +367,10 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     const int p = parent_[static_cast<size_t>(e)];
     const double fneg = volumeFraction(neg), fpos = volumeFraction(pos);
     Virtual base;
-    if (it != virt_.end()) base = it->second;
-    else base.share = volumeFraction(piece);
+    if (it != virt_.end())
+        base = it->second;
+    else
+        base.share = volumeFraction(piece);
     // Shares of the two sides; a sliver side is merged into the other (see CutOptions).
     const double total = base.share, sum = fneg + fpos;
     double sneg = sum > 0 ? total * fneg / sum : 0, spos = total - sneg;
@@ -458,9 +461,8 @@ void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
     }
 }
 
-CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId,
-                           const std::vector<int>* candidates, std::vector<int>* watchOut,
-                           std::unordered_map<int, double>& nodeS) {
+CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
+                           std::vector<int>* watchOut, std::unordered_map<int, double>& nodeS) {
     const auto t0 = Clock::now();
     prepare(m);
     CutResult r;
@@ -591,8 +593,8 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     gluedSeen.clear();
 
     auto gluedOnce = [&](int e, int p, int k, int g, int q) {
-        const std::uint64_t key = (static_cast<std::uint64_t>(static_cast<std::uint32_t>(e)) << 32) |
-                                  static_cast<std::uint32_t>(g);
+        const std::uint64_t key =
+            (static_cast<std::uint64_t>(static_cast<std::uint32_t>(e)) << 32) | static_cast<std::uint32_t>(g);
         const auto [it, added] = gluedSeen.try_emplace(key, false);
         if (added) it->second = gluedAcross(e, p, k, g, q, sides);
         return it->second;
@@ -647,7 +649,8 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
                 while (j < ids.size() && ids[j] == ids[i]) ++j;
                 const int cnt = static_cast<int>(j - i);
                 if (cnt > commonCount) common = ids[i], commonCount = cnt;
-                if (cnt > bestCount && std::find(used.begin(), used.end(), ids[i]) == used.end()) best = ids[i], bestCount = cnt;
+                if (cnt > bestCount && std::find(used.begin(), used.end(), ids[i]) == used.end())
+                    best = ids[i], bestCount = cnt;
                 i = j;
             }
             int id = best;
@@ -667,7 +670,10 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             bool held = false;
             for (int i : comp) {
                 const auto it = virt_.find(slots[i].elem);
-                if (it == virt_.end()) { held = true; break; }
+                if (it == virt_.end()) {
+                    held = true;
+                    break;
+                }
                 for (int a : it->second.piece.corner)
                     if (a >= 0 && fixed0_[static_cast<size_t>(tets0_(a, slots[i].parent))]) held = true;
                 if (held) break;
@@ -749,7 +755,8 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
                 double apart = 0;
                 for (int a = 0; a < 4; ++a) apart = std::max(apart, (x.col(m.tets(a, e)) - x.col(m.tets(a, g))).norm());
                 const bool nearer = apart < best - tie, equal = std::abs(apart - best) <= tie;
-                if (nearer || (equal && sibling[k] >= 0 && m.fraction(g) > m.fraction(sibling[k])) || (equal && sibling[k] < 0)) {
+                if (nearer || (equal && sibling[k] >= 0 && m.fraction(g) > m.fraction(sibling[k])) ||
+                    (equal && sibling[k] < 0)) {
                     sibling[k] = g;
                     best = std::min(best, apart);
                 }
@@ -885,4 +892,4 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
     return out;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

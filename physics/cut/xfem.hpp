@@ -29,9 +29,9 @@ namespace cutsim {
 
 // How a virtual element's mass is lumped onto its four control points (thesis sec. 2.3.3).
 enum class MassLumping : std::uint8_t {
-    RowSum,           // m_a = rho int_side N_a: exact row sums of the side's consistent mass
-    WeightedDiagonal, // m_a = m_side int_side N_a^2 / sum_b int_side N_b^2 (Hinton-Rock-Zienkiewicz)
-    Enrichment,       // m_a = m_side / 4 (Menouillard et al. 2006): mass scales with stiffness
+    RowSum,            // m_a = rho int_side N_a: exact row sums of the side's consistent mass
+    WeightedDiagonal,  // m_a = m_side int_side N_a^2 / sum_b int_side N_b^2 (Hinton-Rock-Zienkiewicz)
+    Enrichment,        // m_a = m_side / 4 (Menouillard et al. 2006): mass scales with stiffness
 };
 MassLumping parseLumping(const std::string& name);  // row_sum | weighted_diagonal | enrichment
 const char* lumpingName(MassLumping l);
@@ -67,33 +67,33 @@ struct CutOptions {
 // the union of convex polygons given in the plane's coordinates (origin `point`, axes u, v from
 // planeAxes), or the whole plane when there are none.
 struct CutSurface {
-    Eigen::Vector3d point = Eigen::Vector3d::Zero();   // [m]
-    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // unit
-    std::vector<std::vector<Eigen::Vector2d>> regions; // convex polygons (u, v) [m]; empty: unbounded
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();    // [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
+    std::vector<std::vector<Eigen::Vector2d>> regions;  // convex polygons (u, v) [m]; empty: unbounded
 };
 void planeAxes(const Eigen::Vector3d& normal, Eigen::Vector3d& u, Eigen::Vector3d& v);
 
 // The cutting edge of a blade at one pose.
 struct BladeEdge {
-    Eigen::Vector3d a = Eigen::Vector3d::Zero(); // one end [m]
-    Eigen::Vector3d b = Eigen::Vector3d::Zero(); // the other end [m]
+    Eigen::Vector3d a = Eigen::Vector3d::Zero();  // one end [m]
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();  // the other end [m]
 };
 
 struct CutResult {
-    int cut = -1;                      // id of this cut (a blade stroke keeps one id)
-    int crossed = 0;                   // virtual elements the surface went through
-    int split = 0;                     // of those, split into two (the rest had an empty side)
-    int pending = 0;                   // elements the surface entered but did not cross yet
-    int dropped = 0;                   // sides below minFraction, merged into the other side
-    int merged = 0;                    // severed pieces below one element fused back (mergeDebris)
-    std::vector<int> newNodes;         // appended node indices
-    std::vector<int> newElements;      // appended element indices
-    std::vector<int> elementSource;    // element each new element was copied from (newElements.size())
-    std::vector<int> changedElements;  // elements whose nodes, fraction or mass share changed, and new ones
-    std::vector<int> changedNodes;     // nodes whose mass or incident elements changed
-    double volumeBefore = 0, volumeAfter = 0; // sum of V * fraction [m^3]
-    double massBefore = 0, massAfter = 0;     // sum of lumped masses [kg]
-    double seconds = 0;                // wall time of the cut [s]
+    int cut = -1;                              // id of this cut (a blade stroke keeps one id)
+    int crossed = 0;                           // virtual elements the surface went through
+    int split = 0;                             // of those, split into two (the rest had an empty side)
+    int pending = 0;                           // elements the surface entered but did not cross yet
+    int dropped = 0;                           // sides below minFraction, merged into the other side
+    int merged = 0;                            // severed pieces below one element fused back (mergeDebris)
+    std::vector<int> newNodes;                 // appended node indices
+    std::vector<int> newElements;              // appended element indices
+    std::vector<int> elementSource;            // element each new element was copied from (newElements.size())
+    std::vector<int> changedElements;          // elements whose nodes, fraction or mass share changed, and new ones
+    std::vector<int> changedNodes;             // nodes whose mass or incident elements changed
+    double volumeBefore = 0, volumeAfter = 0;  // sum of V * fraction [m^3]
+    double massBefore = 0, massAfter = 0;      // sum of lumped masses [kg]
+    double seconds = 0;                        // wall time of the cut [s]
     bool changed() const { return crossed > 0; }
 };
 
@@ -144,22 +144,22 @@ public:
     const CutOptions& options() const { return opts_; }
 
 private:
-    struct Virtual {                 // a cut virtual element
-        ConvexPiece piece;           // its side of the parent, reference coordinates
-        double share = 1;            // volume it stands for, as a fraction of the parent's [-]: the
-                                     // piece's own plus slivers merged into it
-        std::vector<Halfspace> hs;   // the sides that made it
+    struct Virtual {                // a cut virtual element
+        ConvexPiece piece;          // its side of the parent, reference coordinates
+        double share = 1;           // volume it stands for, as a fraction of the parent's [-]: the
+                                    // piece's own plus slivers merged into it
+        std::vector<Halfspace> hs;  // the sides that made it
     };
     struct Stroke {
         bool active = false;
         int cut = -1;
         CutSurface surface;
-        std::vector<int> watch;      // elements the plane crosses, met so far, not yet split
-        int pending = 0;             // of those, the ones the swept area covers in part
-        std::unordered_map<int, double> nodeS; // signed distance of each node met so far [m]
-        BladeEdge last;              // edge at the end of the previous sweep [m]
-        Eigen::Vector3d lastMotion = Eigen::Vector3d::Zero(); // midpoint motion of the previous sweep [m]
-        bool lastTranslation = false; // the previous sweep moved the edge without turning it
+        std::vector<int> watch;                                // elements the plane crosses, met so far, not yet split
+        int pending = 0;                                       // of those, the ones the swept area covers in part
+        std::unordered_map<int, double> nodeS;                 // signed distance of each node met so far [m]
+        BladeEdge last;                                        // edge at the end of the previous sweep [m]
+        Eigen::Vector3d lastMotion = Eigen::Vector3d::Zero();  // midpoint motion of the previous sweep [m]
+        bool lastTranslation = false;                          // the previous sweep moved the edge without turning it
     };
 
     CutResult apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
@@ -187,21 +187,21 @@ private:
     CutOptions opts_;
     bool prepared_ = false;
     int nextCut_ = 0;
-    Eigen::Matrix4Xi tets0_;               // original elements (4 x nParents)
-    std::vector<std::uint8_t> fixed0_;     // prescribed original nodes (nNodes0)
-    Eigen::VectorXd mass0_;                // lumped mass of each original node before any cut (nNodes0) [kg]
-    Eigen::VectorXd fraction0_;            // fraction of each parent before any cut (nParents) [-]
-    Eigen::Matrix4Xi adj_;                 // parent across the face opposite each corner, or -1 (4 x nParents)
-    std::vector<int> ringStart_, ring_;    // original node -> parents (CSR)
-    std::vector<int> parent_;              // parent of each element (nElems)
-    std::vector<int> origNode_;            // original node of each node (nNodes)
-    std::unordered_map<int, Virtual> virt_;                // element -> its piece, for cut elements only
-    std::unordered_map<int, std::vector<int>> children_;   // parent -> its elements, for cut parents only
+    Eigen::Matrix4Xi tets0_;                 // original elements (4 x nParents)
+    std::vector<std::uint8_t> fixed0_;       // prescribed original nodes (nNodes0)
+    Eigen::VectorXd mass0_;                  // lumped mass of each original node before any cut (nNodes0) [kg]
+    Eigen::VectorXd fraction0_;              // fraction of each parent before any cut (nParents) [-]
+    Eigen::Matrix4Xi adj_;                   // parent across the face opposite each corner, or -1 (4 x nParents)
+    std::vector<int> ringStart_, ring_;      // original node -> parents (CSR)
+    std::vector<int> parent_;                // parent of each element (nElems)
+    std::vector<int> origNode_;              // original node of each node (nNodes)
+    std::unordered_map<int, Virtual> virt_;  // element -> its piece, for cut elements only
+    std::unordered_map<int, std::vector<int>> children_;  // parent -> its elements, for cut parents only
     Stroke stroke_;
-    mutable std::vector<int> single_;      // scratch for virtualsOf on an uncut parent
+    mutable std::vector<int> single_;                    // scratch for virtualsOf on an uncut parent
     std::unordered_map<std::uint64_t, bool> gluedSeen_;  // scratch of relink: (element, element) -> glued
-    std::vector<int> pieceMark_;           // scratch of mergeDebris: exploration that reached each element
-    std::unordered_map<int, int> fusedTo_; // fused debris element -> the sibling whose nodes it uses
+    std::vector<int> pieceMark_;            // scratch of mergeDebris: exploration that reached each element
+    std::unordered_map<int, int> fusedTo_;  // fused debris element -> the sibling whose nodes it uses
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -54,7 +54,7 @@ bool boxesOverlap(const Eigen::Vector3d& lo1, const Eigen::Vector3d& hi1, const 
     return (lo1.array() <= hi2.array()).all() && (lo2.array() <= hi1.array()).all();
 }
 
-} // namespace
+}  // namespace
 
 double tetInsideFraction(const SurfaceMesh& s, const std::vector<int>& tris, const Eigen::Vector3d& p0,
                          const Eigen::Vector3d& p1, const Eigen::Vector3d& p2, const Eigen::Vector3d& p3,
@@ -104,9 +104,15 @@ double tetInsideFraction(const SurfaceMesh& s, const std::vector<int>& tris, con
             double u0 = 0, u1 = 1;
             for (int i = 1; i < 4; ++i) {
                 const double a = sl[0][i], b = sl[1][i];
-                if (a < 0 && b < 0) { u0 = 1; u1 = 0; break; }
-                if (a < 0) u0 = std::max(u0, a / (a - b));
-                else if (b < 0) u1 = std::min(u1, a / (a - b));
+                if (a < 0 && b < 0) {
+                    u0 = 1;
+                    u1 = 0;
+                    break;
+                }
+                if (a < 0)
+                    u0 = std::max(u0, a / (a - b));
+                else if (b < 0)
+                    u1 = std::min(u1, a / (a - b));
             }
             if (u1 > u0) {
                 Eigen::Vector3d a = sp[0] + u0 * (sp[1] - sp[0]), b = sp[0] + u1 * (sp[1] - sp[0]);
@@ -187,7 +193,7 @@ void refine(RefineContext& c, const std::vector<int>& tris, const Eigen::Vector3
     }
 }
 
-} // namespace
+}  // namespace
 
 void refinedInsideFraction(const SurfaceMesh& s, const std::vector<int>& tris, const Eigen::Vector3d (&p)[4],
                            const bool (&cornerInside)[4], int levels,
@@ -220,4 +226,4 @@ double pointTriangleDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
     return (p - (a + ab * (vb * den) + ac * (vc * den))).norm();
 }
 
-} // namespace cutsim
+}  // namespace cutsim

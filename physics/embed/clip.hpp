@@ -41,4 +41,4 @@ bool insideFromAnchor(const SurfaceMesh& s, const std::vector<int>& tris, const 
 double pointTriangleDistance(const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                              const Eigen::Vector3d& c);
 
-} // namespace cutsim
+}  // namespace cutsim

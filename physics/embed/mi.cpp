@@ -14,12 +14,11 @@
 
 namespace cutsim {
 
-namespace {
+namespace {}  // namespace
 
-
-} // namespace
-
-int MiResult::count(ElementClass c) const { return static_cast<int>(std::count(elementClass.begin(), elementClass.end(), c)); }
+int MiResult::count(ElementClass c) const {
+    return static_cast<int>(std::count(elementClass.begin(), elementClass.end(), c));
+}
 int MiResult::count(NodeClass c) const { return static_cast<int>(std::count(nodeClass.begin(), nodeClass.end(), c)); }
 
 double MiResult::embeddedVolume() const {
@@ -35,9 +34,7 @@ SurfaceMesh boxSurface(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) {
         s.V.col(c) << (c & 1 ? hi.x() : lo.x()), (c & 2 ? hi.y() : lo.y()), (c & 4 ? hi.z() : lo.z());
     // two triangles per face, counter-clockwise seen from outside
     s.F.resize(3, 12);
-    s.F << 0, 0, 4, 4, 0, 0, 2, 2, 0, 0, 1, 1,
-           2, 3, 5, 7, 1, 5, 7, 6, 4, 6, 3, 7,
-           3, 1, 7, 6, 5, 4, 3, 7, 6, 2, 7, 5;
+    s.F << 0, 0, 4, 4, 0, 0, 2, 2, 0, 0, 1, 1, 2, 3, 5, 7, 1, 5, 7, 6, 4, 6, 3, 7, 3, 1, 7, 6, 5, 4, 3, 7, 6, 2, 7, 5;
     s.source = "box";
     return s;
 }
@@ -62,8 +59,9 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     } else {
         r.h = opts.h > 0 ? opts.h : (opts.cells > 0 ? ext.maxCoeff() / opts.cells : 0.0);
         if (!(r.h > 0) || !std::isfinite(r.h))
-            throw InputError(src, 0, "cannot size the lattice: give cells >= 1 or h > 0 (surface extent " +
-                                         std::to_string(ext.maxCoeff()) + " m)");
+            throw InputError(src, 0,
+                             "cannot size the lattice: give cells >= 1 or h > 0 (surface extent " +
+                                 std::to_string(ext.maxCoeff()) + " m)");
         for (int k = 0; k < 3; ++k) {
             const double n = std::ceil(ext[k] / r.h) + 1;
             if (n > 1e6) throw InputError(src, 0, "lattice too fine: " + std::to_string(n) + " cells along an axis");
@@ -75,8 +73,9 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     const double hMin = r.cellSize.minCoeff();  // scale of the tolerances below
     const double nTets = 6.0 * r.cells.cast<double>().prod();
     if (nTets > static_cast<double>(opts.maxTets))
-        throw InputError(src, 0, "lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
-                                     std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
+        throw InputError(src, 0,
+                         "lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
+                             std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
     const int nx = r.cells.x(), ny = r.cells.y(), nz = r.cells.z();
     const int px = nx + 1, py = ny + 1;
     r.lattice = boxMesh(nx * r.cellSize.x(), ny * r.cellSize.y(), nz * r.cellSize.z(), nx, ny, nz);
@@ -90,14 +89,16 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     // clipping is transversal. The volume error is the offset times the area, ~1e-10 relative.
     t0 = WallClock::now();
     SurfaceMesh s = surfaceIn;
-    const Eigen::Vector3d shift = hMin * 1e-10 * Eigen::Vector3d(0.5773502691896258, 0.3141592653589793, 0.7536347069560302);
+    const Eigen::Vector3d shift =
+        hMin * 1e-10 * Eigen::Vector3d(0.5773502691896258, 0.3141592653589793, 0.7536347069560302);
     s.V.colwise() += shift;
     const SurfaceCheck check = checkSurface(s);
     r.closed = check.closed();
 
     // Spatial hash (thesis Algorithm 1): cube -> triangles whose box overlaps it (CSR).
     auto cubeOf = [&](double x, int axis) {  // clamped before the cast: a given lattice may not hold the surface
-        const double c = std::clamp(std::floor((x - r.origin[axis]) / r.cellSize[axis]), 0.0, static_cast<double>(r.cells[axis] - 1));
+        const double c = std::clamp(std::floor((x - r.origin[axis]) / r.cellSize[axis]), 0.0,
+                                    static_cast<double>(r.cells[axis] - 1));
         return static_cast<int>(c);
     };
     std::vector<int> cubeStart(static_cast<size_t>(nCubes) + 1, 0), cubeTris;
@@ -153,7 +154,8 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
                     const int c = ci + nx * (cj + ny * ck);
                     for (int t = cubeStart[c]; t < cubeStart[c + 1]; ++t) {
                         const int f = cubeTris[t];
-                        if (pointTriangleDistance(q, s.V.col(s.F(0, f)), s.V.col(s.F(1, f)), s.V.col(s.F(2, f))) < tol) {
+                        if (pointTriangleDistance(q, s.V.col(s.F(0, f)), s.V.col(s.F(1, f)), s.V.col(s.F(2, f))) <
+                            tol) {
                             cls = NodeClass::Boundary;
                             break;
                         }
@@ -185,7 +187,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
         if (touched) interfaceCubes.push_back(c);
     }
     const int nic = static_cast<int>(interfaceCubes.size());
-    auto corners = [&](int t, Eigen::Vector3d (&p)[4], bool (&in)[4]) {
+    auto corners = [&](int t, Eigen::Vector3d(&p)[4], bool(&in)[4]) {
         for (int a = 0; a < 4; ++a) {
             p[a] = r.lattice.X.col(r.lattice.tets(a, t));
             in[a] = r.nodeInside[r.lattice.tets(a, t)];
@@ -218,15 +220,17 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
                 corners(t, p, in);
                 if (r.closed) {
                     // Local parity from corner 0, whose label the winding number gave.
-                    refinedInsideFraction(s, tris, p, in, levels,
-                                          [&](const Eigen::Vector3d& x) { return insideFromAnchor(s, tris, p[0], in[0], x); },
-                                          perLevel);
+                    refinedInsideFraction(
+                        s, tris, p, in, levels,
+                        [&](const Eigen::Vector3d& x) { return insideFromAnchor(s, tris, p[0], in[0], x); }, perLevel);
                 } else {
-                    refinedInsideFraction(s, tris, p, in, levels,
-                                          [&](const Eigen::Vector3d& x) { return windingNumber(tree, x) > 0.5; }, perLevel);
+                    refinedInsideFraction(
+                        s, tris, p, in, levels, [&](const Eigen::Vector3d& x) { return windingNumber(tree, x) > 0.5; },
+                        perLevel);
                     r.fractionExact(t) = perLevel.back();
                 }
-                for (int l = 0; l <= levels; ++l) r.fractionRefined[static_cast<size_t>(l)](t) = perLevel[static_cast<size_t>(l)];
+                for (int l = 0; l <= levels; ++l)
+                    r.fractionRefined[static_cast<size_t>(l)](t) = perLevel[static_cast<size_t>(l)];
             }
         }
     }
@@ -238,7 +242,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     for (int t = 0; t < ne; ++t) {
         const double f = r.fractionExact(t);
         r.elementClass[t] = f >= 1 - opts.minFraction ? ElementClass::Inside
-                          : f > opts.minFraction      ? ElementClass::Interface
+                            : f > opts.minFraction    ? ElementClass::Interface
                                                       : ElementClass::Outside;
     }
 
@@ -265,14 +269,17 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     TetMesh sub;
     sub.source = src + " (embedded)";
     sub.X.resize(3, static_cast<Eigen::Index>(r.latticeNode.size()));
-    for (size_t i = 0; i < r.latticeNode.size(); ++i) sub.X.col(static_cast<Eigen::Index>(i)) = r.lattice.X.col(r.latticeNode[i]);
+    for (size_t i = 0; i < r.latticeNode.size(); ++i)
+        sub.X.col(static_cast<Eigen::Index>(i)) = r.lattice.X.col(r.latticeNode[i]);
     sub.tets.resize(4, static_cast<Eigen::Index>(r.latticeElement.size()));
     for (size_t e = 0; e < r.latticeElement.size(); ++e)
-        for (int a = 0; a < 4; ++a) sub.tets(a, static_cast<Eigen::Index>(e)) = modelNode[r.lattice.tets(a, r.latticeElement[e])];
+        for (int a = 0; a < 4; ++a)
+            sub.tets(a, static_cast<Eigen::Index>(e)) = modelNode[r.lattice.tets(a, r.latticeElement[e])];
     r.model = buildModel(sub, material);
     for (int e = 0; e < r.model.elements(); ++e) {
         const int t = r.latticeElement[static_cast<size_t>(e)];
-        r.model.fraction(e) = r.elementClass[t] == ElementClass::Inside ? 1.0 : std::clamp(r.fractionExact(t), 0.0, 1.0);
+        r.model.fraction(e) =
+            r.elementClass[t] == ElementClass::Inside ? 1.0 : std::clamp(r.fractionExact(t), 0.0, 1.0);
     }
     if (opts.fixOutsideNodes)
         for (int i = 0; i < r.model.nodes(); ++i) {
@@ -360,12 +367,14 @@ std::vector<MiBarRow> miBarRows(const MiBarOptions& o, const std::vector<double>
     mo.latticeCells = Eigen::Vector3i(o.cellsAcross, o.cellsAcross, along);
     mo.latticeCellSize = Eigen::Vector3d(o.scale / o.cellsAcross, o.scale / o.cellsAcross, 10 * o.scale / along);
     mo.latticeOrigin.setZero();
-    const Model lattice = buildModel(boxMesh(o.scale, o.scale, 10 * o.scale, o.cellsAcross, o.cellsAcross, along), o.material);
+    const Model lattice =
+        buildModel(boxMesh(o.scale, o.scale, 10 * o.scale, o.cellsAcross, o.cellsAcross, along), o.material);
     const double dtLattice = exactCriticalDt(lattice).dt;
     std::vector<MiBarRow> rows;
     for (double k : kept) {
         if (!(k > 0 && k <= 1)) throw InputError("mi-bar: kept share must be in (0, 1], got " + std::to_string(k));
-        const SurfaceMesh bar = boxSurface(Eigen::Vector3d(0, 0, 10 * o.scale * (1 - k)), Eigen::Vector3d(o.scale, o.scale, 10 * o.scale));
+        const SurfaceMesh bar =
+            boxSurface(Eigen::Vector3d(0, 0, 10 * o.scale * (1 - k)), Eigen::Vector3d(o.scale, o.scale, 10 * o.scale));
         const MiResult r = buildMi(bar, o.material, mo);
         MiBarRow row;
         row.kept = k;
@@ -390,4 +399,4 @@ std::vector<MiBarRow> miBarRows(const MiBarOptions& o, const std::vector<double>
     return rows;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

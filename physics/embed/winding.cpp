@@ -36,8 +36,7 @@ int buildNode(WindingTree& t, const Eigen::Matrix3Xd& centroid, int first, int c
     }
     n.center = asum > 0 ? Eigen::Vector3d(wsum / asum) : Eigen::Vector3d(0.5 * (n.lo + n.hi));
     for (int k = first; k < first + count; ++k)
-        for (int v = 0; v < 3; ++v)
-            n.radius = std::max(n.radius, (s.V.col(s.F(v, t.order[k])) - n.center).norm());
+        for (int v = 0; v < 3; ++v) n.radius = std::max(n.radius, (s.V.col(s.F(v, t.order[k])) - n.center).norm());
     if (count <= 8) {
         n.first = first;
         n.count = count;
@@ -57,7 +56,7 @@ int buildNode(WindingTree& t, const Eigen::Matrix3Xd& centroid, int first, int c
     return id;
 }
 
-} // namespace
+}  // namespace
 
 WindingTree buildWindingTree(const SurfaceMesh& s) {
     WindingTree t;
@@ -136,11 +135,14 @@ SurfaceCheck checkSurface(const SurfaceMesh& s) {
     for (const auto& [key, cnt] : edges) {
         const long long fwd = cnt & ((1LL << 20) - 1), bwd = cnt >> 20;
         const long long total = fwd + bwd;
-        if (total == 1) ++c.openEdges;
-        else if (total > 2) ++c.nonManifoldEdges;
-        else if (fwd != 1) ++c.misorientedEdges;
+        if (total == 1)
+            ++c.openEdges;
+        else if (total > 2)
+            ++c.nonManifoldEdges;
+        else if (fwd != 1)
+            ++c.misorientedEdges;
     }
     return c;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -15,17 +15,17 @@ namespace cutsim {
 
 struct WindingTree {
     struct Node {
-        Eigen::Vector3d lo, hi;     // bounding box [m]
-        Eigen::Vector3d center;     // area-weighted centroid of the node's triangles [m]
-        Eigen::Vector3d areaNormal; // sum of (area x unit normal) of its triangles [m^2]
-        double radius = 0;          // max distance from center to a vertex of its triangles [m]
-        int first = 0, count = 0;   // range in order (leaf); count = 0 for an inner node
-        int left = -1, right = -1;  // children (inner node)
+        Eigen::Vector3d lo, hi;      // bounding box [m]
+        Eigen::Vector3d center;      // area-weighted centroid of the node's triangles [m]
+        Eigen::Vector3d areaNormal;  // sum of (area x unit normal) of its triangles [m^2]
+        double radius = 0;           // max distance from center to a vertex of its triangles [m]
+        int first = 0, count = 0;    // range in order (leaf); count = 0 for an inner node
+        int left = -1, right = -1;   // children (inner node)
     };
-    const SurfaceMesh* surface = nullptr; // not owned; must outlive the tree
-    std::vector<Node> nodes;              // nodes[0] is the root
-    std::vector<int> order;               // triangle indices, leaves hold contiguous ranges (nTris)
-    double beta = 2.0;                    // a cluster is far when |q - center| > beta * radius [-]
+    const SurfaceMesh* surface = nullptr;  // not owned; must outlive the tree
+    std::vector<Node> nodes;               // nodes[0] is the root
+    std::vector<int> order;                // triangle indices, leaves hold contiguous ranges (nTris)
+    double beta = 2.0;                     // a cluster is far when |q - center| > beta * radius [-]
 };
 
 // Builds the hierarchy (median split on the longest axis, up to 8 triangles per leaf).
@@ -44,12 +44,12 @@ double windingNumber(const WindingTree& t, const Eigen::Vector3d& q);
 
 // Edge health of a surface: a closed oriented surface has every edge used exactly twice, once in each direction.
 struct SurfaceCheck {
-    int openEdges = 0;        // edges used by one triangle
-    int nonManifoldEdges = 0; // edges used by more than two triangles
-    int misorientedEdges = 0; // edges used twice in the same direction
-    int degenerateFaces = 0;  // triangles repeating a vertex
+    int openEdges = 0;         // edges used by one triangle
+    int nonManifoldEdges = 0;  // edges used by more than two triangles
+    int misorientedEdges = 0;  // edges used twice in the same direction
+    int degenerateFaces = 0;   // triangles repeating a vertex
     bool closed() const { return openEdges == 0 && nonManifoldEdges == 0 && misorientedEdges == 0; }
 };
 SurfaceCheck checkSurface(const SurfaceMesh& s);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -59,4 +59,4 @@ Eigen::VectorXd vonMisesStress(const Model& m, const State& s) {
     return out;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -64,20 +64,25 @@ inline LaneF joinLanes(Lane lo, Lane hi) {
     const LaneHalf a = __builtin_convertvector(lo, LaneHalf), b = __builtin_convertvector(hi, LaneHalf);
     return __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
 }
-inline Lane lowLanes(LaneF v) { return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7), Lane); }
+inline Lane lowLanes(LaneF v) {
+    return __builtin_convertvector(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7), Lane);
+}
 inline Lane highLanes(LaneF v) {
     return __builtin_convertvector(__builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15), Lane);
 }
 
 // Lane count and scalar of a lane type.
-template <class L> constexpr int lanesOf = sizeof(L) / sizeof(L{}[0]);
-template <class L> using ScalarOf = std::remove_cvref_t<decltype(L{}[0])>;
+template <class L>
+constexpr int lanesOf = sizeof(L) / sizeof(L{}[0]);
+template <class L>
+using ScalarOf = std::remove_cvref_t<decltype(L{}[0])>;
 
 // Inputs of a block of elements e0 .. e0 + count - 1, lane l for element e0 + l: the edge matrix
 // Ds (differences taken in double), DmInv and the force scale -V fraction alpha; lanes past count
 // are padded with an undeformed unit element and scale 0. Matrices are column-major, (r, c) at 3c + r.
 template <class L>
-inline void copyLanes(const Model& m, const State& s, const double* alpha, int e0, int count, L Ds[9], L Dm[9], L& scale) {
+inline void copyLanes(const Model& m, const State& s, const double* alpha, int e0, int count, L Ds[9], L Dm[9],
+                      L& scale) {
     using S = ScalarOf<L>;
     const double* xs = s.x.data();
     for (int l = 0; l < lanesOf<L>; ++l) {
@@ -102,7 +107,8 @@ inline void copyLanes(const Model& m, const State& s, const double* alpha, int e
 #ifdef CUTSIM_LANE_TRANSPOSE
 // A full block of kLanes doubles: each lane's 3-vectors (node positions, DmInv columns) read
 // whole and transposed in registers; the same values as copyLanes, bitwise.
-inline void loadFullBlock(const Model& m, const State& s, const double* alpha, int e0, Lane Ds[9], Lane Dm[9], Lane& scale) {
+inline void loadFullBlock(const Model& m, const State& s, const double* alpha, int e0, Lane Ds[9], Lane Dm[9],
+                          Lane& scale) {
     const double* xs = s.x.data();
     const double* p[kLanes];
     Lane node[4][3];
@@ -168,12 +174,13 @@ inline void writeLanes(const Model& m, State& s, int e0, int count, const L P[12
 // Forces P (rows 3a .. 3a + 2: node a) of a block from its inputs, in L's arithmetic; X gets each
 // lane's rotation (I for the linear model). Returns the inverted elements among the first count.
 template <class L>
-inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L Dm[9], L scale,
-                       double lam, double mu, bool corot, double watch, int* nearFlat, L P[12], L X[9], L& det, L& f2) {
+inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L Dm[9], L scale, double lam, double mu,
+                       bool corot, double watch, int* nearFlat, L P[12], L X[9], L& det, L& f2) {
     using S = ScalarOf<L>;
     L F[9];  // F = Ds DmInv
     for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r) F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
+        for (int r = 0; r < 3; ++r)
+            F[3 * c + r] = Ds[r] * Dm[3 * c] + Ds[3 + r] * Dm[3 * c + 1] + Ds[6 + r] * Dm[3 * c + 2];
     det = F[0] * (F[4] * F[8] - F[7] * F[5]) - F[3] * (F[1] * F[8] - F[7] * F[2]) + F[6] * (F[1] * F[5] - F[4] * F[2]);
     // watch: the lower bound 2 det F / |F|^2 of the smallest principal stretch (limitStretch)
     f2 = F[0] * F[0];
@@ -194,7 +201,8 @@ inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L
             // degenerate or inverted (rare): the invertible-FEM rotation, per element
             Eigen::Matrix3d Fl;
             for (int k = 0; k < 9; ++k) Fl(k % 3, k / 3) = F[k][l];
-            const Eigen::Matrix3d R = invertibleRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
+            const Eigen::Matrix3d R =
+                invertibleRotation(Fl, Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e0 + l).data()));
             for (int k = 0; k < 9; ++k) X[k][l] = static_cast<S>(R(k % 3, k / 3));
         }
         for (int l = count; l < lanesOf<L>; ++l) active[l] = 0;  // padding: F = I is its own rotation
@@ -225,12 +233,14 @@ inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L
     L H[9], sig[9], RS[9];
     for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r)
-            H[3 * c + r] = X[3 * r] * F[3 * c] + X[3 * r + 1] * F[3 * c + 1] + X[3 * r + 2] * F[3 * c + 2] - S(r == c ? 1 : 0);
+            H[3 * c + r] =
+                X[3 * r] * F[3 * c] + X[3 * r + 1] * F[3 * c + 1] + X[3 * r + 2] * F[3 * c + 2] - S(r == c ? 1 : 0);
     const L tr = S(lam) * (H[0] + H[4] + H[8]);
     for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r) sig[3 * c + r] = S(mu) * (H[3 * c + r] + H[3 * r + c]) + (r == c ? tr : L{});
     for (int c = 0; c < 3; ++c)
-        for (int r = 0; r < 3; ++r) RS[3 * c + r] = X[r] * sig[3 * c] + X[3 + r] * sig[3 * c + 1] + X[6 + r] * sig[3 * c + 2];
+        for (int r = 0; r < 3; ++r)
+            RS[3 * c + r] = X[r] * sig[3 * c] + X[3 + r] * sig[3 * c + 1] + X[6 + r] * sig[3 * c + 2];
     // P = scale (R sigma) DmInv^T: columns are the forces on nodes 1..3; node 0 takes minus their sum
     for (int c = 0; c < 3; ++c)
         for (int r = 0; r < 3; ++r)
@@ -254,13 +264,15 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
                         bool corot, double watch, int* nearFlat, const ForceOut& out) {
     Lane Ds[9], Dm[9], scale, P[12], X[9], det, f2;
 #ifdef CUTSIM_LANE_TRANSPOSE
-    if (count == kLanes) loadFullBlock(m, s, alpha, e0, Ds, Dm, scale);
+    if (count == kLanes)
+        loadFullBlock(m, s, alpha, e0, Ds, Dm, scale);
     else
 #endif
         copyLanes(m, s, alpha, e0, count, Ds, Dm, scale);
     const int inv = blockForces(s, e0, count, Ds, Dm, scale, lam, mu, corot, watch, nearFlat, P, X, det, f2);
 #ifdef CUTSIM_LANE_TRANSPOSE
-    if (count == kLanes) writeFullBlock(m, s, e0, P, out);
+    if (count == kLanes)
+        writeFullBlock(m, s, e0, P, out);
     else
 #endif
         writeLanes(m, s, e0, count, P, out);
@@ -320,9 +332,7 @@ void elementBlocks(const Model& m, State& s, const double* alpha, int begin, int
 }
 
 // Gravity and applied force of node i: where every node's sum starts.
-inline Eigen::Vector3d nodeLoad(const Model& m, const State& s, int i) {
-    return s.fExt.col(i) + m.mass(i) * m.gravity;
-}
+inline Eigen::Vector3d nodeLoad(const Model& m, const State& s, int i) { return s.fExt.col(i) + m.mass(i) * m.gravity; }
 
 // Node i's load plus its element slots in state.fe, in element order.
 inline void gatherNode(const Model& m, State& s, int i) {
@@ -334,7 +344,7 @@ inline void gatherNode(const Model& m, State& s, int i) {
     s.f.col(i) = f;
 }
 
-} // namespace
+}  // namespace
 
 void elementForces(const Model& m, State& s, const double* alpha, int begin, int end, int* inverted, double watch,
                    int* nearFlat) {
@@ -347,18 +357,21 @@ void gatherForces(const Model& m, State& s, int begin, int end) {
 
 namespace {
 
-
 // Inside the force stage's region, once nodes [begin, end) hold their sums: their NodeUpdate (if
 // any), the first thread closing the node phase on its clock. Returns how many are not finite.
 int updateNodes(const Model& m, State& s, const NodeUpdate* up, int begin, int end, int t, ForceStageSeconds* times,
                 WallClock::time_point& t0) {
     if (!up) return 0;
-    if (times && t == 0) { times->nodes += secondsSince(t0); t0 = WallClock::now(); }
+    if (times && t == 0) {
+        times->nodes += secondsSince(t0);
+        t0 = WallClock::now();
+    }
     const NodeUpdate& u = *up;
     int bad = 0;
     for (int i = begin; i < end; ++i) {
         const double w = m.invMass(i);
-        if (w == 0) s.v.col(i).setZero();
+        if (w == 0)
+            s.v.col(i).setZero();
         else {
             s.v.col(i) = (u.a * s.v.col(i) + u.h * w * s.f.col(i)) * u.b;
             s.x.col(i) += u.dt * s.v.col(i);
@@ -387,7 +400,10 @@ void forcesViaSlots(const Model& m, State& s, const double* alpha, double watch,
         const Split split{omp_get_num_threads()};
         elementBlocks(m, s, alpha, split(ne, t), split(ne, t + 1), &inv, watch, &near, out);
 #pragma omp barrier
-        if (times && t == 0) { times->elements += secondsSince(t0); t0 = WallClock::now(); }
+        if (times && t == 0) {
+            times->elements += secondsSince(t0);
+            t0 = WallClock::now();
+        }
         gatherForces(m, s, split(nn, t), split(nn, t + 1));
         bad += updateNodes(m, s, up, split(nn, t), split(nn, t + 1), t, times, t0);
     }
@@ -416,17 +432,24 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
             const int k0 = m.nodeSlotStart[i], k1 = m.nodeSlotStart[i + 1];
             bool shared = false;
             for (int b = 1; b < nt && k1 > k0; ++b)
-                shared = shared || ((m.nodeSlots[k0] >> 2) < split(ne, b) && (m.nodeSlots[k1 - 1] >> 2) >= split(ne, b));
+                shared =
+                    shared || ((m.nodeSlots[k0] >> 2) < split(ne, b) && (m.nodeSlots[k1 - 1] >> 2) >= split(ne, b));
             s.sharedNode[static_cast<size_t>(i)] = shared;
         }
 #pragma omp barrier
         // phase times: the first thread's clock at the barriers that end the phases
-        if (times && t == 0) { times->nodes += secondsSince(t0); t0 = WallClock::now(); }
+        if (times && t == 0) {
+            times->nodes += secondsSince(t0);
+            t0 = WallClock::now();
+        }
         // one thread shares no node: no flags to read
         const ForceOut out{s.f.data(), nt > 1 ? s.sharedNode.data() : nullptr, allRotations};
         elementBlocks(m, s, alpha, split(ne, t), split(ne, t + 1), &inv, watch, &near, out);
 #pragma omp barrier
-        if (times && t == 0) { times->elements += secondsSince(t0); t0 = WallClock::now(); }
+        if (times && t == 0) {
+            times->elements += secondsSince(t0);
+            t0 = WallClock::now();
+        }
         for (int i = split(nn, t); i < split(nn, t + 1) && nt > 1; ++i)
             if (s.sharedNode[static_cast<size_t>(i)]) gatherNode(m, s, i);
         // this thread's nodes now hold their sums: the other threads add only into their own
@@ -438,14 +461,16 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
     nearFlat = near;
 }
 
-} // namespace
+}  // namespace
 
 void computeForces(const Model& m, State& s, const double* alpha, double watch, bool allRotations,
                    ForceStageSeconds* times, NodeUpdate* update) {
     int inverted = 0, nearFlat = 0;
     const int ne = m.elements();
-    if (ne < kFusedElements) forcesViaSlots(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
-    else forcesFused(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
+    if (ne < kFusedElements)
+        forcesViaSlots(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
+    else
+        forcesFused(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
     s.flags.inverted = inverted;
     s.flags.nearFlat = nearFlat;
     s.flags.firstInverted = -1;
@@ -464,4 +489,4 @@ void computeForces(const Model& m, State& s, const double* alpha, double watch, 
 void setThreads(int n) { omp_set_num_threads(n > 0 ? n : omp_get_num_procs()); }
 int threads() { return omp_get_max_threads(); }
 
-} // namespace cutsim
+}  // namespace cutsim

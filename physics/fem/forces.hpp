@@ -23,8 +23,8 @@ void gatherForces(const Model& model, State& state, int begin, int end);
 // The nodal forces state.f (elastic + gravity + fExt) of all elements on all threads, bitwise the
 // same on any number of threads: each node sums its elements in element order, as gatherForces
 // after elementForces would (which is what it does on small meshes; on large ones the kernel adds
-// into the nodes a thread alone touches, forces.cpp kFusedElements). Fills state.flags.inverted (and .nearFlat: elements whose smallest
-// principal stretch may be below watch). state.rot is updated for every element with
+// into the nodes a thread alone touches, forces.cpp kFusedElements). Fills state.flags.inverted (and .nearFlat:
+// elements whose smallest principal stretch may be below watch). state.rot is updated for every element with
 // allRotations (the implicit tangent needs it), else only for elements near flat, the ones whose
 // rotation is read back (forces.cpp, kKeepRotation); state.fe is scratch.
 // times (nullable) accumulates the wall time of its phases.
@@ -80,4 +80,4 @@ int threads();
 
 // Von Mises stress of each element from the corotated linear stress (nElems) [Pa].
 Eigen::VectorXd vonMisesStress(const Model& model, const State& state);
-} // namespace cutsim
+}  // namespace cutsim

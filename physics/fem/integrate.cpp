@@ -42,9 +42,7 @@ ImplicitSolver parseImplicitSolver(const std::string& name) {
     throw InputError("unknown implicit solver '" + name + "' (direct, cg)");
 }
 
-const char* implicitSolverName(ImplicitSolver s) {
-    return s == ImplicitSolver::Direct ? "direct" : "cg";
-}
+const char* implicitSolverName(ImplicitSolver s) { return s == ImplicitSolver::Direct ? "direct" : "cg"; }
 
 Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt) {
     Eigen::VectorXd a(dtCritElem.size());
@@ -58,14 +56,14 @@ Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt) {
 // Backward Euler, linearised about the current rotations (Baraff & Witkin 1998 with the
 // corotational tangent R K R^T): (M (1 + c dt) + dt^2 K_R) v+ = M v + dt f(x), x+ = x + dt v+.
 struct ImplicitWorkspace {
-    std::vector<int> dofMap;                  // global DOF -> free DOF, or -1 (3 nNodes)
-    Eigen::SparseMatrix<double> A;            // system matrix on free DOFs
-    std::vector<int> slot;                    // per element 144 entries -> index in A.valuePtr(), -1 if fixed
+    std::vector<int> dofMap;        // global DOF -> free DOF, or -1 (3 nNodes)
+    Eigen::SparseMatrix<double> A;  // system matrix on free DOFs
+    std::vector<int> slot;          // per element 144 entries -> index in A.valuePtr(), -1 if fixed
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
     // Lower|Upper: Eigen runs the product with the full matrix, on all threads
     Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg;
-    bool analysed = false;                    // solver's ordering and pattern, made on first use
-    int iterations = 0;                       // CG iterations of the last step
+    bool analysed = false;  // solver's ordering and pattern, made on first use
+    int iterations = 0;     // CG iterations of the last step
     int nElems = -1, nNodes = -1;
 
     void build(const Model& m) {
@@ -137,7 +135,10 @@ struct ImplicitWorkspace {
         Eigen::VectorXd vNew;
         iterations = 0;
         if (opt.solver == ImplicitSolver::Direct) {
-            if (!analysed) { solver.analyzePattern(A); analysed = true; }
+            if (!analysed) {
+                solver.analyzePattern(A);
+                analysed = true;
+            }
             solver.factorize(A);
             if (solver.info() != Eigen::Success) throw std::runtime_error("backward Euler: factorisation failed");
             vNew = solver.solve(rhs);
@@ -156,8 +157,8 @@ struct ImplicitWorkspace {
             vNew = cg.solveWithGuess(rhs, guess);
             iterations = static_cast<int>(cg.iterations());
             if (cg.info() != Eigen::Success)
-                throw std::runtime_error("backward Euler: CG did not reach its tolerance in " + std::to_string(iterations) +
-                                         " iterations");
+                throw std::runtime_error("backward Euler: CG did not reach its tolerance in " +
+                                         std::to_string(iterations) + " iterations");
         }
         for (int i = 0; i < nNodes; ++i)
             for (int k = 0; k < 3; ++k) {
@@ -181,7 +182,8 @@ void checkFinite(const Model& m, State& s) {
     s.flags.nonFinite = bad;
 }
 
-void Stepper::forces(const Model& m, State& s, const double* alpha, double watch, bool allRotations, NodeUpdate* update) {
+void Stepper::forces(const Model& m, State& s, const double* alpha, double watch, bool allRotations,
+                     NodeUpdate* update) {
     const auto t0 = std::chrono::steady_clock::now();
     ForceStageSeconds times;
     computeForces(m, s, alpha, watch, allRotations, update ? &times : nullptr, update);
@@ -213,7 +215,7 @@ void forNeighbours(const Model& m, int n, F&& f) {
 // kept. Measured on the random cuts: c dt = 1/2 and 1 both remove every blow-up; momentum is
 // not passed on to the neighbours (doing so explicitly brought blow-ups back), so the momentum
 // changed is that of nodes of a few percent of the mass.
-constexpr double kLightDamping = 0.5;   // c dt [-]
+constexpr double kLightDamping = 0.5;  // c dt [-]
 void Stepper::lightMeans(const Model& m, const State& s) {
     lightMean_.resize(3, static_cast<Eigen::Index>(m.lightNodes.size()));
     for (size_t k = 0; k < m.lightNodes.size(); ++k) {
@@ -224,7 +226,8 @@ void Stepper::lightMeans(const Model& m, const State& s) {
             mv += m.mass(o) * s.v.col(o);
             mass += m.mass(o);
         });
-        lightMean_.col(static_cast<Eigen::Index>(k)) = mass > 0 ? Eigen::Vector3d(mv / mass) : Eigen::Vector3d(s.v.col(n));
+        lightMean_.col(static_cast<Eigen::Index>(k)) =
+            mass > 0 ? Eigen::Vector3d(mv / mass) : Eigen::Vector3d(s.v.col(n));
     }
 }
 
@@ -232,15 +235,15 @@ void Stepper::dampLight(const Model& m, State& s, double dt) const {
     for (size_t k = 0; k < m.lightNodes.size(); ++k) {
         const int n = m.lightNodes[k];
         if (m.invMass(n) == 0) continue;
-        const Eigen::Vector3d dv = kLightDamping / (1 + kLightDamping) * (lightMean_.col(static_cast<Eigen::Index>(k)) - s.v.col(n));
+        const Eigen::Vector3d dv =
+            kLightDamping / (1 + kLightDamping) * (lightMean_.col(static_cast<Eigen::Index>(k)) - s.v.col(n));
         s.v.col(n) += dv;
         s.x.col(n) += dt * dv;
     }
 }
 
 void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {
-    if (opt.minStretch > 0 && nearFlat > 0)
-        s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_);
+    if (opt.minStretch > 0 && nearFlat > 0) s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_);
 }
 
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
@@ -249,7 +252,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     const double* alpha = opt.alphaElem ? opt.alphaElem->data() : nullptr;
     const double watch = opt.minStretch > 0 ? opt.minStretch + kStretchWatchMargin : 0;
     const int n = m.nodes();
-    const int nearBefore = s.flags.nearFlat;   // Newmark moves before its force stage
+    const int nearBefore = s.flags.nearFlat;  // Newmark moves before its force stage
     s.flags = {};
     switch (opt.integrator) {
     case Integrator::SymplecticEuler: {
@@ -295,7 +298,11 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
 #pragma omp parallel for schedule(static) if (n >= kParallelNodes)
         for (int i = 0; i < n; ++i) {
             const double w = m.invMass(i);
-            if (w == 0) { s.v.col(i).setZero(); s.a.col(i).setZero(); continue; }
+            if (w == 0) {
+                s.v.col(i).setZero();
+                s.a.col(i).setZero();
+                continue;
+            }
             const Eigen::Vector3d aNew = w * s.f.col(i);
             s.v.col(i) = (cm * s.v.col(i) + 0.5 * dt * al * (s.a.col(i) + aNew)) * cp;
             s.a.col(i) = aNew;
@@ -315,8 +322,9 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     // Symplectic Euler and central difference count non-finite nodes in their update pass; a
     // second pass over every node is needed only where nodes moved after it (light-node damping,
     // stretch limiting).
-    const bool counted = opt.integrator == Integrator::SymplecticEuler || opt.integrator == Integrator::CentralDifference;
+    const bool counted =
+        opt.integrator == Integrator::SymplecticEuler || opt.integrator == Integrator::CentralDifference;
     if (!counted || !m.lightNodes.empty() || s.flags.limited > 0) checkFinite(m, s);
 }
 
-} // namespace cutsim
+}  // namespace cutsim

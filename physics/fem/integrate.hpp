@@ -35,20 +35,20 @@ enum class ImplicitSolver {
 ImplicitSolver parseImplicitSolver(const std::string& name);  // "direct" or "cg"; throws InputError
 const char* implicitSolverName(ImplicitSolver s);
 
-Integrator parseIntegrator(const std::string& name);   // throws InputError on an unknown name
+Integrator parseIntegrator(const std::string& name);  // throws InputError on an unknown name
 const char* integratorName(Integrator i);
 
 struct StepOptions {
     Integrator integrator = Integrator::SymplecticEuler;
-    double dt = 1e-4;                  // time step [s]
-    double alpha = 1.0;                // Newmark's global damping factor on the acceleration, (0, 1]
-    const Eigen::VectorXd* alphaElem = nullptr; // per-element factor alpha_e (nElems), scales element
-                                       // forces; (dt_crit_e / dt)^2 where dt > dt_crit_e (eq. 3.16)
-    double minStretch = 0;             // > 0: project elements whose smallest principal stretch is
-                                       // below it back to it after the position update
-                                       // (fem/forces.hpp limitStretch); 0: off
+    double dt = 1e-4;                                // time step [s]
+    double alpha = 1.0;                              // Newmark's global damping factor on the acceleration, (0, 1]
+    const Eigen::VectorXd* alphaElem = nullptr;      // per-element factor alpha_e (nElems), scales element
+                                                     // forces; (dt_crit_e / dt)^2 where dt > dt_crit_e (eq. 3.16)
+    double minStretch = 0;                           // > 0: project elements whose smallest principal stretch is
+                                                     // below it back to it after the position update
+                                                     // (fem/forces.hpp limitStretch); 0: off
     ImplicitSolver solver = ImplicitSolver::Direct;  // backward Euler only
-    double cgTolerance = 1e-9;         // CG: relative residual |A v - b| / |b| to stop at
+    double cgTolerance = 1e-9;                       // CG: relative residual |A v - b| / |b| to stop at
 };
 
 // The force stage watches for elements whose smallest stretch may be within this margin above
@@ -85,8 +85,8 @@ private:
 
     std::unique_ptr<ImplicitWorkspace> implicit_;
     double forceSeconds_ = 0;
-    std::vector<int> limitScratch_;   // elements below the smallest stretch (reused)
-    Eigen::Matrix3Xd lightMean_;      // mean velocity around each of Model::lightNodes at the step's start [m/s]
+    std::vector<int> limitScratch_;  // elements below the smallest stretch (reused)
+    Eigen::Matrix3Xd lightMean_;     // mean velocity around each of Model::lightNodes at the step's start [m/s]
     void lightMeans(const Model& m, const State& s);
     void dampLight(const Model& m, State& s, double dt) const;
 };
@@ -94,4 +94,4 @@ private:
 // Checks positions and velocities for non-finite values (state.flags.nonFinite).
 void checkFinite(const Model& model, State& state);
 
-} // namespace cutsim
+}  // namespace cutsim

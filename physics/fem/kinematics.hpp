@@ -25,4 +25,4 @@ Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d&
 // The SVD branch alone (an inverted or degenerate F), for the force kernel's slow path.
 Eigen::Matrix3d invertibleRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -25,7 +25,8 @@ inline Lane sqrtLanes(Lane x) {
 }
 inline Lane absLanes(Lane x) { return x < 0 ? -x : x; }
 // Whether any lane of a comparison result is set (of Lane, or of the float lanes of fem/forces.cpp).
-template <class Mask> inline bool anyLane(const Mask& m) {
+template <class Mask>
+inline bool anyLane(const Mask& m) {
     bool any = false;
     for (unsigned l = 0; l < sizeof(Mask) / sizeof(m[0]); ++l) any = any || m[l];
     return any;
@@ -53,7 +54,8 @@ inline void transposeLanes3(const double* const p[kLanes], Lane out[3]) {
     const __m512d t1 = _mm512_unpackhi_pd(z[0], z[1]);  // [y0 y1 | 0 0 | y4 y5 | 0 0]
     const __m512d t2 = _mm512_unpacklo_pd(z[2], z[3]);  // [x2 x3 | z2 z3 | x6 x7 | z6 z7]
     const __m512d t3 = _mm512_unpackhi_pd(z[2], z[3]);  // [y2 y3 | 0 0 | y6 y7 | 0 0]
-    const __m512i even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
+    const __m512i even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13),
+                  odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
     out[0] = (Lane)_mm512_permutex2var_pd(t0, even, t2);
     out[1] = (Lane)_mm512_permutex2var_pd(t1, even, t3);
     out[2] = (Lane)_mm512_permutex2var_pd(t0, odd, t2);
@@ -66,7 +68,8 @@ inline void untransposeLanes3(const Lane in[3], __m256d v[kLanes]) {
     const __m512d u1 = _mm512_unpackhi_pd(x, y);     // [x1 y1 | x3 y3 | x5 y5 | x7 y7]
     const __m512d w0 = _mm512_unpacklo_pd(z, zero);  // [z0 0 | z2 0 | z4 0 | z6 0]
     const __m512d w1 = _mm512_unpackhi_pd(z, zero);  // [z1 0 | z3 0 | z5 0 | z7 0]
-    const __m512i even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13), odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
+    const __m512i even = _mm512_setr_epi64(0, 1, 8, 9, 4, 5, 12, 13),
+                  odd = _mm512_setr_epi64(2, 3, 10, 11, 6, 7, 14, 15);
     const __m512d r[4] = {_mm512_permutex2var_pd(u0, even, w0), _mm512_permutex2var_pd(u1, even, w1),
                           _mm512_permutex2var_pd(u0, odd, w0), _mm512_permutex2var_pd(u1, odd, w1)};
     for (int l = 0; l < 4; ++l) {  // r[l] = [lane l | lane l + 4]
@@ -76,5 +79,5 @@ inline void untransposeLanes3(const Lane in[3], __m256d v[kLanes]) {
 }
 #endif
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -10,11 +10,11 @@ struct Material {
     double nu = 0.3;    // Poisson's ratio [-], in (-1, 0.5)
     double rho = 1000;  // density [kg/m^3]
 
-    double lambda() const { return E * nu / ((1 + nu) * (1 - 2 * nu)); }  // Lame lambda [Pa]
+    double lambda() const { return E * nu / ((1 + nu) * (1 - 2 * nu)); }   // Lame lambda [Pa]
     double mu() const { return E / (2 * (1 + nu)); }                       // shear modulus [Pa]
     double pWaveModulus() const { return lambda() + 2 * mu(); }            // Ehat [Pa]
     double pWaveSpeed() const { return std::sqrt(pWaveModulus() / rho); }  // c_p [m/s]
     bool valid() const { return E > 0 && nu > -1 && nu < 0.5 && rho > 0; }
 };
 
-} // namespace cutsim
+}  // namespace cutsim

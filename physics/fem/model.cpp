@@ -17,8 +17,7 @@ int Model::freeDofs() const {
 }
 
 Model buildModel(const TetMesh& mesh, const Material& material, ElementModel elementModel) {
-    if (!material.valid())
-        throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
+    if (!material.valid()) throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
     Model m;
     m.material = material;
     m.elementModel = elementModel;
@@ -33,15 +32,16 @@ Model buildModel(const TetMesh& mesh, const Material& material, ElementModel ele
         for (int a = 0; a < 4; ++a) {
             const int n = mesh.tets(a, e);
             if (n < 0 || n >= mesh.nodes())
-                throw InputError(mesh.source, 0, "element " + std::to_string(e) + " refers to node " +
-                                                     std::to_string(n) + " which does not exist");
+                throw InputError(mesh.source, 0,
+                                 "element " + std::to_string(e) + " refers to node " + std::to_string(n) +
+                                     " which does not exist");
             Xe.col(a) = mesh.X.col(n);
         }
         const Eigen::Matrix3d Dm = restShapeMatrix(Xe);
         const double V = Dm.determinant() / 6.0;
         if (!(V > 0))
-            throw InputError(mesh.source, 0, "element " + std::to_string(e) +
-                                                 (V < 0 ? " is inverted" : " has zero volume"));
+            throw InputError(mesh.source, 0,
+                             "element " + std::to_string(e) + (V < 0 ? " is inverted" : " has zero volume"));
         const Eigen::Matrix3d inv = Dm.inverse();
         std::copy(inv.data(), inv.data() + 9, m.DmInv.col(e).data());
         m.volume(e) = V;
@@ -62,8 +62,7 @@ void updateMasses(Model& m) {
     }
     if (m.addedMass.size() == m.nodes()) m.mass += m.addedMass;
     m.invMass.resize(m.nodes());
-    for (int i = 0; i < m.nodes(); ++i)
-        m.invMass(i) = (m.fixed[i] || m.mass(i) <= 0) ? 0.0 : 1.0 / m.mass(i);
+    for (int i = 0; i < m.nodes(); ++i) m.invMass(i) = (m.fixed[i] || m.mass(i) <= 0) ? 0.0 : 1.0 / m.mass(i);
 }
 
 void fixNodes(Model& m, const std::vector<int>& nodes) {
@@ -108,7 +107,8 @@ std::vector<int> freeDofMap(const Model& m, int* nFree) {
     return map;
 }
 
-Eigen::SparseMatrix<double> freeStiffness(const Model& m, const std::vector<int>& map, int nf, const Eigen::VectorXd* scale) {
+Eigen::SparseMatrix<double> freeStiffness(const Model& m, const std::vector<int>& map, int nf,
+                                          const Eigen::VectorXd* scale) {
     const Eigen::SparseMatrix<double> K = assembleStiffness(m);
     std::vector<Eigen::Triplet<double>> t;
     for (int c = 0; c < K.outerSize(); ++c)
@@ -151,4 +151,4 @@ std::vector<double> pieceVolumes(const Model& m) {
     return volumes;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -28,25 +28,25 @@ struct Model {
     ForcePrecision precision = ForcePrecision::Double;
 
     // Nodes
-    Eigen::Matrix3Xd X;              // rest positions (3 x nNodes) [m]
-    Eigen::VectorXd mass;            // lumped nodal mass, row-sum lumping (nNodes) [kg]
-    Eigen::VectorXd addedMass;       // mass added to keep a target step, included in mass
-                                     // (timestep/timestep.hpp keepStep; nNodes, or empty) [kg]
-    Eigen::VectorXd invMass;         // 1/mass; 0 for fixed or massless nodes (nNodes) [1/kg]
-    std::vector<std::uint8_t> fixed; // 1 = position prescribed (nNodes)
+    Eigen::Matrix3Xd X;               // rest positions (3 x nNodes) [m]
+    Eigen::VectorXd mass;             // lumped nodal mass, row-sum lumping (nNodes) [kg]
+    Eigen::VectorXd addedMass;        // mass added to keep a target step, included in mass
+                                      // (timestep/timestep.hpp keepStep; nNodes, or empty) [kg]
+    Eigen::VectorXd invMass;          // 1/mass; 0 for fixed or massless nodes (nNodes) [1/kg]
+    std::vector<std::uint8_t> fixed;  // 1 = position prescribed (nNodes)
 
     // Elements
-    Eigen::Matrix4Xi tets;                  // node indices (4 x nElems)
-    Eigen::Matrix<double, 9, Eigen::Dynamic> DmInv; // inverse rest shape matrix, column-major (9 x nElems) [1/m]
-    Eigen::VectorXd volume;                 // rest volume of the (parent) element (nElems) [m^3]
-    Eigen::VectorXd fraction;               // share of the volume this element stands for (nElems) [-];
-                                            // 1 for an ordinary element, < 1 for a virtual element of a cut
-    Eigen::Matrix4Xd massShare;             // share of rho * volume lumped to each corner (4 x nElems) [-],
-                                            // or empty: fraction / 4 each (set by the cut's lumping option)
+    Eigen::Matrix4Xi tets;                           // node indices (4 x nElems)
+    Eigen::Matrix<double, 9, Eigen::Dynamic> DmInv;  // inverse rest shape matrix, column-major (9 x nElems) [1/m]
+    Eigen::VectorXd volume;                          // rest volume of the (parent) element (nElems) [m^3]
+    Eigen::VectorXd fraction;                        // share of the volume this element stands for (nElems) [-];
+                                                     // 1 for an ordinary element, < 1 for a virtual element of a cut
+    Eigen::Matrix4Xd massShare;                      // share of rho * volume lumped to each corner (4 x nElems) [-],
+                                                     // or empty: fraction / 4 each (set by the cut's lumping option)
 
     // Loads and damping
-    Eigen::Vector3d gravity = Eigen::Vector3d::Zero(); // [m/s^2]
-    double massDamping = 0;                            // mass-proportional damping coefficient [1/s]
+    Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // [m/s^2]
+    double massDamping = 0;                             // mass-proportional damping coefficient [1/s]
 
     // Free nodes with a few percent of their node's mass, whose velocity relative to the nodes
     // they share elements with is damped implicitly (c = 0.5/dt) by the symplectic Euler and
@@ -67,8 +67,7 @@ struct Model {
 };
 
 // Builds a model from a mesh. Throws InputError for a zero-volume or inverted element.
-Model buildModel(const TetMesh& mesh, const Material& material,
-                 ElementModel elementModel = ElementModel::Corotational);
+Model buildModel(const TetMesh& mesh, const Material& material, ElementModel elementModel = ElementModel::Corotational);
 
 // Recomputes lumped masses (rho V fraction / 4 per node, or rho V massShare, plus addedMass) and
 // inverse masses; call after changing fixed nodes, fractions or the material.
@@ -99,4 +98,4 @@ std::vector<double> pieceVolumes(const Model& model);
 // The mesh this model was built from (rest positions), e.g. for output.
 TetMesh restMesh(const Model& model);
 
-} // namespace cutsim
+}  // namespace cutsim

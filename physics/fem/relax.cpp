@@ -28,8 +28,9 @@ void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int ite
                 const Eigen::Matrix3d eps = 0.5 * (R.transpose() * F + F.transpose() * R) - Eigen::Matrix3d::Identity();
                 const Eigen::Matrix3d P = R * (2 * mu * eps + lambda * eps.trace() * Eigen::Matrix3d::Identity());
                 const Eigen::Matrix3d H = -vf * P * Di.transpose();
-                const Eigen::Vector3d g = a == 0 ? Eigen::Vector3d(-Di.row(0).transpose() - Di.row(1).transpose() - Di.row(2).transpose())
-                                                 : Eigen::Vector3d(Di.row(a - 1).transpose());
+                const Eigen::Vector3d g =
+                    a == 0 ? Eigen::Vector3d(-Di.row(0).transpose() - Di.row(1).transpose() - Di.row(2).transpose())
+                           : Eigen::Vector3d(Di.row(a - 1).transpose());
                 f += a == 0 ? Eigen::Vector3d(-H.rowwise().sum()) : Eigen::Vector3d(H.col(a - 1));
                 const Eigen::Vector3d rg = R * g;
                 K += vf * (mu * g.squaredNorm() * Eigen::Matrix3d::Identity() + (mu + lambda) * rg * rg.transpose());
@@ -54,4 +55,4 @@ void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int ite
         }
 }
 
-} // namespace cutsim
+}  // namespace cutsim

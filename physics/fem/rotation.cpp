@@ -55,10 +55,10 @@ inline Eigen::Matrix3d polarRotation(const Eigen::Matrix3d& F, double detF, cons
     return X;
 }
 
-} // namespace
+}  // namespace
 
 Eigen::Matrix3d extractRotation(const Eigen::Matrix3d& F, const Eigen::Matrix3d& Rprev) {
     return polarRotation(F, F.determinant(), Rprev);
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -31,4 +31,4 @@ void resizeState(const Model& m, State& s) {
     }
 }
 
-} // namespace cutsim
+}  // namespace cutsim

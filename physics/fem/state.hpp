@@ -11,29 +11,29 @@ namespace cutsim {
 
 // Numerical trouble seen in the last step, which the run reports and acts on. Reset at every step.
 struct StepFlags {
-    int nonFinite = 0;          // nodes with a non-finite position or velocity
-    int inverted = 0;           // elements with det F <= 0
-    int firstInverted = -1;     // one inverted element, for messages
-    int nearFlat = 0;           // elements whose smallest stretch may be below the watch (stretch limiting)
-    int limited = 0;            // elements the step projected back to its smallest stretch
+    int nonFinite = 0;       // nodes with a non-finite position or velocity
+    int inverted = 0;        // elements with det F <= 0
+    int firstInverted = -1;  // one inverted element, for messages
+    int nearFlat = 0;        // elements whose smallest stretch may be below the watch (stretch limiting)
+    int limited = 0;         // elements the step projected back to its smallest stretch
     bool ok() const { return nonFinite == 0 && inverted == 0; }
 };
 
 struct State {
-    Eigen::Matrix3Xd x;         // current positions (3 x nNodes) [m]
-    Eigen::Matrix3Xd v;         // velocities (3 x nNodes) [m/s]; at half steps for central differences
-    Eigen::Matrix3Xd f;         // total nodal force of the last evaluation (3 x nNodes) [N]
-    Eigen::Matrix3Xd a;         // acceleration from f, Newmark's a_n (3 x nNodes) [m/s^2]
-    Eigen::Matrix3Xd fExt;      // applied nodal forces, besides gravity (3 x nNodes) [N]
-    Eigen::Matrix<double, 9, Eigen::Dynamic> rot; // element rotation R of the last force evaluation,
-                                // column-major 3x3 (9 x nElems); warm start for inverted elements
-    Eigen::Matrix<double, 12, Eigen::Dynamic> fe; // elastic force per element and local node (12 x nElems) [N]:
-                                // all of it after elementForces; scratch of computeForces, which
-                                // on large meshes fills only the slots of nodes two threads share
-    std::vector<unsigned char> sharedNode; // scratch of computeForces: node's elements span two ranges
-    double time = 0;            // simulated time [s]
-    long steps = 0;             // steps taken
-    bool started = false;       // integrator history (a, half-step v) initialised
+    Eigen::Matrix3Xd x;     // current positions (3 x nNodes) [m]
+    Eigen::Matrix3Xd v;     // velocities (3 x nNodes) [m/s]; at half steps for central differences
+    Eigen::Matrix3Xd f;     // total nodal force of the last evaluation (3 x nNodes) [N]
+    Eigen::Matrix3Xd a;     // acceleration from f, Newmark's a_n (3 x nNodes) [m/s^2]
+    Eigen::Matrix3Xd fExt;  // applied nodal forces, besides gravity (3 x nNodes) [N]
+    Eigen::Matrix<double, 9, Eigen::Dynamic> rot;  // element rotation R of the last force evaluation,
+                                                   // column-major 3x3 (9 x nElems); warm start for inverted elements
+    Eigen::Matrix<double, 12, Eigen::Dynamic> fe;  // elastic force per element and local node (12 x nElems) [N]:
+                                                   // all of it after elementForces; scratch of computeForces, which
+                                                   // on large meshes fills only the slots of nodes two threads share
+    std::vector<unsigned char> sharedNode;         // scratch of computeForces: node's elements span two ranges
+    double time = 0;                               // simulated time [s]
+    long steps = 0;                                // steps taken
+    bool started = false;                          // integrator history (a, half-step v) initialised
     StepFlags flags;
 };
 
@@ -43,4 +43,4 @@ State makeState(const Model& model);
 // Resizes per-element arrays after the model's elements changed (new elements start unrotated).
 void resizeState(const Model& model, State& state);
 
-} // namespace cutsim
+}  // namespace cutsim

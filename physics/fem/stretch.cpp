@@ -45,7 +45,7 @@ double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<doub
     return u3.dot(F * v3);
 }
 
-} // namespace
+}  // namespace
 
 int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratch) {
     // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
@@ -71,7 +71,8 @@ int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratc
             for (const int e : scratch)
                 for (int a = 0; a < 4; ++a) {
                     const int i = m.tets(a, e);
-                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) around.push_back(m.nodeSlots[k] >> 2);
+                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k)
+                        around.push_back(m.nodeSlots[k] >> 2);
                 }
             std::sort(around.begin(), around.end());
             around.erase(std::unique(around.begin(), around.end()), around.end());
@@ -122,4 +123,4 @@ int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratc
     return corrected;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -37,4 +37,4 @@ Vec12 elementStiffnessDiagonal(const Mat34& g, double volume, const Material& ma
     return d;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -26,4 +26,4 @@ Mat12 elementStiffness(const Mat34& g, double volume, const Material& mat);
 // K_aa,xx = V [Ehat g_ax^2 + mu (g_ay^2 + g_az^2)].
 Vec12 elementStiffnessDiagonal(const Mat34& g, double volume, const Material& mat);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -70,4 +70,4 @@ int dominantNode(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, int ver
     return tets(static_cast<int>(a), s.element[static_cast<size_t>(vertex)]);
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -12,10 +12,10 @@
 namespace cutsim {
 
 struct EmbeddedSurface {
-    Eigen::Matrix3Xi triangles;          // vertex indices, counter-clockwise seen from outside (3 x nTris)
-    std::vector<int> element;            // element holding each vertex (nVerts)
-    Eigen::Matrix4Xd weights;            // barycentric weights in that element's rest shape (4 x nVerts) [-]
-    std::vector<int> cutId;              // the cut that made each triangle, -1 for none (nTris)
+    Eigen::Matrix3Xi triangles;  // vertex indices, counter-clockwise seen from outside (3 x nTris)
+    std::vector<int> element;    // element holding each vertex (nVerts)
+    Eigen::Matrix4Xd weights;    // barycentric weights in that element's rest shape (4 x nVerts) [-]
+    std::vector<int> cutId;      // the cut that made each triangle, -1 for none (nTris)
 
     int vertices() const { return static_cast<int>(element.size()); }
     int faces() const { return static_cast<int>(triangles.cols()); }
@@ -37,4 +37,4 @@ EmbeddedSurface boundarySurface(const Eigen::Matrix4Xi& tets, const Eigen::Matri
 // The mesh node a vertex follows most (largest weight), e.g. to average element values around it.
 int dominantNode(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, int vertex);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -62,10 +62,9 @@ TetMesh refineTets(const TetMesh& mesh) {
         const int x0 = mesh.tets(0, e), x1 = mesh.tets(1, e), x2 = mesh.tets(2, e), x3 = mesh.tets(3, e);
         const int x01 = midpoint(x0, x1), x02 = midpoint(x0, x2), x03 = midpoint(x0, x3);
         const int x12 = midpoint(x1, x2), x13 = midpoint(x1, x3), x23 = midpoint(x2, x3);
-        const int kids[8][4] = {{x0, x01, x02, x03}, {x01, x1, x12, x13}, {x02, x12, x2, x23}, {x03, x13, x23, x3},
+        const int kids[8][4] = {{x0, x01, x02, x03},  {x01, x1, x12, x13},  {x02, x12, x2, x23},  {x03, x13, x23, x3},
                                 {x01, x02, x03, x13}, {x01, x02, x12, x13}, {x02, x03, x13, x23}, {x02, x12, x13, x23}};
-        for (int k = 0; k < 8; ++k)
-            out.tets.col(8 * e + k) << kids[k][0], kids[k][1], kids[k][2], kids[k][3];
+        for (int k = 0; k < 8; ++k) out.tets.col(8 * e + k) << kids[k][0], kids[k][1], kids[k][2], kids[k][3];
     }
     out.X.resize(3, n0 + static_cast<Eigen::Index>(extra.size()));
     out.X.leftCols(n0) = mesh.X;
@@ -76,4 +75,4 @@ TetMesh refineTets(const TetMesh& mesh) {
     return out;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

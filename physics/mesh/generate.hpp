@@ -22,4 +22,4 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz, BoxSpli
 // their indices (midpoints are appended), so values on the coarse nodes compare directly.
 TetMesh refineTets(const TetMesh& mesh);
 
-} // namespace cutsim
+}  // namespace cutsim

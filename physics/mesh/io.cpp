@@ -45,7 +45,7 @@ std::string printable(std::string_view tok) {
 
 bool isSpace(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v'; }
 
-} // namespace
+}  // namespace
 
 Tokens::Tokens(std::string path, std::string_view text, char comment, long firstLine)
     : path_(std::move(path)), text_(text), comment_(comment), line_(firstLine), lastLine_(firstLine) {}
@@ -78,9 +78,7 @@ std::string_view Tokens::peek() {
     return text_.substr(pos_, end - pos_);
 }
 
-long Tokens::peekLine() {
-    return atEnd() ? lastLine_ : line_;
-}
+long Tokens::peekLine() { return atEnd() ? lastLine_ : line_; }
 
 std::string_view Tokens::next(std::string_view what) {
     const std::string_view tok = peek();
@@ -146,9 +144,10 @@ TetMesh finishTetMesh(const std::string& path, RawTets&& raw, const ReadOptions&
     const long nN = static_cast<long>(raw.xyz.size() / 3), nT = static_cast<long>(raw.tets.size() / 4);
     if (nN == 0) throw InputError(path, 0, "no nodes");
     if (nT == 0)
-        throw InputError(tetFile, 0, "no tetrahedra" + (raw.skipped > 0 ? " (" + std::to_string(raw.skipped) +
-                                                                           " other elements skipped)"
-                                                                     : std::string()));
+        throw InputError(tetFile, 0,
+                         "no tetrahedra" + (raw.skipped > 0
+                                                ? " (" + std::to_string(raw.skipped) + " other elements skipped)"
+                                                : std::string()));
     if (!(opts.scale > 0) || !std::isfinite(opts.scale))
         throw InputError(path, 0, "scale must be a positive finite number, got " + std::to_string(opts.scale));
 
@@ -210,7 +209,7 @@ TetMesh finishTetMesh(const std::string& path, RawTets&& raw, const ReadOptions&
     return m;
 }
 
-} // namespace detail
+}  // namespace detail
 
 namespace {
 
@@ -235,7 +234,6 @@ void appendNumber(std::string& out, long v) {
     out.append(buf, ec == std::errc() ? p : buf);
 }
 
-
 void checkWritable(const std::string& path, const TetMesh& mesh) {
     for (long i = 0; i < mesh.tets.size(); ++i)
         if (mesh.tets.data()[i] < 0 || mesh.tets.data()[i] >= mesh.nodes())
@@ -247,8 +245,9 @@ void checkField(const std::string& path, const Field& f, long expected, const ch
     if (f.name.empty() || f.name.find_first_of("\"<>&") != std::string::npos)
         throw InputError(path, 0, std::string(kind) + " field name '" + f.name + "' is empty or not XML-safe");
     if (static_cast<long>(f.values.size()) != expected)
-        throw InputError(path, 0, std::string(kind) + " field '" + f.name + "' has " + std::to_string(f.values.size()) +
-                                      " values, expected " + std::to_string(expected));
+        throw InputError(path, 0,
+                         std::string(kind) + " field '" + f.name + "' has " + std::to_string(f.values.size()) +
+                             " values, expected " + std::to_string(expected));
 }
 
 void appendFields(std::string& out, const std::vector<Field>& fields) {
@@ -263,7 +262,7 @@ void appendFields(std::string& out, const std::vector<Field>& fields) {
     }
 }
 
-} // namespace
+}  // namespace
 
 TetMesh readTetMesh(const std::string& path, const ReadOptions& opts, ReadReport* report) {
     const std::string ext = extensionOf(path);
@@ -392,4 +391,4 @@ void writeMsh22(const std::string& path, const TetMesh& mesh) {
     writeFileAtomic(path, out);  // never half a mesh
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -9,16 +9,16 @@
 namespace cutsim {
 
 struct ReadOptions {
-    double scale = 1.0;        // multiplies every coordinate (thesis meshes need it, docs/method.md sec. 3)
-    bool reorient = false;     // swap two nodes of inverted tets instead of rejecting them
-    double minVolume = 0.0;    // |V| <= minVolume * (mean |V|) counts as zero volume: rejected
+    double scale = 1.0;      // multiplies every coordinate (thesis meshes need it, docs/method.md sec. 3)
+    bool reorient = false;   // swap two nodes of inverted tets instead of rejecting them
+    double minVolume = 0.0;  // |V| <= minVolume * (mean |V|) counts as zero volume: rejected
 };
 
 // What a reader saw and fixed; filled when a pointer is given.
 struct ReadReport {
-    std::vector<int> inverted;   // tets with negative volume (reoriented when asked)
-    int skippedElements = 0;     // non-tet elements ignored (lines, triangles, ...)
-    int unreferencedNodes = 0;   // nodes no tet uses (kept, they carry no mass)
+    std::vector<int> inverted;  // tets with negative volume (reoriented when asked)
+    int skippedElements = 0;    // non-tet elements ignored (lines, triangles, ...)
+    int unreferencedNodes = 0;  // nodes no tet uses (kept, they carry no mass)
 };
 
 // Volume meshes, by extension: .msh (Gmsh v1, 2.2 ASCII, 4.1 ASCII), .node/.ele (TetGen, either
@@ -41,4 +41,4 @@ void writeVtu(const std::string& path, const TetMesh& mesh, const std::vector<Fi
 // Gmsh 2.2 ASCII, node ids 1..n, element type 4. Written to a temporary file and renamed.
 void writeMsh22(const std::string& path, const TetMesh& mesh);
 
-} // namespace cutsim
+}  // namespace cutsim

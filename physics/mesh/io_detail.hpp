@@ -23,9 +23,9 @@ class Tokens {
 public:
     Tokens(std::string path, std::string_view text, char comment = '\0', long firstLine = 1);
 
-    bool atEnd();                          // no token left
-    std::string_view peek();               // next token without consuming it ("" at end)
-    long peekLine();                       // line of the next token (last line at end)
+    bool atEnd();                                  // no token left
+    std::string_view peek();                       // next token without consuming it ("" at end)
+    long peekLine();                               // line of the next token (last line at end)
     std::string_view next(std::string_view what);  // consume; EOF is an error naming `what`
     long lastLine() const { return lastLine_; }    // line of the token last consumed
 
@@ -48,8 +48,8 @@ private:
     std::string_view text_;
     char comment_;
     size_t pos_ = 0;
-    long line_;          // line at pos_
-    long lastLine_;      // line of the last consumed token
+    long line_;      // line at pos_
+    long lastLine_;  // line of the last consumed token
 };
 
 // Unbounded counts must not drive allocations: reserve at most this many entries up front.
@@ -71,13 +71,13 @@ private:
 
 // A tet mesh as read, before scaling and checks.
 struct RawTets {
-    std::vector<double> xyz;     // 3 per node
-    std::vector<long> nodeIds;   // file id per node; empty when ids are implicit
-    std::vector<int> tets;       // 4 node indices per tet, 0-based, already range-checked
-    std::vector<long> tetLine;   // line of each tet in `tetFile`
-    std::vector<long> tetId;     // file element id of each tet; empty when implicit
-    std::string tetFile;         // file holding the elements (TetGen: the .ele)
-    int skipped = 0;             // non-tet elements
+    std::vector<double> xyz;    // 3 per node
+    std::vector<long> nodeIds;  // file id per node; empty when ids are implicit
+    std::vector<int> tets;      // 4 node indices per tet, 0-based, already range-checked
+    std::vector<long> tetLine;  // line of each tet in `tetFile`
+    std::vector<long> tetId;    // file element id of each tet; empty when implicit
+    std::string tetFile;        // file holding the elements (TetGen: the .ele)
+    int skipped = 0;            // non-tet elements
 };
 
 // Scale, volume checks (zero volume, inversion) and the report; shared by every tet reader.
@@ -93,4 +93,4 @@ SurfaceMesh readObj(const std::string& path, const std::string& text);
 SurfaceMesh readOff(const std::string& path, const std::string& text);
 SurfaceMesh readStl(const std::string& path, const std::string& text);
 
-} // namespace cutsim::detail
+}  // namespace cutsim::detail

@@ -36,15 +36,14 @@ void expectEnd(Tokens& t, std::string_view endName, long declared, std::string_v
 void expectEntry(Tokens& t, long i, long n, std::string_view what) {
     const std::string_view tok = t.peek();
     if (!tok.empty() && tok[0] == '$')
-        t.fail("only " + std::to_string(i) + " of the declared " + std::to_string(n) + " " + str(what) +
-                   " before " + str(tok.substr(0, 24)),
+        t.fail("only " + std::to_string(i) + " of the declared " + std::to_string(n) + " " + str(what) + " before " +
+                   str(tok.substr(0, 24)),
                t.peekLine());
 }
 
 void addNode(Tokens& t, RawTets& raw, IdMap& ids, long id, long line) {
     if (raw.nodeIds.size() >= static_cast<size_t>(INT_MAX)) t.fail("too many nodes", line);
-    if (!ids.add(id, static_cast<int>(raw.nodeIds.size())))
-        t.fail("duplicate node id " + std::to_string(id), line);
+    if (!ids.add(id, static_cast<int>(raw.nodeIds.size()))) t.fail("duplicate node id " + std::to_string(id), line);
     raw.nodeIds.push_back(id);
     for (int k = 0; k < 3; ++k) raw.xyz.push_back(t.real("coordinate", line));
 }
@@ -135,7 +134,7 @@ void readNodes41(Tokens& t, RawTets& raw, IdMap& ids) {
             expectEntry(t, i, nb, "node coordinates of the block");
             const long cl = t.peekLine();
             addNode(t, raw, ids, tags[static_cast<size_t>(i)], cl);
-            if (parametric) // parametric coordinates follow x y z: one per entity dimension
+            if (parametric)  // parametric coordinates follow x y z: one per entity dimension
                 for (long k = 0; k < dim; ++k) t.real("parametric coordinate", cl);
         }
         total += nb;
@@ -180,7 +179,7 @@ void readElements41(Tokens& t, RawTets& raw, const IdMap& ids) {
     expectEnd(t, "$EndElements", n, "elements");
 }
 
-} // namespace
+}  // namespace
 
 RawTets readMsh(const std::string& path, const std::string& text) {
     Tokens t(path, text);
@@ -193,11 +192,16 @@ RawTets readMsh(const std::string& path, const std::string& text) {
         // Legacy v1: sections only, no format header.
         while (!t.atEnd()) {
             const std::string sec = lower(t.next("section"));
-            if (sec == "$nod") readFlatNodes(t, raw, ids, "$ENDNOD");
-            else if (sec == "$noe") readFlatNodes(t, raw, ids, "$ENDNOE");
-            else if (sec == "$elm") readFlatElements(t, raw, ids, true, "$ENDELM");
-            else if (sec.size() > 1 && sec[0] == '$') skipSection(t, sec);
-            else t.fail("expected a section such as $NOD or $ELM, got '" + sec.substr(0, 24) + "'");
+            if (sec == "$nod")
+                readFlatNodes(t, raw, ids, "$ENDNOD");
+            else if (sec == "$noe")
+                readFlatNodes(t, raw, ids, "$ENDNOE");
+            else if (sec == "$elm")
+                readFlatElements(t, raw, ids, true, "$ENDELM");
+            else if (sec.size() > 1 && sec[0] == '$')
+                skipSection(t, sec);
+            else
+                t.fail("expected a section such as $NOD or $ELM, got '" + sec.substr(0, 24) + "'");
         }
         return raw;
     }
@@ -218,11 +222,15 @@ RawTets readMsh(const std::string& path, const std::string& text) {
     while (!t.atEnd()) {
         const std::string sec = lower(t.next("section"));
         if (sec == "$nodes") {
-            if (v4) readNodes41(t, raw, ids);
-            else readFlatNodes(t, raw, ids, "$EndNodes");
+            if (v4)
+                readNodes41(t, raw, ids);
+            else
+                readFlatNodes(t, raw, ids, "$EndNodes");
         } else if (sec == "$elements") {
-            if (v4) readElements41(t, raw, ids);
-            else readFlatElements(t, raw, ids, false, "$EndElements");
+            if (v4)
+                readElements41(t, raw, ids);
+            else
+                readFlatElements(t, raw, ids, false, "$EndElements");
         } else if (sec.size() > 1 && sec[0] == '$') {
             skipSection(t, sec);
         } else {
@@ -232,4 +240,4 @@ RawTets readMsh(const std::string& path, const std::string& text) {
     return raw;
 }
 
-} // namespace cutsim::detail
+}  // namespace cutsim::detail

@@ -42,7 +42,7 @@ private:
     std::map<std::array<double, 3>, int> map_;
 };
 
-} // namespace
+}  // namespace
 
 SurfaceMesh readObj(const std::string& path, const std::string& text) {
     std::vector<double> xyz;
@@ -74,7 +74,8 @@ SurfaceMesh readObj(const std::string& path, const std::string& text) {
                 const long nv = static_cast<long>(xyz.size() / 3);
                 if (idx == 0) t.fail("face vertex index 0 (OBJ indices start at 1)");
                 if (idx < 0) {
-                    if (nv + idx < 0) t.fail("relative vertex index " + std::to_string(idx) + " before the first vertex");
+                    if (nv + idx < 0)
+                        t.fail("relative vertex index " + std::to_string(idx) + " before the first vertex");
                     poly.push_back(static_cast<int>(nv + idx));
                 } else {
                     if (idx > INT_MAX) t.fail("vertex index " + std::to_string(idx) + " out of range");
@@ -91,8 +92,8 @@ SurfaceMesh readObj(const std::string& path, const std::string& text) {
     const long nv = static_cast<long>(xyz.size() / 3);
     for (size_t i = 0; i < pending.size(); ++i)
         if (pending[i] > nv)
-            throw InputError(path, pendingLine[i], "vertex index " + std::to_string(pending[i]) + " out of range 1.." +
-                                                       std::to_string(nv));
+            throw InputError(path, pendingLine[i],
+                             "vertex index " + std::to_string(pending[i]) + " out of range 1.." + std::to_string(nv));
     return assemble(xyz, tris);
 }
 
@@ -149,8 +150,9 @@ SurfaceMesh readStlBinary(const std::string& path, const std::string& bytes, uin
             std::memcpy(c, bytes.data() + at + 12 + 12 * v, sizeof c);  // little-endian float32, after the normal
             std::array<double, 3> p{c[0], c[1], c[2]};
             if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
-                throw InputError(path, 0, "facet " + std::to_string(f) + " (byte " + std::to_string(at) +
-                                              "): non-finite vertex coordinate");
+                throw InputError(path, 0,
+                                 "facet " + std::to_string(f) + " (byte " + std::to_string(at) +
+                                     "): non-finite vertex coordinate");
             tris.push_back(weld.add(p, xyz));
         }
     }
@@ -196,7 +198,7 @@ SurfaceMesh readStlAscii(const std::string& path, const std::string& text) {
     return assemble(xyz, tris);
 }
 
-} // namespace
+}  // namespace
 
 SurfaceMesh readStl(const std::string& path, const std::string& text) {
     // Binary when the size matches the facet count in the header, whatever the first bytes say
@@ -212,11 +214,12 @@ SurfaceMesh readStl(const std::string& path, const std::string& text) {
     if (text.size() >= 84) {
         uint32_t n = 0;
         std::memcpy(&n, text.data() + 80, 4);
-        throw InputError(path, 0, "binary STL header declares " + std::to_string(n) + " facets (" +
-                                      std::to_string(84 + 50 * static_cast<uint64_t>(n)) + " bytes) but the file has " +
-                                      std::to_string(text.size()) + " bytes (truncated?)");
+        throw InputError(path, 0,
+                         "binary STL header declares " + std::to_string(n) + " facets (" +
+                             std::to_string(84 + 50 * static_cast<uint64_t>(n)) + " bytes) but the file has " +
+                             std::to_string(text.size()) + " bytes (truncated?)");
     }
     throw InputError(path, 1, "not an STL file (too short for binary, no 'solid' for ASCII)");
 }
 
-} // namespace cutsim::detail
+}  // namespace cutsim::detail

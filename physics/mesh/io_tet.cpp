@@ -18,7 +18,7 @@ long optionalOnLine(Tokens& t, long line, std::string_view what, long dflt) {
     return (!t.atEnd() && t.peekLine() == line) ? t.integer(what, line) : dflt;
 }
 
-} // namespace
+}  // namespace
 
 RawTets readTetGen(const std::string& nodePath, const std::string& elePath) {
     const std::string nodeText = readFile(nodePath);
@@ -82,7 +82,7 @@ RawTets readTetGen(const std::string& nodePath, const std::string& elePath) {
 RawTets readMedit(const std::string& path, const std::string& text) {
     Tokens t(path, text, '#');
     RawTets raw;
-    std::vector<long> tetIdx;    // 1-based vertex numbers, checked once all vertices are known
+    std::vector<long> tetIdx;  // 1-based vertex numbers, checked once all vertices are known
     long nVerts = 0;
     bool sawVertices = false;
     if (t.atEnd()) t.fail("empty file", 1);
@@ -125,8 +125,8 @@ RawTets readMedit(const std::string& path, const std::string& text) {
                 if (t.atEnd()) t.fail("unexpected end of file inside " + kw.substr(0, 24));
                 t.skipLine();
             }
-            static const char* kElements[] = {"edges", "triangles", "quadrilaterals", "hexahedra", "prisms",
-                                              "pyramids", "tetrahedrap2", "trianglesp2", "edgesp2"};
+            static const char* kElements[] = {"edges",    "triangles",    "quadrilaterals", "hexahedra", "prisms",
+                                              "pyramids", "tetrahedrap2", "trianglesp2",    "edgesp2"};
             if (std::find(std::begin(kElements), std::end(kElements), kw) != std::end(kElements))
                 raw.skipped += static_cast<int>(std::min<long>(n, INT_MAX - raw.skipped));
         }
@@ -291,13 +291,16 @@ public:
         for (long c = 0; c < nC; ++c) {
             const long end = offsets[static_cast<size_t>(c)];
             if (end < begin || end > static_cast<long>(conn.size()))
-                throw InputError(path_, offsetsLine, "cell " + std::to_string(c) + " offset " + std::to_string(end) +
-                                                         " is out of order or past the connectivity");
-            const long cl = begin < static_cast<long>(connLine.size()) ? connLine[static_cast<size_t>(begin)] : offsetsLine;
+                throw InputError(path_, offsetsLine,
+                                 "cell " + std::to_string(c) + " offset " + std::to_string(end) +
+                                     " is out of order or past the connectivity");
+            const long cl =
+                begin < static_cast<long>(connLine.size()) ? connLine[static_cast<size_t>(begin)] : offsetsLine;
             if (types[static_cast<size_t>(c)] == 10) {  // VTK_TETRA
                 if (end - begin != 4)
-                    throw InputError(path_, cl, "tetrahedron cell " + std::to_string(c) + " has " +
-                                                    std::to_string(end - begin) + " nodes");
+                    throw InputError(path_, cl,
+                                     "tetrahedron cell " + std::to_string(c) + " has " + std::to_string(end - begin) +
+                                         " nodes");
                 for (long k = begin; k < end; ++k) {
                     const long v = conn[static_cast<size_t>(k)];
                     if (v < 0 || v >= nP)
@@ -313,8 +316,9 @@ public:
             begin = end;
         }
         if (begin != static_cast<long>(conn.size()))
-            throw InputError(path_, offsetsLine, "connectivity has " + std::to_string(conn.size()) +
-                                                     " entries but the last offset is " + std::to_string(begin));
+            throw InputError(path_, offsetsLine,
+                             "connectivity has " + std::to_string(conn.size()) + " entries but the last offset is " +
+                                 std::to_string(begin));
         return raw;
     }
 
@@ -323,8 +327,8 @@ private:
     std::string_view text_;
 };
 
-} // namespace
+}  // namespace
 
 RawTets readVtu(const std::string& path, const std::string& text) { return VtuReader(path, text).read(); }
 
-} // namespace cutsim::detail
+}  // namespace cutsim::detail

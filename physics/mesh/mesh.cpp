@@ -8,24 +8,25 @@
 namespace cutsim {
 
 InputError::InputError(const std::string& file, long line, const std::string& what)
-    : std::runtime_error(line > 0 ? file + ":" + std::to_string(line) + ": " + what
-                                  : file + ": " + what) {}
+    : std::runtime_error(line > 0 ? file + ":" + std::to_string(line) + ": " + what : file + ": " + what) {}
 
-double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                       const Eigen::Vector3d& c, const Eigen::Vector3d& d) {
+double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                       const Eigen::Vector3d& d) {
     return (b - a).dot((c - a).cross(d - a)) / 6.0;
 }
 
 double tetSignedVolume(const TetMesh& m, int e) {
-    return tetSignedVolume(m.X.col(m.tets(0, e)), m.X.col(m.tets(1, e)), m.X.col(m.tets(2, e)),
-                           m.X.col(m.tets(3, e)));
+    return tetSignedVolume(m.X.col(m.tets(0, e)), m.X.col(m.tets(1, e)), m.X.col(m.tets(2, e)), m.X.col(m.tets(3, e)));
 }
 
 Eigen::Matrix3Xi boundaryFaces(const TetMesh& m) {
     // Faces opposite node 0..3, wound so the normal points away from the opposite node
     // for a positively oriented tet.
     static constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
-    struct Entry { std::array<int, 3> f; int count; };
+    struct Entry {
+        std::array<int, 3> f;
+        int count;
+    };
     std::map<std::array<int, 3>, Entry> faces;
     for (int e = 0; e < m.elements(); ++e) {
         const bool flip = tetSignedVolume(m, e) < 0;
@@ -42,8 +43,7 @@ Eigen::Matrix3Xi boundaryFaces(const TetMesh& m) {
     for (const auto& [key, entry] : faces)
         if (entry.count == 1) out.push_back(entry.f);
     Eigen::Matrix3Xi F(3, static_cast<Eigen::Index>(out.size()));
-    for (size_t i = 0; i < out.size(); ++i)
-        F.col(static_cast<Eigen::Index>(i)) << out[i][0], out[i][1], out[i][2];
+    for (size_t i = 0; i < out.size(); ++i) F.col(static_cast<Eigen::Index>(i)) << out[i][0], out[i][1], out[i][2];
     return F;
 }
 
@@ -62,4 +62,4 @@ double enclosedVolume(const SurfaceMesh& s) {
     return v;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -19,10 +19,10 @@ public:
 
 // A tetrahedral volume mesh.
 struct TetMesh {
-    Eigen::Matrix3Xd X;       // node positions (3 x nNodes) [m]
-    Eigen::Matrix4Xi tets;    // node indices of each tet, 0-based (4 x nTets)
-    std::vector<long> nodeIds; // id of each node in the source file (nNodes); empty if implicit
-    std::string source;       // file it was read from, for messages
+    Eigen::Matrix3Xd X;         // node positions (3 x nNodes) [m]
+    Eigen::Matrix4Xi tets;      // node indices of each tet, 0-based (4 x nTets)
+    std::vector<long> nodeIds;  // id of each node in the source file (nNodes); empty if implicit
+    std::string source;         // file it was read from, for messages
 
     int nodes() const { return static_cast<int>(X.cols()); }
     int elements() const { return static_cast<int>(tets.cols()); }
@@ -30,8 +30,8 @@ struct TetMesh {
 
 // A triangle surface mesh.
 struct SurfaceMesh {
-    Eigen::Matrix3Xd V;       // vertex positions (3 x nVerts) [m]
-    Eigen::Matrix3Xi F;       // vertex indices of each triangle, 0-based (3 x nTris)
+    Eigen::Matrix3Xd V;  // vertex positions (3 x nVerts) [m]
+    Eigen::Matrix3Xi F;  // vertex indices of each triangle, 0-based (3 x nTris)
     std::string source;
 
     int vertices() const { return static_cast<int>(V.cols()); }
@@ -39,8 +39,8 @@ struct SurfaceMesh {
 };
 
 // Signed volume of tet (a,b,c,d): det[b-a, c-a, d-a] / 6, positive when d sees abc counter-clockwise.
-double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                       const Eigen::Vector3d& c, const Eigen::Vector3d& d);
+double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                       const Eigen::Vector3d& d);
 double tetSignedVolume(const TetMesh& m, int e);
 
 // Boundary faces: faces used by exactly one tet, oriented outward (3 x nFaces).
@@ -52,4 +52,4 @@ double totalVolume(const TetMesh& m);
 // Volume enclosed by a closed, consistently oriented surface (divergence theorem) [m^3].
 double enclosedVolume(const SurfaceMesh& s);
 
-} // namespace cutsim
+}  // namespace cutsim

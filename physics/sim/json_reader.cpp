@@ -31,8 +31,10 @@ double ObjectReader::number(const std::string& key, double def, double lo, doubl
     if (!v.is_number()) fail(key, "must be a number, got " + std::string(v.type_name()));
     const double x = v.get<double>();
     if (!std::isfinite(x)) fail(key, "must be finite");
-    if (loOpen ? !(x > lo) : !(x >= lo)) fail(key, std::string("must be ") + (loOpen ? "> " : ">= ") + num(lo) + ", got " + num(x));
-    if (hiOpen ? !(x < hi) : !(x <= hi)) fail(key, std::string("must be ") + (hiOpen ? "< " : "<= ") + num(hi) + ", got " + num(x));
+    if (loOpen ? !(x > lo) : !(x >= lo))
+        fail(key, std::string("must be ") + (loOpen ? "> " : ">= ") + num(lo) + ", got " + num(x));
+    if (hiOpen ? !(x < hi) : !(x <= hi))
+        fail(key, std::string("must be ") + (hiOpen ? "< " : "<= ") + num(hi) + ", got " + num(x));
     return x;
 }
 
@@ -46,7 +48,8 @@ int ObjectReader::integer(const std::string& key, int def, int lo, int hi) {
     const auto& v = get(key);
     if (!v.is_number_integer()) fail(key, "must be an integer, got " + std::string(v.type_name()));
     const long long x = v.get<long long>();
-    if (x < lo || x > hi) fail(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(x));
+    if (x < lo || x > hi)
+        fail(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(x));
     return static_cast<int>(x);
 }
 
@@ -57,7 +60,8 @@ bool ObjectReader::boolean(const std::string& key, bool def) {
     return v.get<bool>();
 }
 
-std::string ObjectReader::string(const std::string& key, const std::string& def, const std::vector<std::string>& allowed) {
+std::string ObjectReader::string(const std::string& key, const std::string& def,
+                                 const std::vector<std::string>& allowed) {
     if (!has(key)) return def;
     const auto& v = get(key);
     if (!v.is_string()) fail(key, "must be a string, got " + std::string(v.type_name()));
@@ -134,4 +138,4 @@ void ObjectReader::finish() const {
         if (!seen_.count(it.key())) fail(it.key(), "unknown key");
 }
 
-} // namespace cutsim
+}  // namespace cutsim

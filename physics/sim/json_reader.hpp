@@ -19,8 +19,8 @@ public:
     ObjectReader(const nlohmann::json& j, std::string file, std::string path);
 
     bool has(const std::string& key) const { return j_.contains(key); }
-    double number(const std::string& key, double def, double lo = -1e300, double hi = 1e300,
-                  bool loOpen = false, bool hiOpen = false);
+    double number(const std::string& key, double def, double lo = -1e300, double hi = 1e300, bool loOpen = false,
+                  bool hiOpen = false);
     double requiredNumber(const std::string& key, double lo = -1e300, double hi = 1e300);
     int integer(const std::string& key, int def, int lo, int hi);
     bool boolean(const std::string& key, bool def);
@@ -29,7 +29,7 @@ public:
     Eigen::Vector3d vec3(const std::string& key, const Eigen::Vector3d& def);
     Eigen::Vector3d requiredVec3(const std::string& key);
     std::vector<int> intList(const std::string& key);
-    ObjectReader object(const std::string& key);        // required object
+    ObjectReader object(const std::string& key);              // required object
     std::vector<ObjectReader> array(const std::string& key);  // array of objects, empty if absent
     const nlohmann::json& raw(const std::string& key) const { return j_.at(key); }
     // Marks a key as known without reading it.
@@ -51,4 +51,4 @@ private:
     std::set<std::string> seen_;
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -35,12 +35,12 @@ struct ContactSettings {
 
 // The tool force record: the full-rate maximum and a series sampled every sampleDt.
 struct ToolRecord {
-    double maxForce = 0;           // largest |reaction| at full rate [N]
-    double maxDepth = 0;           // deepest surface point inside a tool at any step [m]
-    long contactSteps = 0;         // steps with at least one point in contact
-    Eigen::Vector3d force = Eigen::Vector3d::Zero();  // reaction of the last step [N]
+    double maxForce = 0;                                // largest |reaction| at full rate [N]
+    double maxDepth = 0;                                // deepest surface point inside a tool at any step [m]
+    long contactSteps = 0;                              // steps with at least one point in contact
+    Eigen::Vector3d force = Eigen::Vector3d::Zero();    // reaction of the last step [N]
     std::vector<double> time, fx, fy, fz, blockMaxima;  // the series [s], [N]
-    std::vector<float> history;    // |F| at the series rate, last 200 samples (HUD plot) [N]
+    std::vector<float> history;                         // |F| at the series rate, last 200 samples (HUD plot) [N]
     double nextSample = 0, blockMax = 0, sampleDt = 1e-3;
     // After a step from time t with reaction `f`, deepest point `depth`, `contacts` points touching.
     void add(double t, const Eigen::Vector3d& f, double depth, int contacts);
@@ -48,21 +48,21 @@ struct ToolRecord {
 
 struct RunRecord {
     StageTimes stages;
-    nlohmann::json cuts = nlohmann::json::array();     // one entry per topology change
-    nlohmann::json energy = nlohmann::json::array();   // samples {time, kinetic, elastic, gravity, total} [s], [J]
-    long invertedSteps = 0, limitedSteps = 0;          // steps with inverted / stretch-limited elements
+    nlohmann::json cuts = nlohmann::json::array();    // one entry per topology change
+    nlohmann::json energy = nlohmann::json::array();  // samples {time, kinetic, elastic, gravity, total} [s], [J]
+    long invertedSteps = 0, limitedSteps = 0;         // steps with inverted / stretch-limited elements
     int maxInverted = 0, maxLimited = 0;
-    long solverIterations = 0;                         // backward Euler CG iterations, summed
+    long solverIterations = 0;  // backward Euler CG iterations, summed
     int solverIterationsMax = 0;
-    double maxSpeed = 0;                               // largest node speed seen [m/s]
-    double maxDisplacement = 0;                        // largest node displacement seen [m]
-    int cutsMade = 0;                                  // cuts that split elements (a blade stroke counts once)
-    long bladeCutSteps = 0;                            // steps in which a blade split elements
+    double maxSpeed = 0;         // largest node speed seen [m/s]
+    double maxDisplacement = 0;  // largest node displacement seen [m]
+    int cutsMade = 0;            // cuts that split elements (a blade stroke counts once)
+    long bladeCutSteps = 0;      // steps in which a blade split elements
     ToolRecord tool;
-    nlohmann::json compare;                            // cutting.compare results (null: none)
-    nlohmann::json initial;                            // the object before the first step: nodes, elements, fixed_nodes, mass
-    double wallSetup = 0;                              // seconds to build and analyse the object [s]
-    double wallLoop = 0;                               // seconds in step() [s]
+    nlohmann::json compare;  // cutting.compare results (null: none)
+    nlohmann::json initial;  // the object before the first step: nodes, elements, fixed_nodes, mass
+    double wallSetup = 0;    // seconds to build and analyse the object [s]
+    double wallLoop = 0;     // seconds in step() [s]
 };
 
-} // namespace cutsim
+}  // namespace cutsim

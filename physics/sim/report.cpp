@@ -43,8 +43,8 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
     for (const std::string& name : sc.cutting.compare) {
         Stopwatch sw;
         try {
-            const auto dts = dtAfterPlaneCuts(rest, planes, name == "remesh" ? CutMethod::Remesh : CutMethod::Subdivision,
-                                              sc.material);
+            const auto dts = dtAfterPlaneCuts(
+                rest, planes, name == "remesh" ? CutMethod::Remesh : CutMethod::Subdivision, sc.material);
             add(name, dts, sw.seconds());
         } catch (const std::exception& e) {
             out[name] = {{"error", e.what()}};
@@ -53,10 +53,11 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
     return out;
 }
 
-} // namespace
+}  // namespace
 
 void Simulation::compareCutMethods() {
-    if (!sc_.cutting.compare.empty() && status_ == RunStatus::Finished) rec_.compare = cutsim::compareCutMethods(sc_, rest_);
+    if (!sc_.cutting.compare.empty() && status_ == RunStatus::Finished)
+        rec_.compare = cutsim::compareCutMethods(sc_, rest_);
 }
 
 void ToolRecord::add(double t, const Eigen::Vector3d& f, double depth, int contacts) {
@@ -120,19 +121,21 @@ json Simulation::report(const json& extra) const {
     report["integrator"] = integratorName(sc.integrator);
     report["force_precision"] = sc.precision == ForcePrecision::Single ? "single" : "double";
     if (sc.integrator == Integrator::BackwardEuler)
-        report["implicit"] = {
-            {"solver", implicitSolverName(sc.implicitSolver)},
-            {"cg_iterations_mean", st.steps ? double(rec_.solverIterations) / double(st.steps) : 0.0},
-            {"cg_iterations_max", rec_.solverIterationsMax}};
+        report["implicit"] = {{"solver", implicitSolverName(sc.implicitSolver)},
+                              {"cg_iterations_mean", st.steps ? double(rec_.solverIterations) / double(st.steps) : 0.0},
+                              {"cg_iterations_max", rec_.solverIterationsMax}};
     report["dt"] = choice_.dt;
     report["dt_policy"] = {{"mode", sc.dt.fixed ? "fixed" : "fraction"},
                            {"of", limitOfName(sc.dt.of)},
                            {"fraction", sc.dt.fraction},
                            {"on_limit", onLimitName(sc.dt.onLimit)}};
     report["dt_limit_action"] = limitActionName(choice_.action);
-    report["dt_initial"] = {{"exact", initial_.exact}, {"certified", initial_.certified}, {"estimate", initial_.estimate}};
+    report["dt_initial"] = {
+        {"exact", initial_.exact}, {"certified", initial_.certified}, {"estimate", initial_.estimate}};
     report["critical_elements"] = critical_;
-    report["mesh"] = {{"file", !sc.surface.empty() ? sc.surface : sc.mesh.empty() ? std::string("box") : sc.mesh},
+    report["mesh"] = {{"file", !sc.surface.empty() ? sc.surface
+                               : sc.mesh.empty()   ? std::string("box")
+                                                   : sc.mesh},
                       {"nodes", rec_.initial.value("nodes", 0)},
                       {"elements", rec_.initial.value("elements", 0)},
                       {"fixed_nodes", rec_.initial.value("fixed_nodes", 0)},
@@ -145,7 +148,8 @@ json Simulation::report(const json& extra) const {
                            {"cut_steps", rec_.bladeCutSteps},
                            {"pending", cutter_->pendingElements()},
                            {"cut_seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Cuts] / double(st.steps) : 0.0}};
-    report["dt_final"] = {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)}, {"certified", limits_.certified}};
+    report["dt_final"] = {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
+                          {"certified", limits_.certified}};
     if (!rec_.compare.is_null()) report["compare"] = rec_.compare;
     const std::vector<double> pieces = pieceVolumes(model_);
     report["pieces"] = pieces.size();
@@ -156,15 +160,16 @@ json Simulation::report(const json& extra) const {
                           {"max_elements", rec_.maxInverted},
                           {"limited_steps", rec_.limitedSteps},
                           {"max_limited", rec_.maxLimited}};
-    report["checks"] = {{"max_speed", bounds_.maxSpeed},
-                        {"max_displacement", bounds_.maxDisplacement},
-                        {"energy_growth", energyChecked_ ? json(bounds_.energyGrowth) : json(nullptr)},
-                        {"inverted_elements", bounds_.invertedSteps > 0 ? json(bounds_.invertedElements) : json(nullptr)},
-                        {"inverted_steps", bounds_.invertedSteps},
-                        {"wave_speed", bounds_.waveSpeed},
-                        {"size", bounds_.size},
-                        {"speed_seen", rec_.maxSpeed},
-                        {"displacement_seen", rec_.maxDisplacement}};
+    report["checks"] = {
+        {"max_speed", bounds_.maxSpeed},
+        {"max_displacement", bounds_.maxDisplacement},
+        {"energy_growth", energyChecked_ ? json(bounds_.energyGrowth) : json(nullptr)},
+        {"inverted_elements", bounds_.invertedSteps > 0 ? json(bounds_.invertedElements) : json(nullptr)},
+        {"inverted_steps", bounds_.invertedSteps},
+        {"wave_speed", bounds_.waveSpeed},
+        {"size", bounds_.size},
+        {"speed_seen", rec_.maxSpeed},
+        {"displacement_seen", rec_.maxDisplacement}};
     report["stages"] = rec_.stages.toJson();
     if (contact_) {
         json names = json::array(), k = json::array(), c = json::array();
@@ -190,8 +195,7 @@ json Simulation::report(const json& extra) const {
             {"contact_points", contact_->points().points()},
             {"seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Contact] / double(st.steps) : 0.0},
             {"force_rate", sc.forceRate},
-            {"series",
-             {{"time", tr.time}, {"fx", tr.fx}, {"fy", tr.fy}, {"fz", tr.fz}, {"max", tr.blockMaxima}}}};
+            {"series", {{"time", tr.time}, {"fx", tr.fx}, {"fy", tr.fy}, {"fz", tr.fz}, {"max", tr.blockMaxima}}}};
     }
     char hash[20];
     std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(stateHash()));
@@ -202,4 +206,4 @@ json Simulation::report(const json& extra) const {
     return report;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

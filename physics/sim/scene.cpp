@@ -75,8 +75,10 @@ Region readRegion(ObjectReader& r) {
 Profile readProfile(ObjectReader& r) {
     Profile p;
     const std::string k = r.string("type", "constant", {"constant", "ramp", "sine", "pulse"});
-    p.kind = k == "ramp" ? Profile::Kind::Ramp : k == "sine" ? Profile::Kind::Sine
-           : k == "pulse" ? Profile::Kind::Pulse : Profile::Kind::Constant;
+    p.kind = k == "ramp"    ? Profile::Kind::Ramp
+             : k == "sine"  ? Profile::Kind::Sine
+             : k == "pulse" ? Profile::Kind::Pulse
+                            : Profile::Kind::Constant;
     p.start = r.number("start", 0, 0);
     p.end = r.number("end", p.kind == Profile::Kind::Ramp ? p.start + 1 : 1e300, p.start);
     if (p.kind == Profile::Kind::Ramp && !(p.end > p.start)) r.fail("end", "must be > start for a ramp");
@@ -90,8 +92,11 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     ToolDef t;
     t.name = r.string("name", "tool" + std::to_string(index));
     const std::string kind = r.string("kind", "sphere", {"sphere", "capsule", "blade", "grasper", "hull"});
-    t.kind = kind == "capsule" ? ToolDef::Kind::Capsule : kind == "blade" ? ToolDef::Kind::Blade
-           : kind == "grasper" ? ToolDef::Kind::Grasper : kind == "hull" ? ToolDef::Kind::Hull : ToolDef::Kind::Sphere;
+    t.kind = kind == "capsule"   ? ToolDef::Kind::Capsule
+             : kind == "blade"   ? ToolDef::Kind::Blade
+             : kind == "grasper" ? ToolDef::Kind::Grasper
+             : kind == "hull"    ? ToolDef::Kind::Hull
+                                 : ToolDef::Kind::Sphere;
     if (t.kind == ToolDef::Kind::Sphere || t.kind == ToolDef::Kind::Capsule) {
         t.radius = r.requiredNumber("radius", 0, 1e3);
         if (!(t.radius > 0)) r.fail("radius", "must be > 0");
@@ -118,9 +123,11 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
         ToolKey key;
         key.time = k.number("time", 0, 0);
         key.pose.position = k.requiredVec3("position");
-        if (k.has("rotation_deg") && k.has("quaternion")) k.fail("quaternion", "give at most one of rotation_deg and quaternion");
+        if (k.has("rotation_deg") && k.has("quaternion"))
+            k.fail("quaternion", "give at most one of rotation_deg and quaternion");
         if (k.has("rotation_deg")) {
-            const Eigen::Vector3d a = k.vec3("rotation_deg", Eigen::Vector3d::Zero()) * d2r;  // XYZ, as object.rotate_deg
+            const Eigen::Vector3d a =
+                k.vec3("rotation_deg", Eigen::Vector3d::Zero()) * d2r;  // XYZ, as object.rotate_deg
             key.pose.orientation = Eigen::AngleAxisd(a.z(), Eigen::Vector3d::UnitZ()) *
                                    Eigen::AngleAxisd(a.y(), Eigen::Vector3d::UnitY()) *
                                    Eigen::AngleAxisd(a.x(), Eigen::Vector3d::UnitX());
@@ -130,7 +137,8 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
             bool ok = q.is_array() && q.size() == 4;
             for (size_t i = 0; ok && i < 4; ++i) ok = q[i].is_number() && std::isfinite(q[i].get<double>());
             if (!ok) k.fail("quaternion", "must be an array of 4 finite numbers [w, x, y, z]");
-            key.pose.orientation = Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(), q[3].get<double>());
+            key.pose.orientation =
+                Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(), q[3].get<double>());
             if (key.pose.orientation.norm() < 1e-12) k.fail("quaternion", "must not be zero");
             key.pose.orientation.normalize();
             k.touch("quaternion");
@@ -171,14 +179,16 @@ void setPath(json& j, const std::string& assignment) {
     }
 }
 
-} // namespace
+}  // namespace
 
 std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X) {
     std::vector<int> out;
     const int n = static_cast<int>(X.cols());
     if (r.kind == Region::Kind::Nodes) {
         for (int i : r.nodes) {
-            if (i >= n) throw InputError(r.path + ".nodes: node " + std::to_string(i) + " does not exist (mesh has " + std::to_string(n) + ")");
+            if (i >= n)
+                throw InputError(r.path + ".nodes: node " + std::to_string(i) + " does not exist (mesh has " +
+                                 std::to_string(n) + ")");
             out.push_back(i);
         }
         return out;
@@ -253,7 +263,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.reorient = o.boolean("reorient", false);
         s.anySize = o.boolean("any_size", false);
         s.element = o.string("element", "corotational", {"corotational", "linear"}) == "linear"
-                        ? ElementModel::Linear : ElementModel::Corotational;
+                        ? ElementModel::Linear
+                        : ElementModel::Corotational;
         o.finish();
     }
     if (root.has("material")) {
@@ -289,8 +300,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
     }
     if (root.has("integrator")) {
         ObjectReader in = root.object("integrator");
-        s.integrator = parseIntegrator(in.string("scheme", "symplectic_euler",
-                                                 {"symplectic_euler", "central_difference", "newmark", "backward_euler"}));
+        s.integrator = parseIntegrator(in.string(
+            "scheme", "symplectic_euler", {"symplectic_euler", "central_difference", "newmark", "backward_euler"}));
         if (in.has("dt")) {
             ObjectReader d = in.object("dt");
             const std::string mode = d.string("mode", "fraction", {"fixed", "fraction"});
@@ -312,7 +323,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         if (in.has("solver") && s.integrator != Integrator::BackwardEuler)
             in.fail("solver", "applies to scheme backward_euler only");
         s.precision = in.string("precision", "double", {"double", "single"}) == "single" ? ForcePrecision::Single
-                                                                                      : ForcePrecision::Double;
+                                                                                         : ForcePrecision::Double;
         if (const char* why = precisionConflict(s.integrator, s.precision)) in.fail("precision", why);
         in.finish();
     }
@@ -330,7 +341,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
     }
     if (root.has("cutting")) {
         ObjectReader c = root.object("cutting");
-        s.cutting.lumping = parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
+        s.cutting.lumping =
+            parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
         s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
         s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
         const Cutting dflt;
@@ -358,7 +370,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
             if (k.has("polygon")) {
                 const json& poly = k.raw("polygon");
                 k.touch("polygon");
-                if (!poly.is_array() || poly.size() < 3) k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
+                if (!poly.is_array() || poly.size() < 3)
+                    k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
                 for (const auto& q : poly) {
                     if (!q.is_array() || q.size() != 3 || !q[0].is_number() || !q[1].is_number() || !q[2].is_number())
                         k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
@@ -369,7 +382,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
                 }
             }
             k.finish();
-            if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time) k.fail("time", "cuts must be in time order");
+            if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time)
+                k.fail("time", "cuts must be in time order");
             s.cutting.cuts.push_back(cd);
         }
         for (const CutDef& cd : s.cutting.cuts)
@@ -472,4 +486,4 @@ CutSurface cutSurfaceOf(const CutDef& cd) {
     return surf;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -21,11 +21,11 @@ namespace cutsim {
 struct Region {
     enum class Kind { Box, Plane, Sphere, Nodes } kind = Kind::Box;
     Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();  // box corners [m]
-    Eigen::Vector3d point = Eigen::Vector3d::Zero();   // plane point or sphere centre [m]
-    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ(); // plane normal (unit)
-    double distance = 0;                                // plane: |signed distance| <= distance [m]; sphere radius [m]
-    std::vector<int> nodes;                             // explicit node indices (0-based)
-    std::string path;                                   // key path, for messages
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();                               // plane point or sphere centre [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();                             // plane normal (unit)
+    double distance = 0;     // plane: |signed distance| <= distance [m]; sphere radius [m]
+    std::vector<int> nodes;  // explicit node indices (0-based)
+    std::string path;        // key path, for messages
 };
 
 // Time profile of a load: a factor on the force. constant: 1 from start on; ramp: 0 -> 1 over
@@ -56,20 +56,20 @@ struct Checks {
 };
 
 struct CameraKey {
-    double time = 0;                                  // [s]
-    Eigen::Vector3d eye = Eigen::Vector3d::Zero();    // [m]
-    Eigen::Vector3d target = Eigen::Vector3d::Zero(); // [m]
+    double time = 0;                                   // [s]
+    Eigen::Vector3d eye = Eigen::Vector3d::Zero();     // [m]
+    Eigen::Vector3d target = Eigen::Vector3d::Zero();  // [m]
     Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-    double fov = 40;                                  // vertical field of view [deg]
+    double fov = 40;  // vertical field of view [deg]
 };
 
 struct Capture {
     bool enabled = true;
-    double fps = 30;              // frames per simulated second
+    double fps = 30;  // frames per simulated second
     int width = 1280, height = 720;
     std::string colormap = "timestep";  // timestep | displacement | stress | none
-    bool video = true;            // MP4 through ffmpeg when it is installed
-    int pngEvery = 1;             // a PNG file for every n-th frame (0: none, the video has them all)
+    bool video = true;                  // MP4 through ffmpeg when it is installed
+    int pngEvery = 1;                   // a PNG file for every n-th frame (0: none, the video has them all)
     bool hud = true;
     bool wireframe = false;
     bool xray = true;             // critical elements drawn through the surface
@@ -79,76 +79,76 @@ struct Capture {
 // A scripted cut at a given time: the plane through point with normal, in world coordinates of
 // the deformed object, optionally bounded by a polygon lying in that plane.
 struct CutDef {
-    double time = 0;                                     // [s]
-    Eigen::Vector3d point = Eigen::Vector3d::Zero();     // [m]
-    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();   // unit
-    std::vector<Eigen::Vector3d> polygon;                // corners [m], empty: the whole plane
-    std::string path;                                    // key path, for messages
+    double time = 0;                                    // [s]
+    Eigen::Vector3d point = Eigen::Vector3d::Zero();    // [m]
+    Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit
+    std::vector<Eigen::Vector3d> polygon;               // corners [m], empty: the whole plane
+    std::string path;                                   // key path, for messages
 };
 
 // How the object is cut (physics/cut/xfem.hpp).
 struct Cutting {
-    MassLumping lumping = MassLumping::Enrichment; // cutting.lumping: row_sum | weighted_diagonal | enrichment
-    double minFraction = CutOptions{}.minFraction; // sides below this share of their element merge into the other [-]
-    bool exactAfterCut = true;              // exact dt (global eigen-solve) after every cut, for the report
-    bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
+    MassLumping lumping = MassLumping::Enrichment;  // cutting.lumping: row_sum | weighted_diagonal | enrichment
+    double minFraction = CutOptions{}.minFraction;  // sides below this share of their element merge into the other [-]
+    bool exactAfterCut = true;                      // exact dt (global eigen-solve) after every cut, for the report
+    bool mergeDebris = CutOptions{}.mergeDebris;    // CutOptions::mergeDebris
     int relaxIterations = CutOptions{}.relaxIterations;  // CutOptions::relaxIterations
     double lightShare = CutOptions{}.lightShare;         // CutOptions::lightShare [-]
-    std::vector<std::string> compare;       // baselines run on the rest mesh with the same planes:
-                                            // subdivision | remesh
-    std::vector<CutDef> cuts;               // in time order
+    std::vector<std::string> compare;                    // baselines run on the rest mesh with the same planes:
+                                                         // subdivision | remesh
+    std::vector<CutDef> cuts;                            // in time order
 };
 
-CutOptions cutOptions(const Cutting& c);  // the engine's options as the scene sets them
-CutSurface cutSurfaceOf(const CutDef& cd); // the world-space surface of a scripted cut
+CutOptions cutOptions(const Cutting& c);    // the engine's options as the scene sets them
+CutSurface cutSurfaceOf(const CutDef& cd);  // the world-space surface of a scripted cut
 
 struct SceneDef {
-    std::string file;             // scene file path
-    std::string dir;              // its folder: relative paths resolve against it
+    std::string file;  // scene file path
+    std::string dir;   // its folder: relative paths resolve against it
     std::string name;
 
     // object
-    std::string mesh;             // tet mesh path (resolved); empty when a box is generated
-    std::string surface;          // surface path (resolved) embedded by mesh intersection; empty otherwise
-    int surfaceCells = 0;         // MI lattice cells across the surface's longest side (when surfaceH is 0)
-    double surfaceH = 0;          // MI lattice cell edge [m] (after scale); > 0 takes precedence
-    bool surfaceFixOutside = false; // MI: fix the outside corners of interface tets (thesis sec. 6.3)
-    bool surfaceKeepStep = true;    // MI: add mass where needed so the step is at least the lattice's
-    Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();  // generated box [0,size] (before scale) [m]
-    Eigen::Vector3i boxCells = Eigen::Vector3i::Zero(); // cubes along each axis, 6 tets each
-    double scale = 1;             // coordinates times scale give meters
+    std::string mesh;                // tet mesh path (resolved); empty when a box is generated
+    std::string surface;             // surface path (resolved) embedded by mesh intersection; empty otherwise
+    int surfaceCells = 0;            // MI lattice cells across the surface's longest side (when surfaceH is 0)
+    double surfaceH = 0;             // MI lattice cell edge [m] (after scale); > 0 takes precedence
+    bool surfaceFixOutside = false;  // MI: fix the outside corners of interface tets (thesis sec. 6.3)
+    bool surfaceKeepStep = true;     // MI: add mass where needed so the step is at least the lattice's
+    Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();    // generated box [0,size] (before scale) [m]
+    Eigen::Vector3i boxCells = Eigen::Vector3i::Zero();   // cubes along each axis, 6 tets each
+    double scale = 1;                                     // coordinates times scale give meters
     Eigen::Vector3d translate = Eigen::Vector3d::Zero();  // [m], after scale and rotation
     Eigen::Vector3d rotateDeg = Eigen::Vector3d::Zero();  // XYZ Euler angles [deg]
-    bool reorient = false;        // fix inverted tets instead of refusing the mesh
-    bool anySize = false;         // object.any_size: allow an object under 1 mm or over 10 m across
+    bool reorient = false;                                // fix inverted tets instead of refusing the mesh
+    bool anySize = false;  // object.any_size: allow an object under 1 mm or over 10 m across
     ElementModel element = ElementModel::Corotational;
 
     Material material;
-    double damping = 0;           // mass-proportional damping [1/s]
+    double damping = 0;  // mass-proportional damping [1/s]
 
     std::vector<Region> fixed;
     Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81);  // [m/s^2]
     std::vector<ForceLoad> forces;
 
     Integrator integrator = Integrator::SymplecticEuler;
-    double minStretch = 0;      // integrator.min_stretch: stretch limiting, 0 off [-]
+    double minStretch = 0;                                   // integrator.min_stretch: stretch limiting, 0 off [-]
     ImplicitSolver implicitSolver = ImplicitSolver::Direct;  // integrator.solver (backward Euler)
     ForcePrecision precision = ForcePrecision::Double;       // integrator.precision (explicit schemes)
-    StepPolicy dt;                // integrator.dt
-    double duration = 1;          // [s]
-    double maxSteps = 1e8;        // integrator.max_steps: a run implying more steps is refused [-]
+    StepPolicy dt;                                           // integrator.dt
+    double duration = 1;                                     // [s]
+    double maxSteps = 1e8;  // integrator.max_steps: a run implying more steps is refused [-]
     Checks checks;
 
     Cutting cutting;
-    std::vector<ToolDef> tools;     // rigid tools in contact with the object; empty: no Bullet world
-    double contactSpacing = 0;      // largest gap between surface contact points [m]; 0 = automatic
-    double forceRate = 1000;        // samples per second of the tool force series in report.json [1/s]
+    std::vector<ToolDef> tools;  // rigid tools in contact with the object; empty: no Bullet world
+    double contactSpacing = 0;   // largest gap between surface contact points [m]; 0 = automatic
+    double forceRate = 1000;     // samples per second of the tool force series in report.json [1/s]
 
     std::vector<CameraKey> camera;  // empty: frame the object
     Capture capture;
-    bool writeVtu = true;           // final.vtu
+    bool writeVtu = true;  // final.vtu
 
-    nlohmann::json source;          // the scene as read, after --set overrides
+    nlohmann::json source;  // the scene as read, after --set overrides
 
     // The step options of this scene's integrator at step h; alphaElem (per-element damping, may
     // be empty) must outlive their use.
@@ -173,4 +173,4 @@ SceneDef parseScene(const nlohmann::json& j, const std::string& file);
 // Nodes of a mesh selected by a region (rest positions X).
 std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X);
 
-} // namespace cutsim
+}  // namespace cutsim

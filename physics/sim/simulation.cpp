@@ -24,8 +24,8 @@ namespace {
 constexpr double kKeepStepWarnFraction = 0.01;  // keep_step adding more of the mass than this is reported
 constexpr double kMinObjectSize = 1e-3;         // [m] below or above these the scale is most likely wrong
 constexpr double kMaxObjectSize = 10;
-constexpr long kBoundsEvery = 4;                // steps between the speed and displacement checks
-constexpr double kOneCoreTetSteps = 3e7;        // tet-steps per second of one core (BENCHMARKS.md, step)
+constexpr long kBoundsEvery = 4;          // steps between the speed and displacement checks
+constexpr double kOneCoreTetSteps = 3e7;  // tet-steps per second of one core (BENCHMARKS.md, step)
 
 std::string fmt(const char* f, auto... args) {
     char buf[512];
@@ -33,11 +33,9 @@ std::string fmt(const char* f, auto... args) {
     return buf;
 }
 
-
 double totalEnergy(const Model& m, const State& s) {
     return kineticEnergy(m, s) + elasticEnergy(m, s) + gravityEnergy(m, s);
 }
-
 
 // Diagonal of the bounding box of X (3 x n) [m].
 double boxDiagonal(const Eigen::Matrix3Xd& X) {
@@ -45,7 +43,7 @@ double boxDiagonal(const Eigen::Matrix3Xd& X) {
     return (X.rowwise().maxCoeff() - X.rowwise().minCoeff()).norm();
 }
 
-} // namespace
+}  // namespace
 
 // ---- status, bounds, budget ----
 
@@ -90,8 +88,7 @@ DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model) {
             toolSpeed = std::max(toolSpeed, span > 0 ? (d + turn) / span : 0.0);
         }
     if (!sc.tools.empty()) toolSpeed = std::max(toolSpeed, toolTravel / std::max(T, 1e-300));  // a dragged tool
-    b.maxSpeed = sc.checks.maxSpeed > 0 ? sc.checks.maxSpeed
-                                        : sc.checks.speedFactor * b.waveSpeed + a * T + toolSpeed;
+    b.maxSpeed = sc.checks.maxSpeed > 0 ? sc.checks.maxSpeed : sc.checks.speedFactor * b.waveSpeed + a * T + toolSpeed;
     b.maxDisplacement = sc.checks.maxDisplacement > 0
                             ? sc.checks.maxDisplacement
                             : sc.checks.displacementFactor * b.size + 0.5 * a * T * T + toolTravel;
@@ -111,7 +108,8 @@ void checkStepBudget(const SceneDef& sc, double dt, int elements) {
         throw InputError(sc.file + ": integrator.max_steps: " +
                          fmt("duration %g s at a step of %.4g s takes %.3g steps, above integrator.max_steps %.3g "
                              "(about %.2g s of one core at %.0e tet-steps/s)",
-                             sc.duration, dt, steps, sc.maxSteps, steps * elements / kOneCoreTetSteps, kOneCoreTetSteps) +
+                             sc.duration, dt, steps, sc.maxSteps, steps * elements / kOneCoreTetSteps,
+                             kOneCoreTetSteps) +
                          "; raise integrator.max_steps to run it");
 }
 
@@ -134,7 +132,7 @@ struct Simulation::ThreadTuner {
     bool measuring = true;
     long inChunk = 0, hold = 0, held = 0;
     int settle = 0;
-    long steps[2] = {0, 0};            // timed steps on one thread [0] and on all cores [1]
+    long steps[2] = {0, 0};  // timed steps on one thread [0] and on all cores [1]
     double seconds[2] = {0, 0};
 
     explicit ThreadTuner(int cores) : many(cores) { setThreads(1); }
@@ -269,26 +267,27 @@ void Simulation::buildObject() {
                       {"seconds", te.seconds()}};
         if (sc.surfaceKeepStep) {
             const KeepStepResult& ks = mi.massScaling;
-            embedding_["keep_step"] = {{"dt_lattice", mi.dtLattice}, {"dt_before", ks.dtBefore},
-                                       {"dt_after", ks.dtAfter},     {"added_mass", ks.addedMass},
+            embedding_["keep_step"] = {{"dt_lattice", mi.dtLattice},       {"dt_before", ks.dtBefore},
+                                       {"dt_after", ks.dtAfter},           {"added_mass", ks.addedMass},
                                        {"mass_fraction", ks.massFraction}, {"rounds", ks.rounds},
                                        {"seconds", mi.seconds.keepStep}};
             // More than a percent changes the dynamics visibly: say so (thin parts on a coarse lattice).
             if (ks.massFraction > kKeepStepWarnFraction || !ks.reached)
-                std::fprintf(stderr,
-                             "warning: %s: object.surface.keep_step %s the lattice's step %.4g s by adding %.2f%% of "
-                             "the mass (step without it %.4g s); a finer lattice needs less, keep_step false adds none\n",
-                             sc.file.c_str(), ks.reached ? "kept" : "did not reach", mi.dtLattice,
-                             100 * ks.massFraction, ks.dtBefore);
+                std::fprintf(
+                    stderr,
+                    "warning: %s: object.surface.keep_step %s the lattice's step %.4g s by adding %.2f%% of "
+                    "the mass (step without it %.4g s); a finer lattice needs less, keep_step false adds none\n",
+                    sc.file.c_str(), ks.reached ? "kept" : "did not reach", mi.dtLattice, 100 * ks.massFraction,
+                    ks.dtBefore);
         }
         model_ = std::move(mi.model);
         model_.elementModel = sc.element;
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
     } else {
-        TetMesh mesh = sc.mesh.empty() ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(),
-                                                 sc.scale * sc.boxSize.z(), sc.boxCells.x(), sc.boxCells.y(),
-                                                 sc.boxCells.z())
-                                       : readTetMesh(sc.mesh, ro);
+        TetMesh mesh = sc.mesh.empty()
+                           ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
+                                     sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
+                           : readTetMesh(sc.mesh, ro);
         mesh.X = (R * mesh.X).colwise() + sc.translate;
         checkSize(mesh.X);
         model_ = buildModel(mesh, sc.material, sc.element);
@@ -328,10 +327,9 @@ void Simulation::chooseAndApply(bool initial) {
                              fmt("step %.6g s is above the exact stable limit %.6g s of %s", c.dt, c.limit,
                                  integratorName(sc_.integrator)) +
                              "; set integrator.dt.on_limit to \"clamp\" or \"damp\" to allow it");
-        fail(RunStatus::Refused,
-             fmt("stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
-                 " (integrator.dt.on_limit is \"refuse\")",
-                 c.dt, c.limit, state_.time));
+        fail(RunStatus::Refused, fmt("stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
+                                     " (integrator.dt.on_limit is \"refuse\")",
+                                     c.dt, c.limit, state_.time));
         choice_.action = LimitAction::Refused;
         return;
     }
@@ -368,15 +366,15 @@ void Simulation::setupContact() {
     c.spacing = spacing;
     // an embedded (MI) object is touched on its own fine surface, through the embedding weights;
     // each point's penalty scaled by its effective mass (contact/contact.hpp scaleByMass)
-    ContactPoints pts = contactPoints(embedded_ ? *embedded_ : boundarySurface(model_.tets, model_.X), model_.tets,
-                                      model_.X, spacing);
+    ContactPoints pts =
+        contactPoints(embedded_ ? *embedded_ : boundarySurface(model_.tets, model_.X), model_.tets, model_.X, spacing);
     c.massRef = referenceMass(pts, model_.invMass);
     scaleByMass(pts, model_.invMass, c.massRef);
     contact_->setSurface(std::move(pts));
     // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
-    c.stiffnessLimit = explicitScheme ? stableStiffness(contact_->points(), model_,
-                                                        std::min(dt, 0.9 * limits_.exact), limits_.exact)
-                                      : std::numeric_limits<double>::infinity();
+    c.stiffnessLimit =
+        explicitScheme ? stableStiffness(contact_->points(), model_, std::min(dt, 0.9 * limits_.exact), limits_.exact)
+                       : std::numeric_limits<double>::infinity();
     for (auto& t : contact_->tools()) {
         if (t.stiffness <= 0) {
             if (!std::isfinite(c.stiffnessLimit))
@@ -414,8 +412,8 @@ RunStatus Simulation::step() {
     if (!sc_.forces.empty() || !sc_.tools.empty()) {
         state_.fExt.setZero();
         for (size_t l = 0; l < sc_.forces.size(); ++l) {
-            const Eigen::Vector3d f = sc_.forces[l].force * sc_.forces[l].profile.at(state_.time) /
-                                      static_cast<double>(loadNodes_[l].size());
+            const Eigen::Vector3d f =
+                sc_.forces[l].force * sc_.forces[l].profile.at(state_.time) / static_cast<double>(loadNodes_[l].size());
             for (int n : loadNodes_[l]) state_.fExt.col(n) += f;
         }
     }
@@ -480,7 +478,6 @@ void Simulation::finish() {
     sampleEnergy();
 }
 
-
 void Simulation::fail(RunStatus s, const std::string& why) {
     status_ = s;
     message_ = why;
@@ -501,14 +498,15 @@ void Simulation::check() {
     rec_.solverIterations += it;
     rec_.solverIterationsMax = std::max(rec_.solverIterationsMax, it);
     auto damped = [&]() -> std::string {
-        return choice_.action == LimitAction::Damped
-            ? fmt("; integrator.dt.on_limit \"damp\" could not hold a step of %.4g s, %.3g x the exact limit %.4g s",
-                  choice_.dt, choice_.dt / choice_.limit, choice_.limit)
-            : std::string();
+        return choice_.action == LimitAction::Damped ? fmt("; integrator.dt.on_limit \"damp\" could not hold a step of "
+                                                           "%.4g s, %.3g x the exact limit %.4g s",
+                                                           choice_.dt, choice_.dt / choice_.limit, choice_.limit)
+                                                     : std::string();
     };
     if (fl.nonFinite > 0) {
-        fail(RunStatus::Diverged, fmt("diverged: non-finite positions or velocities at step %ld (t = %.6g s)",
-                                      state_.steps, state_.time) + damped());
+        fail(RunStatus::Diverged,
+             fmt("diverged: non-finite positions or velocities at step %ld (t = %.6g s)", state_.steps, state_.time) +
+                 damped());
         return;
     }
     if (bounds_.invertedSteps > 0) {
@@ -572,7 +570,8 @@ void Simulation::sampleEnergy() {
                  total - energyRef_, state_.time, bounds_.energyGrowth) +
                  (choice_.action == LimitAction::Damped
                       ? fmt("; integrator.dt.on_limit \"damp\" could not hold a step of %.4g s, %.3g x the exact "
-                            "limit %.4g s", choice_.dt, choice_.dt / choice_.limit, choice_.limit)
+                            "limit %.4g s",
+                            choice_.dt, choice_.dt / choice_.limit, choice_.limit)
                       : std::string()));
 }
 
@@ -620,7 +619,7 @@ bool Simulation::applyBlades() {
         const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
         if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
         if (!r.changed()) continue;
-        bladePhase_->refit(model_.tets, state_.x);     // the new elements, for the next blade
+        bladePhase_->refit(model_.tets, state_.x);  // the new elements, for the next blade
         ++rec_.bladeCutSteps;
         applyTopologyChange(r, "tools[" + std::to_string(i) + "]");
         if (status_ != RunStatus::Running) return false;
@@ -738,4 +737,4 @@ std::string Simulation::setPolicy(Integrator integrator, const StepPolicy& polic
     return {};
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -45,13 +45,13 @@ ExitCode exitCodeOf(RunStatus s);
 // Bounds outside which a state is not physics but a blow-up (docs/scene-format.md, "checks").
 // Derived from the scene unless it sets them: see divergenceBounds.
 struct DivergenceBounds {
-    double maxSpeed = 0;          // largest node speed [m/s]
-    double maxDisplacement = 0;   // largest distance of a node from its rest position [m]
-    double energyGrowth = 0;      // largest rise of the total energy when nothing does work [J]; 0: not checked
-    int invertedElements = 0;     // inverted elements that count as a failure ...
-    int invertedSteps = 0;        // ... when seen in this many consecutive steps (0: not checked)
-    double waveSpeed = 0;         // p-wave speed of the material [m/s], for the report
-    double size = 0;              // diagonal of the object's rest bounding box [m], for the report
+    double maxSpeed = 0;         // largest node speed [m/s]
+    double maxDisplacement = 0;  // largest distance of a node from its rest position [m]
+    double energyGrowth = 0;     // largest rise of the total energy when nothing does work [J]; 0: not checked
+    int invertedElements = 0;    // inverted elements that count as a failure ...
+    int invertedSteps = 0;       // ... when seen in this many consecutive steps (0: not checked)
+    double waveSpeed = 0;        // p-wave speed of the material [m/s], for the report
+    double size = 0;             // diagonal of the object's rest bounding box [m], for the report
 };
 // The rule (docs/scene-format.md): with c_p the p-wave speed, L the object's size, T the duration,
 // g gravity, v_tool the fastest tool keyframe motion and a_load the largest acceleration the
@@ -121,10 +121,10 @@ public:
     const StepLimits& initialLimits() const { return initial_; }  // of the uncut object
     int criticalElements() const { return critical_; }
     RunStatus status() const { return status_; }
-    const std::string& message() const { return message_; }       // why the run stopped, or ""
-    bool finished() const;                                        // the scene's duration is reached
+    const std::string& message() const { return message_; }  // why the run stopped, or ""
+    bool finished() const;                                   // the scene's duration is reached
     const RunRecord& record() const { return rec_; }
-    RunRecord& record() { return rec_; }                          // drivers add render and encode time
+    RunRecord& record() { return rec_; }  // drivers add render and encode time
     const DivergenceBounds& bounds() const { return bounds_; }
     ContactWorld* contact() { return contact_.get(); }
     const ContactWorld* contact() const { return contact_.get(); }
@@ -162,7 +162,7 @@ private:
     TimestepAnalyzer ta_;
     StepLimits limits_, initial_;
     StepChoice choice_;
-    Eigen::VectorXd alphaElem_;                  // per-element damping (on_limit damp), else empty
+    Eigen::VectorXd alphaElem_;  // per-element damping (on_limit damp), else empty
     int critical_ = 0;
     std::vector<std::vector<int>> loadNodes_;    // nodes of each scene load (sc.forces order)
     std::unique_ptr<EmbeddedSurface> embedded_;  // an MI object's surface in the uncut lattice
@@ -175,18 +175,18 @@ private:
     ContactSettings contactSettings_;
     std::unique_ptr<CutEngine> cutter_;
     std::unique_ptr<ElementBroadphase> bladePhase_;
-    std::vector<int> bladeTools_;                // scene tools that cut
-    std::vector<BladeEdge> lastEdge_;            // each blade's edge at the end of the last step
+    std::vector<int> bladeTools_;      // scene tools that cut
+    std::vector<BladeEdge> lastEdge_;  // each blade's edge at the end of the last step
     std::vector<int> candidates_;
-    int stroke_ = -1;                            // blade whose stroke the engine holds, or -1
+    int stroke_ = -1;  // blade whose stroke the engine holds, or -1
     size_t nextCut_ = 0;
     int lastCutId_ = -1;
 
     DivergenceBounds bounds_;
-    bool energyChecked_ = false;                 // no tool or force does work
-    double energyRef_ = 0;                       // total energy the growth is measured from [J]
-    int invertedRun_ = 0;                        // consecutive steps over bounds_.invertedElements
-    double nextSample_ = 0;                      // time of the next energy sample [s]
+    bool energyChecked_ = false;  // no tool or force does work
+    double energyRef_ = 0;        // total energy the growth is measured from [J]
+    int invertedRun_ = 0;         // consecutive steps over bounds_.invertedElements
+    double nextSample_ = 0;       // time of the next energy sample [s]
     RunStatus status_ = RunStatus::Running;
     std::string message_;
     RunRecord rec_;
@@ -194,4 +194,4 @@ private:
     std::unique_ptr<ThreadTuner> tuner_;
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -67,4 +67,4 @@ StepChoice chooseStep(const StepPolicy& p, const StepLimits& lim, bool explicitS
     return c;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

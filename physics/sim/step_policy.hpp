@@ -23,17 +23,17 @@ enum class OnLimit : std::uint8_t {
 // What the choice did.
 enum class LimitAction : std::uint8_t { None, Clamped, Damped, Refused };
 
-LimitOf parseLimitOf(const std::string& name);   // exact | certified | estimate; throws InputError
-OnLimit parseOnLimit(const std::string& name);   // refuse | clamp | damp; throws InputError
+LimitOf parseLimitOf(const std::string& name);  // exact | certified | estimate; throws InputError
+OnLimit parseOnLimit(const std::string& name);  // refuse | clamp | damp; throws InputError
 const char* limitOfName(LimitOf l);
 const char* onLimitName(OnLimit o);
-const char* limitActionName(LimitAction a);      // none | clamped | damped | refused
+const char* limitActionName(LimitAction a);  // none | clamped | damped | refused
 
 struct StepPolicy {
-    bool fixed = false;              // true: `value`; false: `fraction` of the limit `of`
-    double value = 0;                // fixed step [s]
+    bool fixed = false;  // true: `value`; false: `fraction` of the limit `of`
+    double value = 0;    // fixed step [s]
     LimitOf of = LimitOf::Exact;
-    double fraction = 0.9;           // of the limit [-]
+    double fraction = 0.9;  // of the limit [-]
     OnLimit onLimit = OnLimit::Refuse;
 };
 
@@ -49,8 +49,8 @@ struct StepLimits {
 inline constexpr double kClampFraction = 0.98;
 
 struct StepChoice {
-    double dt = 0;            // step to take [s]; for Refused the step that was asked
-    double limit = 0;         // limit the step was checked against [s] (exact, else certified)
+    double dt = 0;     // step to take [s]; for Refused the step that was asked
+    double limit = 0;  // limit the step was checked against [s] (exact, else certified)
     LimitAction action = LimitAction::None;
 };
 
@@ -60,4 +60,4 @@ struct StepChoice {
 // policy follows the new limit, a fixed step stays fixed.
 StepChoice chooseStep(const StepPolicy& policy, const StepLimits& limits, bool explicitScheme);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -29,7 +29,7 @@ std::vector<std::pair<int, int>> uniqueEdges(const TetMesh& mesh) {
 void fillPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen::Matrix3Xd& x, const MeshSnapshotOptions& opts) {
     RenderSnapshot& s = ms.snap;
     embeddedPositions(ms.surface, mesh.tets, x, s.positions);
-    s.normals.resize(3, 0); // recomputed by the renderer
+    s.normals.resize(3, 0);  // recomputed by the renderer
     if (opts.wireframe) {
         auto e = uniqueEdges(mesh);
         s.edges.resize(3, 2 * static_cast<int>(e.size()));
@@ -42,10 +42,11 @@ void fillPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen::Matrix3Xd
     }
     s.criticalTets.resize(3, 4 * static_cast<int>(opts.critical.size()));
     for (size_t i = 0; i < opts.critical.size(); ++i)
-        for (int a = 0; a < 4; ++a) s.criticalTets.col(4 * static_cast<int>(i) + a) = x.col(mesh.tets(a, opts.critical[i]));
+        for (int a = 0; a < 4; ++a)
+            s.criticalTets.col(4 * static_cast<int>(i) + a) = x.col(mesh.tets(a, opts.critical[i]));
 }
 
-} // namespace
+}  // namespace
 
 void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotOptions& opts) {
     // Per-vertex value: mean over the elements around the node (the simplest smoothing that keeps
@@ -80,7 +81,7 @@ void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotO
         lo = -m;
         hi = m;
     }
-    if (!(hi > lo)) { // constant field: a range around it so the map stays defined
+    if (!(hi > lo)) {  // constant field: a range around it so the map stays defined
         double pad = std::max(std::abs(lo) * 1e-3, 1e-30);
         lo -= pad;
         hi += pad;
@@ -105,7 +106,8 @@ MeshSnapshot snapshotFromSurface(const TetMesh& mesh, const Eigen::Matrix3Xd& x,
     ms.surface = std::move(surface);
     s.triangles = ms.surface.triangles;
     s.cutFace.assign(static_cast<size_t>(s.triangles.cols()), 0);
-    for (size_t t = 0; t < std::min(s.cutFace.size(), ms.surface.cutId.size()); ++t) s.cutFace[t] = ms.surface.cutId[t] >= 0;
+    for (size_t t = 0; t < std::min(s.cutFace.size(), ms.surface.cutId.size()); ++t)
+        s.cutFace[t] = ms.surface.cutId[t] >= 0;
 
     setElementValues(ms, mesh, opts);
 
@@ -148,4 +150,4 @@ Camera frameBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eige
     return c;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -19,56 +19,56 @@ namespace cutsim {
 struct ToolShape {
     enum class Kind : std::uint8_t { Sphere, Capsule, Box };
     Kind kind = Kind::Sphere;
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();              // centre [m]
-    Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity(); // local -> world
-    Eigen::Vector3d size = Eigen::Vector3d::Constant(0.01);          // [m] sphere: radius in x;
-                                 // capsule: radius in x, half-length of the axis (local z) in y;
-                                 // box: half extents in x, y, z
+    Eigen::Vector3d position = Eigen::Vector3d::Zero();               // centre [m]
+    Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // local -> world
+    Eigen::Vector3d size = Eigen::Vector3d::Constant(0.01);           // [m] sphere: radius in x;
+                                                             // capsule: radius in x, half-length of the axis (local z)
+                                                             // in y; box: half extents in x, y, z
 };
 
 // A perspective camera.
 struct Camera {
-    Eigen::Vector3d eye{0, 0, 1};    // [m]
-    Eigen::Vector3d target{0, 0, 0}; // point at the screen centre [m]
-    Eigen::Vector3d up{0, 1, 0};     // world direction shown as up on screen (also the floor normal)
-    double fovY = 40;                // vertical field of view [deg]
+    Eigen::Vector3d eye{0, 0, 1};     // [m]
+    Eigen::Vector3d target{0, 0, 0};  // point at the screen centre [m]
+    Eigen::Vector3d up{0, 1, 0};      // world direction shown as up on screen (also the floor normal)
+    double fovY = 40;                 // vertical field of view [deg]
 };
 
 // Values the HUD shows; every time in seconds.
 struct HudValues {
-    double simTime = 0;          // simulated time [s]
-    double dtUsed = 0;           // time step used [s]
-    double dtCertified = 0;      // certified stable time step [s]
-    double dtExact = std::numeric_limits<double>::quiet_NaN(); // exact stable step [s]; NaN when unknown
-    double stepsPerSecond = 0;   // wall-clock steps per second [1/s]
-    double realTimeFactor = 0;   // simulated seconds per wall-clock second [-]
-    int criticalElements = 0;    // elements that limit the time step [-]
-    int cuts = 0;                // cuts applied so far [-]
-    std::vector<std::string> lines; // free text, one entry per line
-    std::vector<float> forcePlot;   // recent tool force magnitudes, oldest first [N]; plotted when not empty
+    double simTime = 0;                                         // simulated time [s]
+    double dtUsed = 0;                                          // time step used [s]
+    double dtCertified = 0;                                     // certified stable time step [s]
+    double dtExact = std::numeric_limits<double>::quiet_NaN();  // exact stable step [s]; NaN when unknown
+    double stepsPerSecond = 0;                                  // wall-clock steps per second [1/s]
+    double realTimeFactor = 0;                                  // simulated seconds per wall-clock second [-]
+    int criticalElements = 0;                                   // elements that limit the time step [-]
+    int cuts = 0;                                               // cuts applied so far [-]
+    std::vector<std::string> lines;                             // free text, one entry per line
+    std::vector<float> forcePlot;  // recent tool force magnitudes, oldest first [N]; plotted when not empty
 };
 
 // Everything one frame draws.
 struct RenderSnapshot {
     // Surface
-    Eigen::Matrix3Xd positions;  // surface vertex positions (3 x nVerts) [m]
-    Eigen::Matrix3Xd normals;    // unit vertex normals (3 x nVerts), or empty: the renderer computes
-                                 // area-weighted normals
-    Eigen::Matrix3Xi triangles;  // vertex indices, counter-clockwise seen from outside (3 x nTris)
-    std::vector<std::uint8_t> cutFace; // 1 = face created by a cut, drawn in its own colour (nTris), or empty
+    Eigen::Matrix3Xd positions;         // surface vertex positions (3 x nVerts) [m]
+    Eigen::Matrix3Xd normals;           // unit vertex normals (3 x nVerts), or empty: the renderer computes
+                                        // area-weighted normals
+    Eigen::Matrix3Xi triangles;         // vertex indices, counter-clockwise seen from outside (3 x nTris)
+    std::vector<std::uint8_t> cutFace;  // 1 = face created by a cut, drawn in its own colour (nTris), or empty
 
     // Colour map
-    Eigen::VectorXd scalar;      // per-vertex value mapped to colour (nVerts), or empty: plain colour
-    std::string scalarName;      // legend title, e.g. "volume"
-    std::string scalarUnit;      // legend unit, e.g. "m^3"
-    double scalarMin = 0;        // value at the low end of the map [scalarUnit]
-    double scalarMax = 1;        // value at the high end of the map [scalarUnit]
-    bool diverging = false;      // diverging map (blue-white-red) instead of sequential (viridis)
+    Eigen::VectorXd scalar;  // per-vertex value mapped to colour (nVerts), or empty: plain colour
+    std::string scalarName;  // legend title, e.g. "volume"
+    std::string scalarUnit;  // legend unit, e.g. "m^3"
+    double scalarMin = 0;    // value at the low end of the map [scalarUnit]
+    double scalarMax = 1;    // value at the high end of the map [scalarUnit]
+    bool diverging = false;  // diverging map (blue-white-red) instead of sequential (viridis)
 
     // Overlays
-    Eigen::Matrix3Xd edges;        // wireframe segments, endpoints in pairs (3 x 2*nEdges) [m], or empty
-    Eigen::Matrix3Xd criticalTets; // critical elements, 4 corners each (3 x 4*nCritical) [m]; drawn
-                                   // through the surface (x-ray)
+    Eigen::Matrix3Xd edges;         // wireframe segments, endpoints in pairs (3 x 2*nEdges) [m], or empty
+    Eigen::Matrix3Xd criticalTets;  // critical elements, 4 corners each (3 x 4*nCritical) [m]; drawn
+                                    // through the surface (x-ray)
     std::vector<ToolShape> tools;
 
     Camera camera;
@@ -81,24 +81,23 @@ struct RenderSnapshot {
 // A snapshot of a tet mesh with the surface it keeps, so later frames only move vertices.
 struct MeshSnapshot {
     RenderSnapshot snap;
-    EmbeddedSurface surface;       // where each surface vertex rides in the mesh
+    EmbeddedSurface surface;  // where each surface vertex rides in the mesh
 };
 
 // Options of snapshotFromTetMesh.
 struct MeshSnapshotOptions {
-    const Eigen::VectorXd* elementValues = nullptr; // per-element scalar (nElems), or null: no colour map
-    std::string name;            // scalar name for the legend
-    std::string unit;            // scalar unit for the legend
-    bool diverging = false;      // use the diverging map (symmetric range around 0)
-    bool wireframe = false;      // add every tet edge as a wireframe segment
-    std::vector<int> critical;   // elements to draw in x-ray
+    const Eigen::VectorXd* elementValues = nullptr;  // per-element scalar (nElems), or null: no colour map
+    std::string name;                                // scalar name for the legend
+    std::string unit;                                // scalar unit for the legend
+    bool diverging = false;                          // use the diverging map (symmetric range around 0)
+    bool wireframe = false;                          // add every tet edge as a wireframe segment
+    std::vector<int> critical;                       // elements to draw in x-ray
 };
 
 // Builds a snapshot of mesh at node positions x (3 x nNodes) [m]: the boundary surface
 // (boundaryFaces), per-vertex values as the mean over the elements around each node, and a
 // camera framing the bounding box.
-MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x,
-                                 const MeshSnapshotOptions& opts = {});
+MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const Eigen::Matrix3Xd& x, const MeshSnapshotOptions& opts = {});
 MeshSnapshot snapshotFromTetMesh(const TetMesh& mesh, const MeshSnapshotOptions& opts = {});
 
 // The same for a given embedded surface (a cut or embedded object) instead of the boundary faces.
@@ -117,4 +116,4 @@ void updateSnapshotPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen:
 // for an aspect ratio (width / height) of at least 1.
 Camera frameBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eigen::Vector3d& up = {0, 0, 1});
 
-} // namespace cutsim
+}  // namespace cutsim

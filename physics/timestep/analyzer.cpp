@@ -14,10 +14,8 @@ namespace {
 // only for milliseconds of work, ~1 us per element or row (as forces.cpp's kParallelElements).
 constexpr int kParallelUpdate = 2048;
 
-double minOf(const Eigen::VectorXd& v) {
-    return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity();
-}
-} // namespace
+double minOf(const Eigen::VectorXd& v) { return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity(); }
+}  // namespace
 
 void TimestepAnalyzer::compute(const Model& m) {
     const auto t0 = WallClock::now();
@@ -121,8 +119,8 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
 #pragma omp parallel for schedule(static) if (nElems > kParallelUpdate)
     for (int b = 0; b < nElems; b += chunk)
         estimateOneRing(m, rows_, diag_, elems.data() + b, std::min(chunk, nElems - b), est_);
-    // Le, the isolated element estimate and the shape measures see only the element itself (rest
-    // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
+        // Le, the isolated element estimate and the shape measures see only the element itself (rest
+        // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
 #pragma omp parallel for schedule(static) if (nGeom > kParallelUpdate)
     for (int b = 0; b < nGeom; b += chunk) {
         const int count = std::min(chunk, nGeom - b);
@@ -154,7 +152,8 @@ TimestepAnalyzer::Minima TimestepAnalyzer::minDt() const {
     return {minOf(est_.r1r), minOf(est_.hs), minOf(est_.hp), minOf(est_.le), minOf(est_.element)};
 }
 
-std::vector<std::pair<std::string, double>> correlationsWithR1R(const ElementEstimates& est, const ShapeMeasures& shapes) {
+std::vector<std::pair<std::string, double>> correlationsWithR1R(const ElementEstimates& est,
+                                                                const ShapeMeasures& shapes) {
     const Eigen::VectorXd& r = est.r1r;
     return {{"volume_length", pearson(shapes.volumeLength, r)},
             {"harmonic_volume_length", pearson(shapes.harmonicVolumeLength, r)},
@@ -168,4 +167,4 @@ std::vector<std::pair<std::string, double>> correlationsWithR1R(const ElementEst
             {"element", pearson(est.element, r)}};
 }
 
-} // namespace cutsim
+}  // namespace cutsim

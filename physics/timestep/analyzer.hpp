@@ -16,7 +16,8 @@ namespace cutsim {
 // Pearson r of each shape measure and estimator against the R1R dt, across elements
 // (thesis figs. 4.3, 4.12). Names: volume_length, harmonic_volume_length, min_sine_dihedral,
 // radius_ratio, mean_ratio, char_length, hs, hp, le, element.
-std::vector<std::pair<std::string, double>> correlationsWithR1R(const ElementEstimates& est, const ShapeMeasures& shapes);
+std::vector<std::pair<std::string, double>> correlationsWithR1R(const ElementEstimates& est,
+                                                                const ShapeMeasures& shapes);
 
 class TimestepAnalyzer {
 public:
@@ -43,10 +44,10 @@ public:
     const ElementEstimates& estimates() const { return est_; }
     const ShapeMeasures& shapes() const { return shapes_; }
     const StiffnessRows& rows() const { return rows_; }
-    const Eigen::Matrix3Xd& stiffnessDiagonal() const { return diag_; }   // (3 x nNodes) [N/m]
-    const Eigen::VectorXd& nodeBounds() const { return nodeBound_; }      // Gershgorin rows [1/s^2]
-    double certifiedLambda() const { return maxBound_; }                  // >= lambda_max [1/s^2]
-    double certifiedDt() const { return dtFromLambda(maxBound_); }        // <= exact dt [s]
+    const Eigen::Matrix3Xd& stiffnessDiagonal() const { return diag_; }  // (3 x nNodes) [N/m]
+    const Eigen::VectorXd& nodeBounds() const { return nodeBound_; }     // Gershgorin rows [1/s^2]
+    double certifiedLambda() const { return maxBound_; }                 // >= lambda_max [1/s^2]
+    double certifiedDt() const { return dtFromLambda(maxBound_); }       // <= exact dt [s]
 
     // Smallest per-element estimate of each kind [s].
     struct Minima {
@@ -76,8 +77,8 @@ private:
     // Scratch for the local update: a node / element is marked when its stamp equals stamp_.
     std::vector<unsigned> nodeStamp_, elemStamp_, geomStamp_;
     unsigned stamp_ = 0;
-    std::vector<std::uint8_t> free_;             // invMass > 0 when last analysed (nNodes)
-    std::vector<int> nodes_, elems_, geomElems_; // scratch lists, kept to avoid allocating per update
+    std::vector<std::uint8_t> free_;              // invMass > 0 when last analysed (nNodes)
+    std::vector<int> nodes_, elems_, geomElems_;  // scratch lists, kept to avoid allocating per update
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -72,7 +72,7 @@ void buildScaledOp(const Model& m, const StiffnessRows& rows, ScaledStiffnessOp&
     }
 }
 
-} // namespace
+}  // namespace
 
 ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts) {
     ScaledStiffnessOp op;
@@ -108,8 +108,8 @@ namespace {
 // The k largest eigenpairs of M^-1/2 K M^-1/2 (descending), to relative tolerance tol.
 struct TopModes {
     Eigen::VectorXd lambda;
-    Eigen::MatrixXd y;          // unit eigenvectors over the free DOFs
-    std::vector<int> freeNodes; // node of each block of 3 DOFs
+    Eigen::MatrixXd y;           // unit eigenvectors over the free DOFs
+    std::vector<int> freeNodes;  // node of each block of 3 DOFs
 };
 TopModes topModes(const Model& m, const StiffnessRows& rows, int k, int ncvMin, double tol, int maxIterations) {
     ScaledStiffnessOp op;
@@ -130,10 +130,11 @@ TopModes topModes(const Model& m, const StiffnessRows& rows, int k, int ncvMin, 
     return t;
 }
 
-} // namespace
+}  // namespace
 
 KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) {
-    if (!(dtTarget > 0) || !std::isfinite(dtTarget)) throw std::invalid_argument("keepStep: target step must be positive and finite");
+    if (!(dtTarget > 0) || !std::isfinite(dtTarget))
+        throw std::invalid_argument("keepStep: target step must be positive and finite");
     KeepStepResult res;
     res.dtTarget = dtTarget;
     const StiffnessRows rows = assembleStiffnessRows(m);  // K does not change, only M
@@ -200,4 +201,4 @@ KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) 
     return res;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

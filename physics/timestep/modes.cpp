@@ -33,4 +33,4 @@ Modes lowestModes(const Model& m, int k) {
 
 double lowestFrequency(const Model& m) { return std::sqrt(lowestModes(m, 1).lambda(0)) / (2 * M_PI); }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -23,4 +23,4 @@ Modes lowestModes(const Model& m, int k);
 // The lowest natural frequency sqrt(lambda_1) / 2 pi [Hz].
 double lowestFrequency(const Model& m);
 
-} // namespace cutsim
+}  // namespace cutsim

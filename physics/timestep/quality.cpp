@@ -47,7 +47,8 @@ TetShape tetShape(const Eigen::Matrix<double, 3, 4>& X) {
 }
 
 void ShapeMeasures::resize(int n) {
-    for (Eigen::VectorXd* v : {&volumeLength, &harmonicVolumeLength, &minSineDihedral, &radiusRatio, &meanRatio, &charLength})
+    for (Eigen::VectorXd* v :
+         {&volumeLength, &harmonicVolumeLength, &minSineDihedral, &radiusRatio, &meanRatio, &charLength})
         v->resize(n);
 }
 
@@ -91,4 +92,4 @@ double pearson(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
     return caa > 0 && cbb > 0 ? cab / std::sqrt(caa * cbb) : std::numeric_limits<double>::quiet_NaN();
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -35,4 +35,4 @@ ShapeMeasures shapeMeasures(const Model& m);
 // Pearson correlation over the entries finite in both vectors; NaN if undefined.
 double pearson(const Eigen::VectorXd& a, const Eigen::VectorXd& b);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -179,8 +179,8 @@ double tridiagonalMax(const double* d, const double* e, int n) {
 template <int N>
 void tridiagonalize(double (&a)[N][N], double (&d)[N], double (&e)[N - 1]) {
     for (int k = 0; k < N - 2; ++k) {
-        const int m = N - k - 1;  // length of the column below the diagonal
-        double* x = &a[k][k + 1]; // row k == column k (symmetric)
+        const int m = N - k - 1;   // length of the column below the diagonal
+        double* x = &a[k][k + 1];  // row k == column k (symmetric)
         double tail = 0;
         for (int i = 1; i < m; ++i) tail += x[i] * x[i];
         if (tail == 0) {
@@ -315,7 +315,7 @@ void largestEigenvaluesLanes(Lane (&a)[N][N], int count, double* out) {
     }
 }
 
-} // namespace
+}  // namespace
 
 double largestEigenvalue(const Mat12& A) {
     // Scale so every eigenvalue lies in [-1, 1]: the recurrences then stay far from overflow.
@@ -407,12 +407,8 @@ void elementBlock(const Model& m, const int* elems, int count, double* lambda) {
     }
     const Lane &xx = Q[0][0], &yy = Q[1][1], &zz = Q[2][2], &xy = Q[0][1], &yz = Q[1][2], &xz = Q[0][2];
     const Lane z = Lane{};
-    const Lane G[6][6] = {{xx, z, z, xy, z, xz},
-                          {z, yy, z, xy, yz, z},
-                          {z, z, zz, z, yz, xz},
-                          {xy, xy, z, xx + yy, xz, yz},
-                          {z, yz, yz, xz, yy + zz, xy},
-                          {xz, z, xz, yz, xy, xx + zz}};
+    const Lane G[6][6] = {{xx, z, z, xy, z, xz},        {z, yy, z, xy, yz, z},        {z, z, zz, z, yz, xz},
+                          {xy, xy, z, xx + yy, xz, yz}, {z, yz, yz, xz, yy + zz, xy}, {xz, z, xz, yz, xy, xx + zz}};
     // D^1/2: normal block sa I + sb 1 1^T with sa^2 = 2 mu, (sa + 3 sb)^2 = 3 lambda + 2 mu;
     // shear block sqrt(mu) I.
     const double lam = m.material.lambda(), mu = m.material.mu(), c = 4.0 / m.material.rho;
@@ -473,7 +469,7 @@ void heuristicBlock(const Model& m, const Eigen::Matrix3Xd& diag, const int* ele
     for (int l = 0; l < count; ++l) hs[l] = D[0][l], hp[l] = lambda[l];
 }
 
-} // namespace
+}  // namespace
 
 void r1rLambdas(const Model& m, const StiffnessRows& rows, const int* elems, int n, double* lambda) {
     for (int b = 0; b < n; b += kLanes) r1rBlock(m, rows, elems + b, std::min(kLanes, n - b), lambda + b);
@@ -518,8 +514,8 @@ double characteristicLength(const Model& m, int e) {
     return amax > 0 ? 3 * m.volume(e) / amax : 0.0;
 }
 
-void estimateOneRing(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag, const int* elems,
-                     int n, ElementEstimates& out) {
+void estimateOneRing(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag, const int* elems, int n,
+                     ElementEstimates& out) {
     for (int b = 0; b < n; b += kLanes) {
         const int count = std::min(kLanes, n - b);
         double r1r[kLanes], hs[kLanes], hp[kLanes];
@@ -574,4 +570,4 @@ ElementEstimates estimateElements(const Model& m) {
     return out;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -39,16 +39,16 @@ Eigen::Matrix3Xd assembleStiffnessDiagonal(const Model& m);  // (3 x nNodes) [N/
 // Exact lambda_max(M^-1 K) over the free DOFs (invMass > 0), via Lanczos (Spectra) on the symmetric
 // form M^-1/2 K M^-1/2. Throws EigenSolveError when it does not converge.
 struct ExactOptions {
-    double tol = 1e-9;        // Spectra's relative residual tolerance
-    int maxIterations = 2000; // restarts
-    int ncv = 24;             // Lanczos basis size
+    double tol = 1e-9;         // Spectra's relative residual tolerance
+    int maxIterations = 2000;  // restarts
+    int ncv = 24;              // Lanczos basis size
 };
 struct ExactResult {
     double lambdaMax = 0;  // [1/s^2]
     double dt = 0;         // 2 / sqrt(lambdaMax) [s]
     int freeDofs = 0;
-    int iterations = 0;    // Lanczos restarts
-    int matvecs = 0;       // operator applications
+    int iterations = 0;  // Lanczos restarts
+    int matvecs = 0;     // operator applications
 };
 ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts = {});
 ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts = {});
@@ -72,14 +72,14 @@ struct KeepStepOptions {
     ExactOptions exact;
 };
 struct KeepStepResult {
-    double dtTarget = 0;     // [s]
-    double dtBefore = 0;     // exact step before [s]
-    double dtAfter = 0;      // exact step after [s]
-    double addedMass = 0;    // mass added this call [kg]
-    double massFraction = 0; // addedMass over the free nodes' mass before [-]
-    int nodes = 0;           // nodes that were given mass
-    int rounds = 0;          // eigen-solves
-    bool reached = false;    // dtAfter >= dtTarget, to the eigen-solver's tolerance (exact.tol in lambda)
+    double dtTarget = 0;      // [s]
+    double dtBefore = 0;      // exact step before [s]
+    double dtAfter = 0;       // exact step after [s]
+    double addedMass = 0;     // mass added this call [kg]
+    double massFraction = 0;  // addedMass over the free nodes' mass before [-]
+    int nodes = 0;            // nodes that were given mass
+    int rounds = 0;           // eigen-solves
+    bool reached = false;     // dtAfter >= dtTarget, to the eigen-solver's tolerance (exact.tol in lambda)
 };
 // Throws EigenSolveError when an eigen-solve fails; leaves the model scaled as far as it got
 // (reached = false) when maxRounds is not enough.
@@ -123,8 +123,8 @@ void elementLambdas(const Model& m, const int* elems, int n, double* lambda);  /
 double characteristicLength(const Model& m, int e);
 
 // R1R, Hs and Hp of elems[0 .. n-1] (what the assembled one-ring changes), serially.
-void estimateOneRing(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag, const int* elems,
-                     int n, ElementEstimates& out);
+void estimateOneRing(const Model& m, const StiffnessRows& rows, const Eigen::Matrix3Xd& diag, const int* elems, int n,
+                     ElementEstimates& out);
 // Le and the element eigenvalue of elems[0 .. n-1] (what only the element itself changes), serially.
 void estimateOwn(const Model& m, const int* elems, int n, ElementEstimates& out);
 
@@ -133,4 +133,4 @@ void estimateElements(const Model& m, const StiffnessRows& rows, const Eigen::Ma
                       const std::vector<int>* elements, ElementEstimates& out);
 ElementEstimates estimateElements(const Model& m);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -28,4 +28,4 @@ void writeFileAtomic(const std::string& path, std::string_view content) {
     }
 }
 
-} // namespace cutsim
+}  // namespace cutsim

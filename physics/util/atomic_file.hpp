@@ -10,4 +10,4 @@ namespace cutsim {
 // removed, the old file (if any) is left as it was, and InputError names the path.
 void writeFileAtomic(const std::string& path, std::string_view content);
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -29,4 +29,4 @@ private:
     WallClock::time_point start_, lap_;
 };
 
-} // namespace cutsim
+}  // namespace cutsim

@@ -17,7 +17,8 @@ struct UnionFind {
         std::iota(p.begin(), p.end(), 0);
     }
     int find(int i) {
-        while (p[static_cast<size_t>(i)] != i) i = p[static_cast<size_t>(i)] = p[static_cast<size_t>(p[static_cast<size_t>(i)])];
+        while (p[static_cast<size_t>(i)] != i)
+            i = p[static_cast<size_t>(i)] = p[static_cast<size_t>(p[static_cast<size_t>(i)])];
         return i;
     }
     // Joins the sets of a and b; the smaller root index becomes the root (labels independent of order).
@@ -35,4 +36,4 @@ inline UnionFind elementPieces(const Eigen::Matrix4Xi& tets, int nNodes) {
     return uf;
 }
 
-} // namespace cutsim
+}  // namespace cutsim

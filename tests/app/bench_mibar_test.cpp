@@ -34,7 +34,8 @@ TEST(BenchMiBar, TableContractAndStepOrdering) {
     std::map<std::pair<double, std::string>, json> byKey;
     for (const json& r : j) {
         ASSERT_TRUE(r.is_object());
-        for (const char* k : {"kept", "method", "nodes", "elements", "dt_exact"}) ASSERT_TRUE(r.contains(k)) << k << " in " << r;
+        for (const char* k : {"kept", "method", "nodes", "elements", "dt_exact"})
+            ASSERT_TRUE(r.contains(k)) << k << " in " << r;
         const double kept = r["kept"].get<double>();
         const std::string method = r["method"].get<std::string>();
         // mi rows add the step without added mass and the thesis's rule (outside corners fixed)
@@ -135,5 +136,5 @@ TEST(BenchMiBar, BadMaterialIsAnInputError) {
     EXPECT_NE(err.find("material"), std::string::npos) << err;
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -37,12 +37,12 @@ TEST(BenchAccuracy, ParetoFrontAndSummaryOfHandMadePoints) {
     const std::string dir = workDir("pareto");
     const std::string csv = test::writeText(dir + "/points.csv",
                                             "problem,config,error,wall_per_sim_second,dt,scheme\n"
-                                            "p,a,0.1,1,1e-4,explicit\n"     // front: cheapest
-                                            "p,b,0.05,2,1e-4,explicit\n"    // front
-                                            "p,c,0.05,3,1e-4,explicit\n"    // beaten by b (same error, dearer)
-                                            "p,d,0.2,2,1e-4,explicit\n"     // beaten by a and b
-                                            "p,e,0.005,50,1e-2,implicit\n"  // front: most accurate
-                                            "p,f,0.009,8,1e-4,explicit\n"   // front
+                                            "p,a,0.1,1,1e-4,explicit\n"      // front: cheapest
+                                            "p,b,0.05,2,1e-4,explicit\n"     // front
+                                            "p,c,0.05,3,1e-4,explicit\n"     // beaten by b (same error, dearer)
+                                            "p,d,0.2,2,1e-4,explicit\n"      // beaten by a and b
+                                            "p,e,0.005,50,1e-2,implicit\n"   // front: most accurate
+                                            "p,f,0.009,8,1e-4,explicit\n"    // front
                                             "q,g,0.5,100,1e-3,implicit\n");  // alone on its problem's front
     const json j = runJson("bench accuracy --from " + csv + " --json --csv " + dir + "/out.csv");
     ASSERT_EQ(j["points"].size(), 7u);
@@ -61,7 +61,8 @@ TEST(BenchAccuracy, ParetoFrontAndSummaryOfHandMadePoints) {
 
 TEST(BenchAccuracy, BadCsvNamesFileAndLine) {
     const std::string dir = workDir("badcsv");
-    const std::string csv = test::writeText(dir + "/bad.csv", "problem,config,error,wall_per_sim_second,dt\np,a,x,1,1\n");
+    const std::string csv =
+        test::writeText(dir + "/bad.csv", "problem,config,error,wall_per_sim_second,dt\np,a,x,1,1\n");
     std::string err;
     EXPECT_EQ(test::runCutsim("bench accuracy --from " + csv, nullptr, &err), 2);
     EXPECT_NE(err.find("bad.csv:2"), std::string::npos) << err;
@@ -70,7 +71,8 @@ TEST(BenchAccuracy, BadCsvNamesFileAndLine) {
 // Without gnuplot, --plot fails up front with a message, not a crash or a half-written file.
 TEST(BenchAccuracy, PlotWithoutGnuplotFailsClearly) {
     const std::string dir = workDir("nognuplot");
-    const std::string csv = test::writeText(dir + "/points.csv", "problem,config,error,wall_per_sim_second,dt\np,a,0.1,1,1\n");
+    const std::string csv =
+        test::writeText(dir + "/points.csv", "problem,config,error,wall_per_sim_second,dt\np,a,0.1,1,1\n");
     const std::string path = std::getenv("PATH") ? std::getenv("PATH") : "";
     ::setenv("PATH", dir.c_str(), 1);
     std::string err;
@@ -122,7 +124,8 @@ void checkMiLumpingAndLiver(const json& j) {
     ASSERT_EQ(ns["xfem"].size(), 3u);
     for (const auto& x : ns["xfem"]) {
         EXPECT_EQ(x["crossed"].get<int>(), 12) << x.dump();
-        EXPECT_NEAR(x["linear_static_tip"].get<double>(), ns["xfem"][2]["linear_static_tip"].get<double>(), 1e-3 * 0.01);
+        EXPECT_NEAR(x["linear_static_tip"].get<double>(), ns["xfem"][2]["linear_static_tip"].get<double>(),
+                    1e-3 * 0.01);
     }
     for (const char* l : {"row_sum", "weighted_diagonal", "enrichment"}) {
         for (const char* prob : {"cantilever_notch_static", "cantilever_notch_frequency"}) {
@@ -134,7 +137,8 @@ void checkMiLumpingAndLiver(const json& j) {
     }
     // Enrichment lumping keeps the uncut step (isolated virtual elements keep their parent's
     // eigenvalues); row sum gives far corners of small pieces small masses and a shorter step.
-    const double dtEnr = findPoint(j, "cantilever_notch_static", "xfem enrichment 20x2x2 f=0.9")->at("dt").get<double>();
+    const double dtEnr =
+        findPoint(j, "cantilever_notch_static", "xfem enrichment 20x2x2 f=0.9")->at("dt").get<double>();
     const double dtRow = findPoint(j, "cantilever_notch_static", "xfem row_sum 20x2x2 f=0.9")->at("dt").get<double>();
     EXPECT_LT(dtRow, dtEnr);
 
@@ -183,7 +187,8 @@ TEST(BenchAccuracy, TinyRunContract) {
     ASSERT_TRUE(j.contains("points") && j.contains("summary"));
     int explicitPts = 0, implicitPts = 0;
     for (const auto& p : j["points"]) {
-        for (const char* k : {"problem", "config", "error", "wall_per_sim_second", "dt", "pareto"}) ASSERT_TRUE(p.contains(k)) << k;
+        for (const char* k : {"problem", "config", "error", "wall_per_sim_second", "dt", "pareto"})
+            ASSERT_TRUE(p.contains(k)) << k;
         // a diverged run has no error (null); the plain explicit and implicit runs here are stable
         const bool damped = p["config"].get<std::string>().find("alpha_e") != std::string::npos;
         if (!damped) {
@@ -203,7 +208,8 @@ TEST(BenchAccuracy, TinyRunContract) {
         }
         bool beaten = false;
         for (const auto& q : j["points"])
-            if (q["problem"] == p["problem"] && q["error"].is_number() && q["error"] <= p["error"] && q["wall_per_sim_second"] <= p["wall_per_sim_second"] &&
+            if (q["problem"] == p["problem"] && q["error"].is_number() && q["error"] <= p["error"] &&
+                q["wall_per_sim_second"] <= p["wall_per_sim_second"] &&
                 (q["error"] < p["error"] || q["wall_per_sim_second"] < p["wall_per_sim_second"]))
                 beaten = true;
         EXPECT_EQ(p["pareto"].get<bool>(), !beaten) << p.dump();
@@ -240,7 +246,8 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
         const std::string config = p["config"].get<std::string>();
         const double e = p["error"].get<double>();
         // the two parts make the whole
-        EXPECT_NEAR(std::hypot(p["frequency_error"].get<double>(), p["damping_ratio"].get<double>()), e, 1e-9 * e) << config;
+        EXPECT_NEAR(std::hypot(p["frequency_error"].get<double>(), p["damping_ratio"].get<double>()), e, 1e-9 * e)
+            << config;
         if (config.find("kuhn") != std::string::npos) {
             EXPECT_GT(std::abs(p["damping_ratio"].get<double>()), 5e-3) << config;
             continue;
@@ -251,9 +258,12 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
             EXPECT_LT(std::abs(p["damping_ratio"].get<double>()), 1e-4) << config;
         } else {
             // backward Euler at dt = 0.01 / 0.003: its decay is ln(1 + w^2 dt^2) / (2 dt)
-            const double w = 2 * M_PI * j["implicit_projection"][0]["mesh_frequency"].get<double>(), dt = p["dt"].get<double>();
-            EXPECT_NEAR(p["damping_ratio"].get<double>() * 2 * M_PI * j["references"]["cantilever_frequency"]["reference"].get<double>(),
-                        std::log1p(w * w * dt * dt) / (2 * dt), 2e-3 * w) << config;
+            const double w = 2 * M_PI * j["implicit_projection"][0]["mesh_frequency"].get<double>(),
+                         dt = p["dt"].get<double>();
+            EXPECT_NEAR(p["damping_ratio"].get<double>() * 2 * M_PI *
+                            j["references"]["cantilever_frequency"]["reference"].get<double>(),
+                        std::log1p(w * w * dt * dt) / (2 * dt), 2e-3 * w)
+                << config;
         }
         ++checked;
     }
@@ -282,7 +292,8 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
     for (const auto& e : pc["explicit"]) {
         const double err = e["error"].get<double>();
         EXPECT_EQ(err, e["config"] == "explicit 20x2x2 f=0.999" ? dbl : sgl) << e.dump();
-        const double ratio = e["ratio"].get<double>(), h1 = e["ratio_first_half"].get<double>(), h2 = e["ratio_second_half"].get<double>();
+        const double ratio = e["ratio"].get<double>(), h1 = e["ratio_first_half"].get<double>(),
+                     h2 = e["ratio_second_half"].get<double>();
         EXPECT_NEAR(ratio, pc["implicit_cost"].get<double>() / e["cost"].get<double>(), 1e-12 * ratio);
         EXPECT_GT(ratio, 0);
         EXPECT_LE(std::min(h1, h2), ratio * (1 + 1e-12));
@@ -304,7 +315,8 @@ TEST(BenchAccuracy, FrequencyErrorIsTheIntegratorsModeError) {
     EXPECT_GT(pr["step_seconds_direct"].get<double>(), 0);
     EXPECT_GT(pr["step_seconds_cg"].get<double>(), 0);
     EXPECT_GT(pr["cg_iterations"].get<int>(), 0);
-    EXPECT_EQ(pr["step_seconds"].get<double>(), std::min(pr["step_seconds_direct"].get<double>(), pr["step_seconds_cg"].get<double>()));
+    EXPECT_EQ(pr["step_seconds"].get<double>(),
+              std::min(pr["step_seconds_direct"].get<double>(), pr["step_seconds_cg"].get<double>()));
     EXPECT_TRUE(j["summary"]["cantilever_frequency"]["implicit_cost_at_1pct_projected"].is_null());
 }
 
@@ -372,7 +384,9 @@ TEST(BenchStep, TinyRunContract) {
     for (const auto& r : j["runs"]) {
         EXPECT_EQ(r["tets"].get<int>(), 6 * 27);
         EXPECT_GT(r["tet_steps_per_second"].get<double>(), 0);
-        EXPECT_NEAR(r["tet_steps_per_second"].get<double>(), 162.0 * r["steps"].get<double>() / r["seconds"].get<double>(), 1e-6 * r["tet_steps_per_second"].get<double>());
+        EXPECT_NEAR(r["tet_steps_per_second"].get<double>(),
+                    162.0 * r["steps"].get<double>() / r["seconds"].get<double>(),
+                    1e-6 * r["tet_steps_per_second"].get<double>());
         // shares of the step, each timed in its own pass: on a loaded machine they need not sum
         // to 1 (BENCHMARKS.md), so only their sign and finiteness are a contract
         for (const char* k : {"element", "nodes", "integrate"}) {
@@ -403,5 +417,5 @@ TEST(BenchCost, UnusedSubsystemsCostNothing) {
     EXPECT_TRUE(sawNoDamping);  // bar_sag is damped
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

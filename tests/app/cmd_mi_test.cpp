@@ -63,7 +63,8 @@ TEST(CmdMi, KeepStepReachesTheLatticeStep) {
     EXPECT_TRUE(ks["reached"].get<bool>());
     EXPECT_GT(ks["mass_fraction"].get<double>(), 0.0);
     EXPECT_LT(ks["mass_fraction"].get<double>(), 0.01);
-    EXPECT_NEAR(ks["added_mass"].get<double>() / ks["mass_fraction"].get<double>(), 1000 * j["volume_embedded"].get<double>(),
+    EXPECT_NEAR(ks["added_mass"].get<double>() / ks["mass_fraction"].get<double>(),
+                1000 * j["volume_embedded"].get<double>(),
                 1e-6 * 1000 * j["volume_embedded"].get<double>());  // the fraction is of rho V, rho = 1000
     EXPECT_GT(j["seconds"]["keep_step"].get<double>(), 0.0);
 }
@@ -81,7 +82,8 @@ TEST(CmdMi, RefusesAMissingAndABrokenFile) {
 TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
     const std::string dir = ownDir("scene");
     // A 1 x 0.2 x 0.2 m bar as OBJ, cantilevered under gravity.
-    const std::string obj = test::writeText(dir + "/bar.obj",
+    const std::string obj = test::writeText(
+        dir + "/bar.obj",
         "v 0 0 0\nv 1 0 0\nv 0 0.2 0\nv 1 0.2 0\nv 0 0 0.2\nv 1 0 0.2\nv 0 0.2 0.2\nv 1 0.2 0.2\n"
         "f 1 3 4\nf 1 4 2\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 8 4\nf 3 7 8\nf 1 5 7\nf 1 7 3\nf 2 4 8\nf 2 8 6\n");
     json scene = {{"object", {{"surface", {{"path", "bar.obj"}, {"h", 0.07}}}}},
@@ -90,7 +92,8 @@ TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
                   {"duration", 0.01}};
     std::ofstream(dir + "/s.json") << scene.dump(2);
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + dir + "/s.json --out " + dir + "/out --no-render --quiet", nullptr, &err), 0) << err;
+    ASSERT_EQ(test::runCutsim("run " + dir + "/s.json --out " + dir + "/out --no-render --quiet", nullptr, &err), 0)
+        << err;
     std::ifstream in(dir + "/out/report.json");
     const json r = json::parse(in);
     EXPECT_EQ(r["status"], "ok");
@@ -107,7 +110,9 @@ TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
     EXPECT_NEAR(r["mass"]["initial"].get<double>(), 1000 * 0.04 + ks["added_mass"].get<double>(), 1e-9);
     scene["object"]["surface"]["keep_step"] = false;
     std::ofstream(dir + "/nokeep.json") << scene.dump(2);
-    ASSERT_EQ(test::runCutsim("run " + dir + "/nokeep.json --out " + dir + "/nokeep --no-render --quiet", nullptr, &err), 0) << err;
+    ASSERT_EQ(
+        test::runCutsim("run " + dir + "/nokeep.json --out " + dir + "/nokeep --no-render --quiet", nullptr, &err), 0)
+        << err;
     std::ifstream in2(dir + "/nokeep/report.json");
     const json r2 = json::parse(in2);
     EXPECT_FALSE(r2["embedding"].contains("keep_step"));
@@ -117,7 +122,8 @@ TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
     // cells and h together are refused, naming the key
     scene["object"]["surface"]["cells"] = 8;
     std::ofstream(dir + "/both.json") << scene.dump(2);
-    EXPECT_EQ(test::runCutsim("run " + dir + "/both.json --out " + dir + "/never --no-render --quiet", nullptr, &err), 2);
+    EXPECT_EQ(test::runCutsim("run " + dir + "/both.json --out " + dir + "/never --no-render --quiet", nullptr, &err),
+              2);
     EXPECT_NE(err.find("object.surface.cells"), std::string::npos) << err;
     EXPECT_FALSE(fs::exists(dir + "/never"));
 }
@@ -130,7 +136,8 @@ TEST(CmdMi, KeepStepWarnsWhenItAddsMoreThanAPercent) {
                   {"duration", 0.001}};
     std::ofstream(dir + "/knight.json") << scene.dump(2);
     std::string out, err;
-    ASSERT_EQ(test::runCutsim("run " + dir + "/knight.json --out " + dir + "/out --no-render --quiet", &out, &err), 0) << err;
+    ASSERT_EQ(test::runCutsim("run " + dir + "/knight.json --out " + dir + "/out --no-render --quiet", &out, &err), 0)
+        << err;
     EXPECT_NE(err.find("warning: "), std::string::npos) << err;
     EXPECT_NE(err.find("keep_step kept the lattice's step"), std::string::npos) << err;
     std::ifstream in(dir + "/out/report.json");
@@ -144,7 +151,8 @@ TEST(CmdMi, KeepStepWarnsWhenItAddsMoreThanAPercent) {
     // off: no mass, no warning
     scene["object"]["surface"]["keep_step"] = false;
     std::ofstream(dir + "/off.json") << scene.dump(2);
-    ASSERT_EQ(test::runCutsim("run " + dir + "/off.json --out " + dir + "/off --no-render --quiet", &out, &err), 0) << err;
+    ASSERT_EQ(test::runCutsim("run " + dir + "/off.json --out " + dir + "/off --no-render --quiet", &out, &err), 0)
+        << err;
     EXPECT_EQ(err.find("keep_step"), std::string::npos) << err;
 }
 
@@ -153,7 +161,8 @@ TEST(CmdMi, KeepStepWarnsWhenItAddsMoreThanAPercent) {
 // outside the cube that interface tets use become fixed, so the DOFs drop and the step cannot.
 TEST(CmdMi, FixOutsideFromFlagAndSceneKey) {
     const std::string dir = ownDir("fix");
-    const std::string obj = test::writeText(dir + "/cube.obj",
+    const std::string obj = test::writeText(
+        dir + "/cube.obj",
         "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nv 1 1 1\n"
         "f 1 3 4\nf 1 4 2\nf 5 6 8\nf 5 8 7\nf 1 2 6\nf 1 6 5\nf 3 8 4\nf 3 7 8\nf 1 5 7\nf 1 7 3\nf 2 4 8\nf 2 8 6\n");
     std::string out, err;
@@ -173,7 +182,8 @@ TEST(CmdMi, FixOutsideFromFlagAndSceneKey) {
                   {"material", {{"E", 1e5}}},
                   {"duration", 0.005}};
     std::ofstream(dir + "/s.json") << scene.dump(2);
-    ASSERT_EQ(test::runCutsim("run " + dir + "/s.json --out " + dir + "/out --no-render --quiet", nullptr, &err), 0) << err;
+    ASSERT_EQ(test::runCutsim("run " + dir + "/s.json --out " + dir + "/out --no-render --quiet", nullptr, &err), 0)
+        << err;
     std::ifstream in(dir + "/out/report.json");
     const json r = json::parse(in);
     EXPECT_EQ(r["status"], "ok");
@@ -182,10 +192,11 @@ TEST(CmdMi, FixOutsideFromFlagAndSceneKey) {
     // a bad type is refused, naming the key
     scene["object"]["surface"]["fix_outside"] = "yes";
     std::ofstream(dir + "/bad.json") << scene.dump(2);
-    EXPECT_EQ(test::runCutsim("run " + dir + "/bad.json --out " + dir + "/never --no-render --quiet", nullptr, &err), 2);
+    EXPECT_EQ(test::runCutsim("run " + dir + "/bad.json --out " + dir + "/never --no-render --quiet", nullptr, &err),
+              2);
     EXPECT_NE(err.find("object.surface.fix_outside"), std::string::npos) << err;
     EXPECT_FALSE(fs::exists(dir + "/never"));
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

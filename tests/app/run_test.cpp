@@ -51,7 +51,8 @@ json readReport(const std::string& out) {
 // code, with the report in *report and stderr in *err.
 int runShipped(const std::string& name, const std::string& extra, json* report, std::string* err) {
     const std::string out = workDir() + "/out";
-    const int rc = test::runCutsim("run " + test::source("assets/scenes/" + name) + " --out " + out + " --no-render --quiet" + extra,
+    const int rc = test::runCutsim("run " + test::source("assets/scenes/" + name) + " --out " + out +
+                                       " --no-render --quiet" + extra,
                                    nullptr, err);
     if (rc == 0) *report = readReport(out);
     return rc;
@@ -85,14 +86,35 @@ TEST(Run, BarSagReportHoldsTheContract) {
     const std::string out = workDir() + "/out";
     const std::string scene = test::source("assets/scenes/bar_sag.json");
     std::string err;
-    const int code = test::runCutsim("run " + scene + " --out " + out + " --no-render --quiet --set duration=0.05", nullptr, &err);
+    const int code =
+        test::runCutsim("run " + scene + " --out " + out + " --no-render --quiet --set duration=0.05", nullptr, &err);
     ASSERT_EQ(code, 0) << err;
     ASSERT_TRUE(fs::exists(out + "/report.json"));
     const json r = readReport(out);
 
-    for (const char* key : {"scene", "name", "status", "steps", "sim_time", "wall_time", "threads", "integrator", "dt",
-                            "dt_limit_action", "dt_initial", "critical_elements", "mesh", "cuts", "pieces", "mass",
-                            "energy", "inverted", "stages", "frames", "video", "steps_per_second", "real_time_factor"})
+    for (const char* key : {"scene",
+                            "name",
+                            "status",
+                            "steps",
+                            "sim_time",
+                            "wall_time",
+                            "threads",
+                            "integrator",
+                            "dt",
+                            "dt_limit_action",
+                            "dt_initial",
+                            "critical_elements",
+                            "mesh",
+                            "cuts",
+                            "pieces",
+                            "mass",
+                            "energy",
+                            "inverted",
+                            "stages",
+                            "frames",
+                            "video",
+                            "steps_per_second",
+                            "real_time_factor"})
         EXPECT_TRUE(r.contains(key)) << key;
     EXPECT_EQ(r["scene"].get<std::string>(), scene);
     EXPECT_EQ(r["name"].get<std::string>(), "bar_sag");
@@ -145,7 +167,7 @@ TEST(Run, BarSagReportHoldsTheContract) {
                     e["kinetic"].get<double>() + e["elastic"].get<double>() + e["gravity"].get<double>(), 1e-9);
         EXPECT_GE(e["kinetic"].get<double>(), 0);
     }
-    EXPECT_EQ(r["energy"][0]["kinetic"].get<double>(), 0.0);  // starts at rest
+    EXPECT_EQ(r["energy"][0]["kinetic"].get<double>(), 0.0);      // starts at rest
     EXPECT_GT(r["energy"].back()["kinetic"].get<double>(), 0.0);  // and falls under gravity
 
     // Stages: all nine (Stage); with --no-render and no tools nor cuts only loads, forces,
@@ -223,17 +245,23 @@ TEST(Run, ImplicitSolverKey) {
     expectRefused(bar, "--set integrator.scheme=backward_euler --set integrator.solver=lu", "integrator.solver");
     for (const char* solver : {"direct", "cg"}) {
         json j = barSag();
-        j["integrator"] = {{"scheme", "backward_euler"}, {"solver", solver}, {"dt", {{"mode", "fixed"}, {"value", 0.002}}}};
+        j["integrator"] = {
+            {"scheme", "backward_euler"}, {"solver", solver}, {"dt", {{"mode", "fixed"}, {"value", 0.002}}}};
         j["duration"] = 0.02;
         const std::string out = workDir() + "/" + solver;
         std::string err;
         ASSERT_EQ(test::runCutsim("run " + writeScene(workDir(), std::string(solver) + ".json", j) + " --out " + out +
-                                  " --no-render --quiet", nullptr, &err), 0) << err;
+                                      " --no-render --quiet",
+                                  nullptr, &err),
+                  0)
+            << err;
         const json r = readReport(out);
         EXPECT_EQ(r["steps"].get<long>(), 10);
         EXPECT_EQ(r["implicit"]["solver"].get<std::string>(), solver);
-        if (std::string(solver) == "cg") EXPECT_GT(r["implicit"]["cg_iterations_max"].get<int>(), 0);
-        else EXPECT_EQ(r["implicit"]["cg_iterations_max"].get<int>(), 0);
+        if (std::string(solver) == "cg")
+            EXPECT_GT(r["implicit"]["cg_iterations_max"].get<int>(), 0);
+        else
+            EXPECT_EQ(r["implicit"]["cg_iterations_max"].get<int>(), 0);
     }
 }
 
@@ -243,14 +271,18 @@ TEST(Run, ImplicitSolverKey) {
 TEST(Run, ForcePrecisionKey) {
     const std::string bar = test::source("assets/scenes/bar_sag.json");
     expectRefused(bar, "--set integrator.precision=half", "integrator.precision");
-    expectRefused(bar, "--set integrator.scheme=backward_euler --set integrator.precision=single", "integrator.precision");
+    expectRefused(bar, "--set integrator.scheme=backward_euler --set integrator.precision=single",
+                  "integrator.precision");
     double elastic[2] = {0, 0};
     for (int k = 0; k < 2; ++k) {
         const std::string precision = k ? "single" : "double";
         const std::string out = workDir() + "/" + precision;
         std::string err;
-        ASSERT_EQ(test::runCutsim("run " + bar + " --out " + out + " --no-render --quiet --set duration=0.2 --set integrator.precision=" +
-                                  precision, nullptr, &err), 0) << err;
+        ASSERT_EQ(test::runCutsim("run " + bar + " --out " + out +
+                                      " --no-render --quiet --set duration=0.2 --set integrator.precision=" + precision,
+                                  nullptr, &err),
+                  0)
+            << err;
         const json r = readReport(out);
         EXPECT_EQ(r["force_precision"].get<std::string>(), precision);
         ASSERT_FALSE(r["energy"].empty());
@@ -286,7 +318,9 @@ TEST(Run, RefusesFixedStepAboveTheExactLimit) {
     // The exact limit of this scene, from a short valid run.
     const std::string ref = workDir() + "/ref";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + scene + " --out " + ref + " --no-render --quiet --set duration=0.001", nullptr, &err), 0)
+    ASSERT_EQ(
+        test::runCutsim("run " + scene + " --out " + ref + " --no-render --quiet --set duration=0.001", nullptr, &err),
+        0)
         << err;
     const double exact = readReport(ref)["dt_initial"]["exact"].get<double>();
 
@@ -308,7 +342,8 @@ TEST(Run, RefusalStatesASmallExactLimitPrecisely) {
     const std::string stiff = "--set material.E=1e12 --set duration=1e-6";
     const std::string ref = workDir() + "/ref";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + scene + " --out " + ref + " --no-render --quiet " + stiff, nullptr, &err), 0) << err;
+    ASSERT_EQ(test::runCutsim("run " + scene + " --out " + ref + " --no-render --quiet " + stiff, nullptr, &err), 0)
+        << err;
     const double exact = readReport(ref)["dt_initial"]["exact"].get<double>();
     ASSERT_LT(exact, 1e-6);
 
@@ -418,9 +453,10 @@ TEST(Run, RefusesAnObjectOfImplausibleSize) {
     expectRefused(test::source("assets/scenes/bar_sag.json"), "--set object.scale=20", "object.scale");
     // unless the scene says so
     const std::string out = workDir() + "/out";
-    EXPECT_EQ(test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
-                              " --no-render --quiet --set object.scale=20 --set object.any_size=true --set duration=0.01"),
-              0);
+    EXPECT_EQ(
+        test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                        " --no-render --quiet --set object.scale=20 --set object.any_size=true --set duration=0.01"),
+        0);
 }
 
 // A step count beyond integrator.max_steps is refused up front, with the count.
@@ -454,10 +490,10 @@ TEST(Run, DemoPressesAndCuts) {
     json r;
     ASSERT_EQ(runShipped("demo.json", "", &r, &err), 0) << err;
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
-    EXPECT_TRUE(r["embedding"].is_object());                 // the liver given by its surface (MI)
-    EXPECT_GT(r["tool"]["max_force"].get<double>(), 0.1);   // the probe presses the sagging liver
+    EXPECT_TRUE(r["embedding"].is_object());               // the liver given by its surface (MI)
+    EXPECT_GT(r["tool"]["max_force"].get<double>(), 0.1);  // the probe presses the sagging liver
     EXPECT_GT(r["tool"]["contact_steps"].get<int>(), 100);
-    EXPECT_EQ(r["tool"]["final_force"][1].get<double>(), 0.0); // and leaves it
+    EXPECT_EQ(r["tool"]["final_force"][1].get<double>(), 0.0);  // and leaves it
     ASSERT_EQ(r["cuts"].size(), 2u);
     EXPECT_GE(r["pieces"].get<int>(), 2);
     EXPECT_GT(r["stages"]["contact"].get<double>(), 0.0);
@@ -472,7 +508,7 @@ TEST(Run, DemoMiPressesTheEmbeddedSurface) {
     ASSERT_EQ(runShipped("demo_mi.json", "", &r, &err), 0) << err;
     EXPECT_EQ(r["status"].get<std::string>(), "ok");
     EXPECT_TRUE(r["embedding"].is_object());
-    EXPECT_GT(r["dt"].get<double>(), 2 * 0.451e-3);        // twice the conforming liver's exact step
+    EXPECT_GT(r["dt"].get<double>(), 2 * 0.451e-3);  // twice the conforming liver's exact step
     EXPECT_GT(r["tool"]["max_force"].get<double>(), 1.0);
     EXPECT_LT(r["tool"]["max_depth"].get<double>(), 0.006);
     EXPECT_EQ(r["tool"]["final_force"][1].get<double>(), 0.0);
@@ -532,7 +568,8 @@ TEST(Run, LiverCutsReportEachCut) {
 TEST(Run, CuttingOptionsReachTheEngine) {
     std::string err;
     json r;
-    ASSERT_EQ(runShipped("liver_cuts.json", " --set duration=0.81 --set cutting.merge_debris=false", &r, &err), 0) << err;
+    ASSERT_EQ(runShipped("liver_cuts.json", " --set duration=0.81 --set cutting.merge_debris=false", &r, &err), 0)
+        << err;
     ASSERT_EQ(r["cuts"].size(), 4u);
     for (const json& c : r["cuts"]) EXPECT_EQ(c["merged_pieces"].get<int>(), 0);
     EXPECT_EQ(r["pieces"].get<int>(), 6);
@@ -614,5 +651,5 @@ TEST(Run, ProbeToolBuildsNoCutter) {
     EXPECT_EQ(r["pieces"].get<int>(), 1);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

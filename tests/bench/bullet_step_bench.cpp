@@ -86,7 +86,8 @@ struct BulletBox {
     explicit BulletBox(const Model& m) {
         const bool withGravity = m.gravity.squaredNorm() > 0;
         solver.setDeformableSolver(&bodySolver);
-        world = std::make_unique<btDeformableMultiBodyDynamicsWorld>(&dispatcher, &broadphase, &solver, &config, &bodySolver);
+        world = std::make_unique<btDeformableMultiBodyDynamicsWorld>(&dispatcher, &broadphase, &solver, &config,
+                                                                     &bodySolver);
         const btVector3 g(m.gravity.x(), m.gravity.y(), m.gravity.z());
         world->setGravity(g);
         world->getWorldInfo().m_gravity = g;
@@ -97,7 +98,8 @@ struct BulletBox {
         std::vector<btVector3> x(m.nodes());
         for (int i = 0; i < m.nodes(); ++i) x[i] = btVector3(m.X(0, i), m.X(1, i), m.X(2, i));
         body = new btSoftBody(&world->getWorldInfo(), m.nodes(), x.data(), nullptr);
-        for (int e = 0; e < m.elements(); ++e) body->appendTetra(m.tets(0, e), m.tets(1, e), m.tets(2, e), m.tets(3, e));
+        for (int e = 0; e < m.elements(); ++e)
+            body->appendTetra(m.tets(0, e), m.tets(1, e), m.tets(2, e), m.tets(3, e));
         btSoftBodyHelpers::generateBoundaryFaces(body);
         body->initializeDmInverse();
         body->m_tetraScratches.resize(body->m_tetras.size());
@@ -207,11 +209,16 @@ Args parse(int argc, char** argv) {
     Args a;
     for (int i = 1; i < argc; ++i) {
         const std::string s = argv[i];
-        if (s == "--seconds" && i + 1 < argc) a.seconds = std::atof(argv[++i]);
-        else if (s == "--rounds" && i + 1 < argc) a.rounds = std::atoi(argv[++i]);
-        else if (s == "--tiny") a.tiny = true;
-        else if (s == "--json") a.json = true;
-        else if (s == "--unrotated") a.unrotated = true;
+        if (s == "--seconds" && i + 1 < argc)
+            a.seconds = std::atof(argv[++i]);
+        else if (s == "--rounds" && i + 1 < argc)
+            a.rounds = std::atoi(argv[++i]);
+        else if (s == "--tiny")
+            a.tiny = true;
+        else if (s == "--json")
+            a.json = true;
+        else if (s == "--unrotated")
+            a.unrotated = true;
         else {
             std::fprintf(stderr, "usage: %s [--seconds S] [--rounds R] [--unrotated] [--tiny] [--json]\n", argv[0]);
             std::exit(s == "--help" || s == "-h" ? 0 : 2);
@@ -248,7 +255,7 @@ std::pair<double, double> restCheck(int n, int steps) {
     return {vc, vb};
 }
 
-} // namespace
+}  // namespace
 
 int main(int argc, char** argv) {
     const Args a = parse(argc, argv);
@@ -263,11 +270,14 @@ int main(int argc, char** argv) {
     j["start"] = a.unrotated ? "rest shape" : "rotated 0.3 rad about y";
     j["runs"] = nlohmann::json::array();
     const auto [restCutsim, restBullet] = restCheck(sizes.front(), checkSteps);
-    j["rest_check"] = {{"tets", 6 * sizes.front() * sizes.front() * sizes.front()}, {"steps", checkSteps},
-                       {"max_speed_cutsim", restCutsim}, {"max_speed_bullet", restBullet}};
+    j["rest_check"] = {{"tets", 6 * sizes.front() * sizes.front() * sizes.front()},
+                       {"steps", checkSteps},
+                       {"max_speed_cutsim", restCutsim},
+                       {"max_speed_bullet", restBullet}};
     if (!a.json)
-        std::printf("rotated box at rest, no gravity, %d steps: largest node speed cutsim %.3g m/s, Bullet %.3g m/s\n\n",
-                    checkSteps, restCutsim, restBullet);
+        std::printf(
+            "rotated box at rest, no gravity, %d steps: largest node speed cutsim %.3g m/s, Bullet %.3g m/s\n\n",
+            checkSteps, restCutsim, restBullet);
     if (!a.json)
         std::printf("%9s %8s %15s %15s %15s %15s %9s %9s %12s\n", "tets", "nodes", "cutsim double", "cutsim single",
                     "bullet", "bullet damped", "ratio", "ratio d", "max |dx| [m]");
@@ -301,7 +311,7 @@ int main(int argc, char** argv) {
             sgl.push_back(window(cutsimStep, m.elements(), a.seconds));
             bb.elastic->setDamping(0.0, 0.0);
             bul.push_back(window(bulletStep, m.elements(), a.seconds));
-                bb.elastic->setDamping(0.01, 0.01);  // btDeformableLinearElasticityForce's default
+            bb.elastic->setDamping(0.01, 0.01);  // btDeformableLinearElasticityForce's default
             bulDamped.push_back(window(bulletStep, m.elements(), a.seconds));
             bb.elastic->setDamping(0.0, 0.0);
             ratio.push_back(dbl.back() / bul.back());
@@ -309,33 +319,46 @@ int main(int argc, char** argv) {
         }
         m.precision = ForcePrecision::Double;
         const bool active = bb.body->isActive();
-        const nlohmann::json stages = bulletStages(bb, std::max(3, static_cast<int>(a.seconds * median(bul) / m.elements())));
-        j["runs"].push_back({{"tets", m.elements()}, {"nodes", m.nodes()}, {"check_steps", checkSteps},
-                             {"check_max_distance", gap}, {"check_max_displacement", moved}, {"bullet_active", active},
-                             {"tet_steps_per_second", {{"cutsim_double", median(dbl)}, {"cutsim_single", median(sgl)},
-                                                       {"bullet", median(bul)}, {"bullet_damped", median(bulDamped)}}},
-                             {"ratio_cutsim_double_to_bullet", median(ratio)}, {"bullet_stages", stages},
-                             {"ratio_cutsim_double_to_bullet_damped", median(ratioDamped)},
-                             {"windows", {{"cutsim_double", dbl}, {"cutsim_single", sgl}, {"bullet", bul},
-                                          {"bullet_damped", bulDamped}}}});
+        const nlohmann::json stages =
+            bulletStages(bb, std::max(3, static_cast<int>(a.seconds * median(bul) / m.elements())));
+        j["runs"].push_back(
+            {{"tets", m.elements()},
+             {"nodes", m.nodes()},
+             {"check_steps", checkSteps},
+             {"check_max_distance", gap},
+             {"check_max_displacement", moved},
+             {"bullet_active", active},
+             {"tet_steps_per_second",
+              {{"cutsim_double", median(dbl)},
+               {"cutsim_single", median(sgl)},
+               {"bullet", median(bul)},
+               {"bullet_damped", median(bulDamped)}}},
+             {"ratio_cutsim_double_to_bullet", median(ratio)},
+             {"bullet_stages", stages},
+             {"ratio_cutsim_double_to_bullet_damped", median(ratioDamped)},
+             {"windows",
+              {{"cutsim_double", dbl}, {"cutsim_single", sgl}, {"bullet", bul}, {"bullet_damped", bulDamped}}}});
         if (!a.json)
-            std::printf("%9d %8d %15.4g %15.4g %15.4g %15.4g %9.2f %9.2f %12.3g%s\n", m.elements(), m.nodes(), median(dbl),
-                        median(sgl), median(bul), median(bulDamped), median(ratio), median(ratioDamped), gap,
-                        active ? "" : "  (Bullet's body went to sleep)");
+            std::printf("%9d %8d %15.4g %15.4g %15.4g %15.4g %9.2f %9.2f %12.3g%s\n", m.elements(), m.nodes(),
+                        median(dbl), median(sgl), median(bul), median(bulDamped), median(ratio), median(ratioDamped),
+                        gap, active ? "" : "  (Bullet's body went to sleep)");
         if (!a.json)
             std::printf("%18s Bullet's step (damping 0): forces %.0f%%, collision structures %.0f%%, solve %.0f%%, "
-                        "integrate %.0f%%, other %.0f%%\n", "", 100 * stages["forces"].get<double>(),
-                        100 * stages["collision"].get<double>(), 100 * stages["solve"].get<double>(),
-                        100 * stages["integrate"].get<double>(), 100 * stages["other"].get<double>());
-        if (!a.json)
-            std::fflush(stdout);
+                        "integrate %.0f%%, other %.0f%%\n",
+                        "", 100 * stages["forces"].get<double>(), 100 * stages["collision"].get<double>(),
+                        100 * stages["solve"].get<double>(), 100 * stages["integrate"].get<double>(),
+                        100 * stages["other"].get<double>());
+        if (!a.json) std::fflush(stdout);
     }
     setThreads(0);
-    if (a.json) std::cout << j.dump(2) << "\n";
+    if (a.json)
+        std::cout << j.dump(2) << "\n";
     else
-        std::printf("\ntet-steps per second, median of %d windows of %.3g s each, 1 thread, dt %g s; ratio: cutsim double over\n"
-                    "bullet (damping 0, as cutsim), ratio d: over bullet with its default damping; max |dx|: largest node\n"
-                    "distance between the two after %d identical steps from the same start\n",
-                    a.rounds, a.seconds, kDt, checkSteps);
+        std::printf(
+            "\ntet-steps per second, median of %d windows of %.3g s each, 1 thread, dt %g s; ratio: cutsim double "
+            "over\n"
+            "bullet (damping 0, as cutsim), ratio d: over bullet with its default damping; max |dx|: largest node\n"
+            "distance between the two after %d identical steps from the same start\n",
+            a.rounds, a.seconds, kDt, checkSteps);
     return 0;
 }

@@ -49,7 +49,7 @@ const Liver& liver() {
     l->model.massDamping = 20;
     l->surf = boundarySurface(l->model.tets, l->model.X);
     l->pts = contactPoints(l->surf, l->model.tets, l->model.X, 0.005);  // half the probe radius, as the run picks
-    l->dt = 0.8 * 4.51e-4;  // 0.8 of the exact limit, as in probe.json
+    l->dt = 0.8 * 4.51e-4;                                              // 0.8 of the exact limit, as in probe.json
     l->probe.kind = ToolDef::Kind::Sphere;
     l->probe.radius = 0.01;
     scaleByMass(l->pts, l->model.invMass, referenceMass(l->pts, l->model.invMass));
@@ -148,7 +148,8 @@ void BM_ContactRepWorldProxies(benchmark::State& st) {
     int manifolds = 0;
     for (auto _ : st) {
         positions();
-        for (int p = 0; p < l.pts.points(); ++p) objs[p]->getWorldTransform().setOrigin(btVector3(xp(0, p), xp(1, p), xp(2, p)));
+        for (int p = 0; p < l.pts.points(); ++p)
+            objs[p]->getWorldTransform().setOrigin(btVector3(xp(0, p), xp(1, p), xp(2, p)));
         world.performDiscreteCollisionDetection();
         manifolds = dispatcher.getNumManifolds();
     }
@@ -227,7 +228,7 @@ void BM_ContactElementBroadphase(benchmark::State& st) {
     st.counters["hits_last"] = static_cast<double>(hits.size());
 }
 
-} // namespace
+}  // namespace
 
 BENCHMARK(BM_ContactElementBroadphase)->UseRealTime()->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ContactQuery)->UseRealTime()->Unit(benchmark::kMicrosecond);

@@ -144,8 +144,14 @@ void BM_CutBladeStep(benchmark::State& st) {
     const BladeEdge from = edgeAt(startY()), to = edgeAt(stepEndFor(static_cast<int>(st.range(0))));
     runCut(st, [&](Scene& sc) { return sc.eng.sweep(sc.m, sc.s, from, to); });
 }
-BENCHMARK(BM_CutBladeStep)->Arg(10)->Arg(25)->Arg(50)->UseManualTime()->Unit(benchmark::kMicrosecond)
-    ->Repetitions(5)->ReportAggregatesOnly(true);
+BENCHMARK(BM_CutBladeStep)
+    ->Arg(10)
+    ->Arg(25)
+    ->Arg(50)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Repetitions(5)
+    ->ReportAggregatesOnly(true);
 
 void BM_CutPlane(benchmark::State& st) {
     const CutSurface cs = centrePlane();
@@ -171,4 +177,4 @@ void BM_CutExactDt(benchmark::State& st) {
 }
 BENCHMARK(BM_CutExactDt)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond)->Repetitions(5)->ReportAggregatesOnly(true);
 
-} // namespace
+}  // namespace

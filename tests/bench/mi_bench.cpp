@@ -27,4 +27,4 @@ void BM_MiSetupBunny32(benchmark::State& st) {
 }
 BENCHMARK(BM_MiSetupBunny32)->Unit(benchmark::kMillisecond)->Iterations(5);
 
-} // namespace
+}  // namespace

@@ -31,13 +31,19 @@ void BM_StepCorotational(benchmark::State& st) {
     for (int k = 0; k < 5; ++k) stepper.step(m, s, opt);  // warm up
     for (auto _ : st) stepper.step(m, s, opt);
     st.counters["tets"] = m.elements();
-    st.counters["tet_steps_per_s"] = benchmark::Counter(static_cast<double>(m.elements()) * st.iterations(),
-                                                        benchmark::Counter::kIsRate);
+    st.counters["tet_steps_per_s"] =
+        benchmark::Counter(static_cast<double>(m.elements()) * st.iterations(), benchmark::Counter::kIsRate);
     st.counters["hash"] = s.x.sum();
     setThreads(0);
 }
 
-} // namespace
+}  // namespace
 
 // 12^3 * 6 = 10368 tets; 26^3 * 6 = 105456 tets
-BENCHMARK(BM_StepCorotational)->Args({12, 1})->Args({12, 2})->Args({26, 1})->Args({26, 2})->UseRealTime()->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StepCorotational)
+    ->Args({12, 1})
+    ->Args({12, 2})
+    ->Args({26, 1})
+    ->Args({26, 2})
+    ->UseRealTime()
+    ->Unit(benchmark::kMicrosecond);

@@ -100,4 +100,4 @@ void BM_TimestepLocalUpdate(benchmark::State& st) {
 }
 BENCHMARK(BM_TimestepLocalUpdate)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
-} // namespace
+}  // namespace

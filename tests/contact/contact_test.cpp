@@ -134,7 +134,7 @@ TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
     const double k = 2000, d = 4e-4;
     ToolDef blade;
     blade.kind = ToolDef::Kind::Blade;
-    blade.size << 0.008, 0.008, 0.004;   // half extents 4, 4, 2 mm: only the vertex below is inside
+    blade.size << 0.008, 0.008, 0.004;  // half extents 4, 4, 2 mm: only the vertex below is inside
     blade.stiffness = k;
     blade.damping = 0;
     blade.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.002 - d), Eigen::Quaterniond::Identity()}, 0});
@@ -146,11 +146,13 @@ TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
     ToolDef cap;
     cap.kind = ToolDef::Kind::Capsule;
     cap.radius = 0.003;
-    cap.length = 0.004;   // lying along x (local z turned onto x)
+    cap.length = 0.004;  // lying along x (local z turned onto x)
     cap.stiffness = k;
     cap.damping = 0;
-    cap.keys.push_back({0, {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.003 - d),
-                            Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitY()))}, 0});
+    cap.keys.push_back({0,
+                        {Eigen::Vector3d(0.05, 0.05, 0.02 + 0.003 - d),
+                         Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitY()))},
+                        0});
     st = s.press(cap);
     ASSERT_EQ(st.contacts, 1);
     EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
@@ -222,7 +224,7 @@ TEST(Contact, ForceOnEmbeddedVertexSpreadsByItsWeights) {
     tets << 0, 1, 2, 3;
     const EmbeddedSurface es = oneTriangle({0.1, 0.2, 0.3, 0.4}, {0.7, 0.1, 0.1, 0.1}, {0.1, 0.1, 0.7, 0.1});
     Eigen::Matrix3Xd p;
-    embeddedPositions(es, tets, X, p);   // vertex 0 at (0.2, 0.3, 0.4)
+    embeddedPositions(es, tets, X, p);  // vertex 0 at (0.2, 0.3, 0.4)
     const double k = 100, d = 0.01, r = 0.05;
     ContactWorld w({sphereAt(Eigen::Vector3d(p.col(0)) + Eigen::Vector3d(0, 0, r - d), r, k)});
     w.setSurface(contactPoints(es, tets, X, 0));
@@ -253,7 +255,7 @@ TEST(Contact, PointsOnEdgesAndFacesAtMostSpacingApart) {
         EXPECT_NEAR(pts.weights.col(p).sum(), 1, 1e-12);
         Eigen::Vector3d x = Eigen::Vector3d::Zero();
         for (int i = 0; i < pts.count[p]; ++i) x += pts.weights(i, p) * X.col(pts.nodes(i, p));
-        EXPECT_NEAR(x.z(), 0, 1e-12);                    // on the face z = 0
+        EXPECT_NEAR(x.z(), 0, 1e-12);  // on the face z = 0
         EXPECT_LE(x.x() + x.y(), 1 + 1e-12);
     }
 }
@@ -295,7 +297,7 @@ TEST(ContactStiffness, BoxLimitIsTheDenseBisection) {
                 for (int d = 0; d < 3; ++d)
                     C(3 * pts.nodes(i, p) + d, 3 * pts.nodes(j, p) + d) += pts.weights(i, p) * pts.weights(j, p);
     Eigen::VectorXd s(n);
-    for (int i = 0; i < n; ++i) s(i) = std::sqrt(m.invMass(i / 3));   // fixed DOFs drop out
+    for (int i = 0; i < n; ++i) s(i) = std::sqrt(m.invMass(i / 3));  // fixed DOFs drop out
     const Eigen::MatrixXd A = s.asDiagonal() * K * s.asDiagonal(), Cs = s.asDiagonal() * C * s.asDiagonal();
     auto lambdaMax = [](const Eigen::MatrixXd& S) {
         return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S, Eigen::EigenvaluesOnly).eigenvalues().maxCoeff();
@@ -319,7 +321,7 @@ TEST(ContactStiffness, MassScaleIsEffectiveMassOverReference) {
     std::sort(masses.begin(), masses.end());
     const double ref = masses[static_cast<size_t>(0.9 * static_cast<double>(masses.size() - 1))];
     EXPECT_EQ(referenceMass(pts, m.invMass), ref);
-    EXPECT_LT(masses.front(), ref);   // the corners are lighter than the face centres
+    EXPECT_LT(masses.front(), ref);  // the corners are lighter than the face centres
     scaleByMass(pts, m.invMass, ref);
     for (int p = 0; p < pts.points(); ++p) {
         const int a = pts.nodes(0, p);
@@ -393,7 +395,8 @@ struct PressedMiSlab {
         ToolDef box = sphereAt(Eigen::Vector3d::Zero(), 0, k);
         box.kind = ToolDef::Kind::Hull;
         box.hull.resize(3, 8);
-        for (int c = 0; c < 8; ++c) box.hull.col(c) << (c & 1 ? 0.09 : -0.05), (c & 2 ? 0.09 : -0.05), (c & 4 ? 0.06 : zTool);
+        for (int c = 0; c < 8; ++c)
+            box.hull.col(c) << (c & 1 ? 0.09 : -0.05), (c & 2 ? 0.09 : -0.05), (c & 4 ? 0.06 : zTool);
         ContactWorld w({box});
         w.setSurface(pts);
         State st = makeState(mi.model);
@@ -436,7 +439,7 @@ TEST(ContactStiffness, MiSlabPressedAtTheLimitStaysBoundedAndBlowsUpAbove) {
     double mMin = 1e300;
     for (int i = 0; i < s.mi.model.nodes(); ++i)
         if (s.mi.model.invMass(i) > 0) mMin = std::min(mMin, s.mi.model.mass(i));
-    EXPECT_LT(mMin, 1e-4 * s.mi.model.mass.maxCoeff());   // light outside corners, as on the MI liver
+    EXPECT_LT(mMin, 1e-4 * s.mi.model.mass.maxCoeff());  // light outside corners, as on the MI liver
     const double k = stableStiffness(s.pts, s.mi.model, s.dt, s.dtc);
     ASSERT_GT(k, 0);
     // the certified linearisation: released from 1 mm deep the points oscillate within a few mm
@@ -454,7 +457,10 @@ TEST(ContactStiffness, MiSlabPressedAtTheLimitStaysBoundedAndBlowsUpAbove) {
 TEST(Tool, KeyframesInterpolateLinearlyAndSlerp) {
     ToolDef t;
     t.keys.push_back({1.0, {Eigen::Vector3d(0, 0, 0), Eigen::Quaterniond::Identity()}, 0.0});
-    t.keys.push_back({3.0, {Eigen::Vector3d(2, 4, 0), Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()))}, 0.01});
+    t.keys.push_back({3.0,
+                      {Eigen::Vector3d(2, 4, 0),
+                       Eigen::Quaterniond(Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()))},
+                      0.01});
     const Pose mid = toolPose(t, 2.0);
     EXPECT_NEAR((mid.position - Eigen::Vector3d(1, 2, 0)).norm(), 0, 1e-12);
     EXPECT_NEAR(Eigen::AngleAxisd(mid.orientation).angle(), std::numbers::pi / 4, 1e-12);
@@ -530,5 +536,5 @@ TEST(ElementBroadphase, EqualsBruteForceBeforeAndAfterRefit) {
     for (int e : bruteForce(mesh.tets, x, lo, hi)) EXPECT_TRUE(std::binary_search(got.begin(), got.end(), e)) << e;
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -63,7 +63,7 @@ TEST(Probe, ForceGrowsWithDepthAndVanishesAfterWithdrawal) {
         EXPECT_GT(f, prev) << "window at " << t << " s";
         prev = f;
     }
-    EXPECT_GT(prev, 0.3);          // a firm push at full depth [N]
+    EXPECT_GT(prev, 0.3);  // a firm push at full depth [N]
     EXPECT_GT(tool["max_force"].get<double>(), 0.5);
     // the probe has left: no force at all in the last 0.3 s, nothing inside it at the end
     EXPECT_EQ(meanOver(s, "max", 1.0, 1.3), 0.0);
@@ -135,5 +135,5 @@ TEST(Probe, BadToolKeysAreRefusedWithTheirPath) {
     expectRefused(j, "tools[0].obj");
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -29,7 +29,8 @@ TEST(Baselines, BarTable61) {
     ASSERT_EQ(rows.size(), 8u);
     std::printf("kept  method       nodes  tets  dt_exact [ms]\n");
     for (const BaselineRow& r : rows)
-        std::printf("%3.0f%%  %-11s  %5d  %4d  %.4f\n", 100 * r.kept, r.method.c_str(), r.nodes, r.elements, 1e3 * r.dtExact);
+        std::printf("%3.0f%%  %-11s  %5d  %4d  %.4f\n", 100 * r.kept, r.method.c_str(), r.nodes, r.elements,
+                    1e3 * r.dtExact);
     for (int k = 0; k < 2; ++k) {
         EXPECT_EQ(rows[k].kept, 1.0);
         EXPECT_EQ(rows[k].nodes, 90);
@@ -43,8 +44,8 @@ TEST(Baselines, BarTable61) {
     EXPECT_LT(rows[2].dtExact, rows[0].dtExact);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim
 
 namespace cutsim {
 namespace {
@@ -97,11 +98,14 @@ TEST(Baselines, LiverFourPlaneCuts) {
         int on = -1;
         for (size_t k = 0; k < planes.size() && on < 0; ++k) {
             bool all = true;
-            for (int j = 0; j < 3; ++j) all = all && std::abs(planes[k].normal.dot(cut.mesh.X.col(F1(j, f)) - planes[k].point)) < 1e-12;
+            for (int j = 0; j < 3; ++j)
+                all = all && std::abs(planes[k].normal.dot(cut.mesh.X.col(F1(j, f)) - planes[k].point)) < 1e-12;
             if (all) on = static_cast<int>(k);
         }
-        if (on < 0) aOff += a;
-        else (nf.dot(planes[on].normal) > 0 ? up : down)[on] += a;
+        if (on < 0)
+            aOff += a;
+        else
+            (nf.dot(planes[on].normal) > 0 ? up : down)[on] += a;
     }
     EXPECT_NEAR(aOff, a0, 1e-9 * a0);
     for (size_t k = 0; k < planes.size(); ++k) {
@@ -114,8 +118,7 @@ TEST(Baselines, LiverFourPlaneCuts) {
     EXPECT_GT(snapped.report.snappedNodes, 0);
     EXPECT_NEAR(snapped.report.volumeAfter, v0, 0.02 * v0);
     for (int e = 0; e < snapped.mesh.elements(); ++e) ASSERT_GT(tetSignedVolume(snapped.mesh, e), 0);
-
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

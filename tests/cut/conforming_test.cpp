@@ -224,7 +224,8 @@ TEST(ConformingCut, SnapThatWouldInvertATetIsRejected) {
 TEST(ConformingCut, SeveralPlanesInSequence) {
     const TetMesh box = test::boxMesh(1, 1, 1, 3, 3, 3);
     std::vector<CutPlane> planes;
-    for (const double x : {0.2, 0.45, 0.6, 0.85}) planes.push_back({Eigen::Vector3d(x, 0, 0), Eigen::Vector3d::UnitX()});
+    for (const double x : {0.2, 0.45, 0.6, 0.85})
+        planes.push_back({Eigen::Vector3d(x, 0, 0), Eigen::Vector3d::UnitX()});
     ConformingOptions o;
     o.snapFraction = 0;
     const ConformingResult r = conformingCuts(box, planes, o);
@@ -235,5 +236,5 @@ TEST(ConformingCut, SeveralPlanesInSequence) {
     EXPECT_THROW(conformingCut(box, CutPlane{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}), InputError);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

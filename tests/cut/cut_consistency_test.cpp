@@ -22,7 +22,7 @@ TEST(CutConsistency, RandomCutsKeepEnergyAndForcesOfTheMoment) {
         co.mergeDebris = false;  // and fusing a piece to a side that has moved apart moves its material
         CutEngine eng(co);
         for (int c = 0; c < 6; ++c) {
-            for (int k = 0; k < 100; ++k) stepper.step(m, s, opt);   // deformed and moving
+            for (int k = 0; k < 100; ++k) stepper.step(m, s, opt);  // deformed and moving
             computeForces(m, s);
             // forces summed over all copies of each node of the uncut mesh
             const Model base = test::randomCutModel(liver);
@@ -44,13 +44,14 @@ TEST(CutConsistency, RandomCutsKeepEnergyAndForcesOfTheMoment) {
             const Eigen::Matrix3Xd f1 = grouped();
             const double scale = f0.cwiseAbs().maxCoeff();
             for (int n = 0; n < N; ++n)
-                ASSERT_LT((f1.col(n) - f0.col(n)).norm(), 1e-9 * scale) << "node " << n << " cut " << c << " split " << r.split;
+                ASSERT_LT((f1.col(n) - f0.col(n)).norm(), 1e-9 * scale)
+                    << "node " << n << " cut " << c << " split " << r.split;
         }
     }
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim
 
 namespace cutsim {
 namespace {
@@ -99,5 +100,5 @@ TEST(CutConsistency, LocalTimestepUpdateMatchesRebuild) {
     EXPECT_EQ(compared, 16);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -34,9 +34,7 @@ TEST(CutUpdate, LocalTimestepUpdateAfterCutsEqualsFullRecompute) {
         CutEngine eng(co);
         // A scalpel in the plane x = c.x entering from below in three steps, then two planes
         // across it (one through the fixed back, z < -0.028).
-        auto edgeAt = [&](double y) {
-            return BladeEdge{{c.x(), y, lo.z() - 0.01}, {c.x(), y, hi.z() + 0.01}};
-        };
+        auto edgeAt = [&](double y) { return BladeEdge{{c.x(), y, lo.z() - 0.01}, {c.x(), y, hi.z() + 0.01}}; };
         int changedTotal = 0;
         const double y0 = lo.y() - 0.01, dy = 0.3 * (hi.y() - lo.y());
         for (int k = 0; k < 3; ++k) {
@@ -44,7 +42,8 @@ TEST(CutUpdate, LocalTimestepUpdateAfterCutsEqualsFullRecompute) {
             an.update(m, r.changedElements, r.changedNodes);
             EXPECT_FALSE(an.lastUpdate().full);
             changedTotal += static_cast<int>(r.changedElements.size());
-            expectSameAnalysis(an, TimestepAnalyzer(m), std::string(lumpingName(lumping)) + " sweep " + std::to_string(k));
+            expectSameAnalysis(an, TimestepAnalyzer(m),
+                               std::string(lumpingName(lumping)) + " sweep " + std::to_string(k));
         }
         eng.endStroke();
         for (const Eigen::Vector3d& n : {Eigen::Vector3d(0, 1, 0.3), Eigen::Vector3d(0.2, 0.1, 1)}) {
@@ -61,5 +60,5 @@ TEST(CutUpdate, LocalTimestepUpdateAfterCutsEqualsFullRecompute) {
     }
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -48,8 +48,8 @@ TEST(BaselinesStress, LiverDtAfterFourPlaneCuts) {
     // Remeshing the uncut liver alone already costs most of the step: TetGen must keep the
     // original surface triangles, and its Steiner points near them make small tets.
     const RemeshResult whole = remeshPieces(liver);
-    std::printf("remesh of the uncut liver: %d nodes %d tets, dt %.4f ms\n", whole.mesh.nodes(),
-                whole.mesh.elements(), 1e3 * exactDtOf(whole.mesh));
+    std::printf("remesh of the uncut liver: %d nodes %d tets, dt %.4f ms\n", whole.mesh.nodes(), whole.mesh.elements(),
+                1e3 * exactDtOf(whole.mesh));
     const std::vector<double> rem = dtAfterPlaneCuts(liver, planes, CutMethod::Remesh);
     ASSERT_EQ(rem.size(), 4u);
     std::printf("remesh: dt after cuts 1-4 [ms]:");
@@ -59,5 +59,5 @@ TEST(BaselinesStress, LiverDtAfterFourPlaneCuts) {
     EXPECT_LT(rem.back(), dt0);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -36,8 +36,8 @@ inline Model randomCutModel(bool liver) {
 inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsigned seed,
                                     const RandomCutOptions& opt = {}, bool verbose = false) {
     std::vector<std::string> log;
-    const RandomCutStats st = cutsim::runRandomCuts(randomCutModel(liver), runs, stepsBetween, seed, opt,
-                                                    verbose ? &log : nullptr);
+    const RandomCutStats st =
+        cutsim::runRandomCuts(randomCutModel(liver), runs, stepsBetween, seed, opt, verbose ? &log : nullptr);
     for (const auto& line : log) std::printf("%s\n", line.c_str());
     EXPECT_LT(st.maxVolumeError, 1e-9);
     EXPECT_LT(st.maxMassError, 1e-9);
@@ -46,8 +46,9 @@ inline RandomCutStats runRandomCuts(bool liver, int runs, int stepsBetween, unsi
 
 inline void printRandomCuts(const char* name, const RandomCutStats& st) {
     std::printf("%s: %d runs, %d cuts, %ld steps, %d blew up, %d with an inverted element (%d still at the end), "
-                "%d limited (%ld steps), max speed %.3g m/s, min dt ratio %.4f\n", name, st.runs, st.cuts, st.steps,
-                st.failures, st.invertedRuns, st.invertedAtEnd, st.limitedRuns, st.limitedSteps, st.maxSpeed, st.minDtRatio);
+                "%d limited (%ld steps), max speed %.3g m/s, min dt ratio %.4f\n",
+                name, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns, st.invertedAtEnd, st.limitedRuns,
+                st.limitedSteps, st.maxSpeed, st.minDtRatio);
 }
 
-} // namespace cutsim::test
+}  // namespace cutsim::test

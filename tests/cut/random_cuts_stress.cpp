@@ -38,5 +38,5 @@ TEST(RandomCutsStress, Bar250Limited) {
     EXPECT_EQ(st.invertedRuns, 0);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

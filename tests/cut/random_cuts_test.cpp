@@ -90,5 +90,5 @@ TEST(RandomCuts, AboveTheLimitBlowsUp) {
     EXPECT_EQ(st.failures, st.runs);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

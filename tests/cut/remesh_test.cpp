@@ -75,5 +75,5 @@ TEST(Remesh, SelfIntersectingPieceIsRejectedWithTetGensReason) {
     }
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

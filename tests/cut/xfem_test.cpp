@@ -157,7 +157,7 @@ TEST(Xfem, CrossingCutsMakeFourPieces) {
     Model m = unitBox(3);
     State s = makeState(m);
     CutOptions co;
-    co.minFraction = 0;   // exact geometry: the second plane leaves pieces below the default 5%
+    co.minFraction = 0;  // exact geometry: the second plane leaves pieces below the default 5%
     CutEngine eng(co);
     eng.cut(m, s, plane({0.37, 0, 0}, {1, 0, 0}));
     eng.cut(m, s, plane({0, 0.61, 0}, {0, 1, 0}));
@@ -206,7 +206,7 @@ TEST(Xfem, BladeSweepSeparatesOnlyWhenThrough) {
     Model m = unitBox(4);
     State s = makeState(m);
     CutOptions co;
-    co.minFraction = 0;   // exact geometry: x = 0.43 leaves sides below the default 5% in some tets
+    co.minFraction = 0;      // exact geometry: x = 0.43 leaves sides below the default 5% in some tets
     co.mergeDebris = false;  // and slivers that touch no neighbour's side: free pieces below one tet
     CutEngine eng(co);
     // A vertical edge at x = 0.43 moving along +y.
@@ -220,7 +220,7 @@ TEST(Xfem, BladeSweepSeparatesOnlyWhenThrough) {
     ASSERT_EQ(pieces.size(), 2u);
     EXPECT_NEAR(pieces[0], 0.43, 1e-12);
     EXPECT_EQ(eng.pendingElements(), 0);
-    EXPECT_EQ(eng.cuts(), 1);  // one stroke, one cut id
+    EXPECT_EQ(eng.cuts(), 1);           // one stroke, one cut id
     EXPECT_EQ(eng.strokeRegions(), 1);  // a straight translation is one parallelogram
 }
 
@@ -310,8 +310,8 @@ TEST(Xfem, EnrichmentLumpingKeepsTimeStepOnSlivers) {
         EXPECT_LT(m.fraction.minCoeff(), 1e-4);
         EXPECT_NEAR(m.mass.sum(), 1000.0, 1e-9 * 1000.0);  // sides below 1e-10 are dropped
         dt[l] = 2.0 / std::sqrt(test::denseLambdaMax(m));
-        std::printf("lumping %-17s dt after the sliver cut = %.4g of the uncut %.4g s\n", lumpingName(l),
-                    dt[l] / uncut, uncut);
+        std::printf("lumping %-17s dt after the sliver cut = %.4g of the uncut %.4g s\n", lumpingName(l), dt[l] / uncut,
+                    uncut);
     }
     // Enrichment: every virtual element keeps its parent's eigenvalues; the others collapse.
     EXPECT_GE(dt[MassLumping::Enrichment], 0.9 * uncut);
@@ -385,5 +385,5 @@ TEST(Xfem, CutPieceFallsFreely) {
     EXPECT_NEAR(mv / mm, -9.81 * 0.1, 1e-6);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -24,11 +24,12 @@ namespace {
 // Unit sphere: an icosahedron subdivided `levels` times, vertices pushed to radius r.
 SurfaceMesh icosphere(int levels, double r, const Eigen::Vector3d& c) {
     const double t = (1 + std::sqrt(5.0)) / 2;
-    std::vector<Eigen::Vector3d> V = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                                      {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    std::vector<std::array<int, 3>> F = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                                         {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-                                         {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+    std::vector<Eigen::Vector3d> V = {{-1, t, 0},  {1, t, 0},  {-1, -t, 0}, {1, -t, 0}, {0, -1, t},  {0, 1, t},
+                                      {0, -1, -t}, {0, 1, -t}, {t, 0, -1},  {t, 0, 1},  {-t, 0, -1}, {-t, 0, 1}};
+    std::vector<std::array<int, 3>> F = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                         {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                         {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                         {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
     for (int l = 0; l < levels; ++l) {
         std::map<std::pair<int, int>, int> mid;
         auto m = [&](int a, int b) {
@@ -199,7 +200,6 @@ TEST(Mi, BarOnLatticePlanesIsTheConformingBar) {
     EXPECT_EQ(r.count(NodeClass::Boundary), box.nodes() - 3 * 1 * 1);
 }
 
-
 // Broken surfaces (open holes, non-manifold and duplicated faces, self-intersections; see
 // data/SOURCES.md): never a crash; the object is the region where the winding number exceeds 1/2,
 // with shares from refinement. Documented results: the tree classifies every lattice node as the
@@ -367,7 +367,8 @@ TEST(Mi, BarRowsKeepTheLatticeStep) {
 TEST(Mi, KeepLatticeStepMeetsTheLatticeStepByDenseSolve) {
     const Material mat;
     const int c = 2, along = miBarCellsAlong(c);
-    const double dtLattice = 2 / std::sqrt(test::denseLambdaMax(buildModel(test::boxMesh(0.01, 0.01, 0.1, c, c, along), mat)));
+    const double dtLattice =
+        2 / std::sqrt(test::denseLambdaMax(buildModel(test::boxMesh(0.01, 0.01, 0.1, c, c, along), mat)));
     for (bool fixOutside : {false, true}) {
         SCOPED_TRACE(fixOutside);
         MiOptions mo;
@@ -412,7 +413,8 @@ TEST(Mi, BarOutsideFixedRuleAgainstTheUncutStep) {
         mo.latticeCells = Eigen::Vector3i(c, c, miBarCellsAlong(c));
         mo.latticeCellSize = Eigen::Vector3d(0.01 / c, 0.01 / c, 0.1 / miBarCellsAlong(c));
         mo.fixOutsideNodes = fixOutside;
-        return buildMi(boxSurface(Eigen::Vector3d(0, 0, 0.1 * (1 - kept)), Eigen::Vector3d(0.01, 0.01, 0.1)), mat, mo).model;
+        return buildMi(boxSurface(Eigen::Vector3d(0, 0, 0.1 * (1 - kept)), Eigen::Vector3d(0.01, 0.01, 0.1)), mat, mo)
+            .model;
     };
     const double uncut1 = denseDt(buildModel(test::boxMesh(0.01, 0.01, 0.1, 1, 1, 11), mat));
     EXPECT_NEAR(denseDt(barModel(1, 1.0, true)), uncut1, 1e-12 * uncut1);  // the lattice is the uncut bar
@@ -434,5 +436,5 @@ TEST(Mi, BarOutsideFixedRuleAgainstTheUncutStep) {
     EXPECT_LT(denseDt(barModel(2, 0.25, true)), uncut2 * (1 - 1e-6));
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

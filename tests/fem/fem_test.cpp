@@ -22,7 +22,7 @@ Eigen::VectorXd flat(const Eigen::Matrix3Xd& x) { return Eigen::Map<const Eigen:
 // Exact critical step over free DOFs, independent of physics/timestep.
 double denseCriticalDt(const Model& m) { return 2.0 / std::sqrt(test::denseLambdaMax(m)); }
 
-} // namespace
+}  // namespace
 
 // K for the unit right tet with E = 2.5, nu = 0.25 (lambda = mu = 1): entries by hand from
 // K_ab = V [lambda g_a g_b^T + mu g_b g_a^T + mu (g_a.g_b) I], V = 1/6,
@@ -35,14 +35,14 @@ TEST(Tet, StiffnessOfUnitTetByHand) {
     const Mat34 g = shapeGradients(restShapeMatrix(t.X).inverse());
     const Mat12 K = elementStiffness(g, 1.0 / 6.0, mat);
     const double V = 1.0 / 6.0;
-    EXPECT_NEAR(K(3, 3), V * 3.0, 1e-14);         // K_11,xx = V (lambda + 2 mu)
-    EXPECT_NEAR(K(4, 4), V * 1.0, 1e-14);         // K_11,yy = V mu
-    EXPECT_NEAR(K(0, 0), V * 5.0, 1e-14);         // K_00,xx = V (lambda + mu + 3 mu)
-    EXPECT_NEAR(K(0, 1), V * 2.0, 1e-14);         // K_00,xy = V (lambda + mu)
-    EXPECT_NEAR(K(3, 7), V * 1.0, 1e-14);         // K_12,xy = V lambda
-    EXPECT_NEAR(K(4, 6), V * 1.0, 1e-14);         // K_12,yx = V mu
-    EXPECT_NEAR(K(3, 6), 0.0, 1e-14);             // K_12,xx = V mu (g1.g2) = 0
-    EXPECT_NEAR(K(0, 3), -V * 3.0, 1e-14);        // K_01,xx = V (-lambda - mu - mu)
+    EXPECT_NEAR(K(3, 3), V * 3.0, 1e-14);   // K_11,xx = V (lambda + 2 mu)
+    EXPECT_NEAR(K(4, 4), V * 1.0, 1e-14);   // K_11,yy = V mu
+    EXPECT_NEAR(K(0, 0), V * 5.0, 1e-14);   // K_00,xx = V (lambda + mu + 3 mu)
+    EXPECT_NEAR(K(0, 1), V * 2.0, 1e-14);   // K_00,xy = V (lambda + mu)
+    EXPECT_NEAR(K(3, 7), V * 1.0, 1e-14);   // K_12,xy = V lambda
+    EXPECT_NEAR(K(4, 6), V * 1.0, 1e-14);   // K_12,yx = V mu
+    EXPECT_NEAR(K(3, 6), 0.0, 1e-14);       // K_12,xx = V mu (g1.g2) = 0
+    EXPECT_NEAR(K(0, 3), -V * 3.0, 1e-14);  // K_01,xx = V (-lambda - mu - mu)
     // Symmetric, rows sum to zero (translation is free), diagonal formula of eqs. 4.3-4.10.
     EXPECT_NEAR((K - K.transpose()).norm(), 0.0, 1e-14);
     for (int r = 0; r < 12; ++r) EXPECT_NEAR(K.row(r).reshaped(3, 4).rowwise().sum().norm(), 0.0, 1e-13);
@@ -92,9 +92,7 @@ TEST(Forces, RigidRotationGivesZeroCorotationalForce) {
 TEST(Forces, PatchTest) {
     const TetMesh box = test::boxMesh(1, 1, 1, 4, 4, 4);
     Eigen::Matrix3d A;
-    A << 1.02, 0.01, -0.03,
-         0.00, 0.97, 0.02,
-         0.01, 0.04, 1.05;
+    A << 1.02, 0.01, -0.03, 0.00, 0.97, 0.02, 0.01, 0.04, 1.05;
     const Eigen::Matrix3d Rot = Eigen::AngleAxisd(0.7, Eigen::Vector3d(0, 1, 1).normalized()).toRotationMatrix();
     for (auto em : {ElementModel::Linear, ElementModel::Corotational}) {
         Model m = buildModel(box, Material{}, em);
@@ -161,7 +159,8 @@ TEST(Forces, BlockKernelMatchesPerElementFormula) {
                 EXPECT_LT((s.fe.col(e).segment<3>(3 + 3 * a) - P.col(a)).norm(), 1e-12 * fmax) << "element " << e;
             EXPECT_LT((s.fe.col(e).head<3>() + P.rowwise().sum()).norm(), 1e-12 * fmax) << "element " << e;
             if (em == ElementModel::Corotational) {
-                EXPECT_LT((Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()) - R).norm(), 1e-12) << "element " << e;
+                EXPECT_LT((Eigen::Map<const Eigen::Matrix3d>(s.rot.col(e).data()) - R).norm(), 1e-12)
+                    << "element " << e;
             }
         }
         EXPECT_GE(inverted, 1);
@@ -248,51 +247,53 @@ TEST(Forces, SinglePrecisionKernelMatchesDouble) {
 // allRotations only elements near flat store their rotation; with it, all do.
 TEST(Forces, ForceStageIsBitwiseTheGatherOnAnyThreads) {
     for (int nz : {6, 10})
-    for (auto precision : {ForcePrecision::Double, ForcePrecision::Single}) {
-        const int nxy = nz == 6 ? 16 : 24;
-        Model m = buildModel(test::boxMesh(1, 1, 0.25, nxy, nxy, nz), Material{});
-        m.precision = precision;
-        ASSERT_GE(m.elements(), 9000);
-        m.gravity << 0, 0, -9.81;
-        std::mt19937 rng(11);
-        std::uniform_real_distribution<double> U(-1, 1);
-        State s0 = makeState(m);
-        const double h = std::min(1.0 / nxy, 0.25 / nz);
-        for (int i = 0; i < m.nodes(); ++i) s0.x.col(i) += 0.15 * h * Eigen::Vector3d(U(rng), U(rng), U(rng));
-        s0.x.col(m.tets(0, 100)) = s0.x.col(m.tets(1, 100));  // flattens element 100 (and bends its neighbours)
-        s0.fExt.setRandom();
-        State ref = s0;
-        elementForces(m, ref, nullptr, 0, m.elements(), nullptr);
-        gatherForces(m, ref, 0, m.nodes());
-        for (int threads : {1, 2}) {
-            setThreads(threads);
-            for (bool all : {false, true}) {
-                State s = s0;
-                s.rot.setConstant(7.0);  // not a rotation: shows which were written
-                computeForces(m, s, nullptr, 0, all);
-                EXPECT_EQ((s.f - ref.f).cwiseAbs().maxCoeff(), 0.0) << m.elements() << " tets, " << threads << " threads";
-                int written = 0;
-                for (int e = 0; e < m.elements(); ++e) {
-                    const bool w = s.rot(0, e) != 7.0;
-                    written += w;
-                    if (w) {
-                        EXPECT_EQ(s.rot.col(e), ref.rot.col(e)) << "element " << e;
+        for (auto precision : {ForcePrecision::Double, ForcePrecision::Single}) {
+            const int nxy = nz == 6 ? 16 : 24;
+            Model m = buildModel(test::boxMesh(1, 1, 0.25, nxy, nxy, nz), Material{});
+            m.precision = precision;
+            ASSERT_GE(m.elements(), 9000);
+            m.gravity << 0, 0, -9.81;
+            std::mt19937 rng(11);
+            std::uniform_real_distribution<double> U(-1, 1);
+            State s0 = makeState(m);
+            const double h = std::min(1.0 / nxy, 0.25 / nz);
+            for (int i = 0; i < m.nodes(); ++i) s0.x.col(i) += 0.15 * h * Eigen::Vector3d(U(rng), U(rng), U(rng));
+            s0.x.col(m.tets(0, 100)) = s0.x.col(m.tets(1, 100));  // flattens element 100 (and bends its neighbours)
+            s0.fExt.setRandom();
+            State ref = s0;
+            elementForces(m, ref, nullptr, 0, m.elements(), nullptr);
+            gatherForces(m, ref, 0, m.nodes());
+            for (int threads : {1, 2}) {
+                setThreads(threads);
+                for (bool all : {false, true}) {
+                    State s = s0;
+                    s.rot.setConstant(7.0);  // not a rotation: shows which were written
+                    computeForces(m, s, nullptr, 0, all);
+                    EXPECT_EQ((s.f - ref.f).cwiseAbs().maxCoeff(), 0.0)
+                        << m.elements() << " tets, " << threads << " threads";
+                    int written = 0;
+                    for (int e = 0; e < m.elements(); ++e) {
+                        const bool w = s.rot(0, e) != 7.0;
+                        written += w;
+                        if (w) {
+                            EXPECT_EQ(s.rot.col(e), ref.rot.col(e)) << "element " << e;
+                        }
+                        const int* n = m.tets.col(e).data();
+                        Eigen::Matrix3d Ds;
+                        Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]),
+                            s.x.col(n[3]) - s.x.col(n[0]);
+                        if ((Ds * m.dmInv(e)).determinant() < 0.01) {
+                            EXPECT_TRUE(w) << "element " << e << " is near flat";
+                        }
                     }
-                    const int* n = m.tets.col(e).data();
-                    Eigen::Matrix3d Ds;
-                    Ds << s.x.col(n[1]) - s.x.col(n[0]), s.x.col(n[2]) - s.x.col(n[0]), s.x.col(n[3]) - s.x.col(n[0]);
-                    if ((Ds * m.dmInv(e)).determinant() < 0.01) {
-                        EXPECT_TRUE(w) << "element " << e << " is near flat";
+                    if (all) {
+                        EXPECT_EQ(written, m.elements());
+                    } else {
+                        EXPECT_LT(written, m.elements() / 100) << "the others' rotations are not stored";
                     }
-                }
-                if (all) {
-                    EXPECT_EQ(written, m.elements());
-                } else {
-                    EXPECT_LT(written, m.elements() / 100) << "the others' rotations are not stored";
                 }
             }
         }
-    }
     setThreads(0);
 }
 
@@ -304,7 +305,7 @@ TEST(Forces, InvertedTetRecovers) {
         TetMesh t = test::unitTet();
         t.X *= 0.01;
         Model m = buildModel(t, Material{});
-        m.massDamping = 200;   // [1/s]: decays e^-20 over the 0.2 s run
+        m.massDamping = 200;  // [1/s]: decays e^-20 over the 0.2 s run
         fixNodes(m, {0, 1, 2});
         State s = makeState(m);
         s.x.col(3) << 0.003, 0.002, -depth * 0.01;
@@ -393,7 +394,10 @@ TEST_P(StabilityLimit, BoundedBelowDivergentAbove) {
         for (int k = 0; k < 10000; ++k) {
             stepper.step(m, s, opt);
             const double E = kineticEnergy(m, s) + elasticEnergy(m, s);
-            if (!std::isfinite(E) || E > 1e6 * E0) { Emax = E; break; }
+            if (!std::isfinite(E) || E > 1e6 * E0) {
+                Emax = E;
+                break;
+            }
             Emax = std::max(Emax, E);
             if (k < 1000) EmaxEarly = Emax;
         }
@@ -443,7 +447,10 @@ double meanTipDeflection(const Model& m, const Eigen::Matrix3Xd& x) {
     double sum = 0;
     int n = 0;
     for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) > 1.0 - 1e-9) { sum += x(2, i) - m.X(2, i); ++n; }
+        if (m.X(0, i) > 1.0 - 1e-9) {
+            sum += x(2, i) - m.X(2, i);
+            ++n;
+        }
     return sum / n;
 }
 
@@ -473,7 +480,7 @@ Eigen::Matrix3Xd staticSolve(const Model& m) {
             if (map[3 * i + k] >= 0) x(k, i) += u(map[3 * i + k]);
     return x;
 }
-} // namespace
+}  // namespace
 
 // Static tip deflection against Euler-Bernoulli q L^4 / (8 E I) plus Timoshenko shear
 // q L^2 / (2 kappa G A), kappa = 5/6: the 3D solution on a fine mesh is within a few percent.

@@ -30,7 +30,8 @@ TEST(Forces, InvertedRotationIsTheInvertibleFemOne) {
         EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
         const Eigen::Matrix3d S = R.transpose() * F;
         ASSERT_LT((S - S.transpose()).norm(), 1e-9 * F.norm()) << "not stationary, F =\n" << F;
-        const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(0.5 * (S + S.transpose())).eigenvalues();
+        const Eigen::Vector3d ev =
+            Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(0.5 * (S + S.transpose())).eigenvalues();
         EXPECT_LT(ev[0], 0);  // ascending: det F < 0 leaves exactly one negative
         EXPECT_GT(ev[1], 0);
         EXPECT_LE(-ev[0], ev[1] + 1e-12) << "a saddle of tr(R^T F), F =\n" << F;

@@ -25,7 +25,7 @@ double smallestStretchOf(const Model& m, const State& s, int e) {
     return F.determinant() < 0 ? -s3 : s3;
 }
 
-} // namespace
+}  // namespace
 
 // Stretch limiting by hand: three corners clamped on z = 0, the fourth pushed straight down
 // through the face to z = -0.3 h. F = diag(1, 1, z / h). Inverted, det F = z / h is projected to
@@ -96,7 +96,7 @@ TEST(Forces, StretchLimitStopsInversion) {
         int inverted = 0, limited = 0;
         double smallest = 1;
         for (int k = 0; k < 4000; ++k) {
-            s.fExt.col(3) << 0, 0, -5.0 * std::min(1.0, k / 2000.0);   // [N]
+            s.fExt.col(3) << 0, 0, -5.0 * std::min(1.0, k / 2000.0);  // [N]
             st.step(m, s, opt);
             inverted += s.flags.inverted > 0;
             limited += s.flags.limited > 0;

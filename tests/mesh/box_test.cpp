@@ -63,7 +63,7 @@ std::set<std::array<int, 4>> reflectedTets(const TetMesh& m, int nx, int ny, int
     return out;
 }
 
-} // namespace
+}  // namespace
 
 // The mirrored split is conforming (its boundary is the Kuhn split's count of triangles, so no
 // interior face is unmatched), positive, exact in volume, and with even counts it maps onto itself

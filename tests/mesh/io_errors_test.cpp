@@ -54,7 +54,7 @@ std::string msh22(const std::string& elements, int count = 2) {
            std::to_string(count) + "\n" + elements + "$EndElements\n";
 }
 
-} // namespace
+}  // namespace
 
 TEST(MeshIoErrors, InvertedTetRejectedOrReoriented) {
     const std::string path = test::data("broken/sofa_6_tetra_bad.msh");
@@ -142,7 +142,7 @@ TEST(MeshIoErrors, NodeIndexOutOfRange) {
     EXPECT_HAS(msg, "node id 9");
 
     const std::string v1 = writeText(dir + "/range_v1.msh", "$NOD\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$ENDNOD\n"
-                                                           "$ELM\n1\n1 4 1 1 4 1 2 3 0\n$ENDELM\n");
+                                                            "$ELM\n1\n1 4 1 1 4 1 2 3 0\n$ENDELM\n");
     EXPECT_HAS(tetError(v1), at(v1, 10));
 
     const std::string me = writeText(dir + "/range.mesh", "MeshVersionFormatted 1\nDimension 3\nVertices\n4\n0 0 0 0\n"

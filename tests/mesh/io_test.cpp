@@ -25,10 +25,10 @@ int unreferenced(const SurfaceMesh& s) {
 
 // The unit corner tet and the regular tet on its slanted face: volumes 1/6 + 1/3.
 // Node ids 10, 20, 30, 40, 50 (not contiguous) in file order.
-const Eigen::Matrix<double, 3, 5> kTwoTetX = (Eigen::Matrix<double, 3, 5>() << 0, 1, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 1)
-                                                 .finished();
+const Eigen::Matrix<double, 3, 5> kTwoTetX =
+    (Eigen::Matrix<double, 3, 5>() << 0, 1, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 0, 1, 1).finished();
 
-} // namespace
+}  // namespace
 
 // ---- Gmsh ----
 

@@ -33,7 +33,8 @@ int pngsIn(const std::string& dir) {
     return n;
 }
 
-const std::string kSmall = " --quiet --set duration=0.2 --set capture.width=64 --set capture.height=48 --set capture.video=false";
+const std::string kSmall =
+    " --quiet --set duration=0.2 --set capture.width=64 --set capture.height=48 --set capture.video=false";
 
 TEST(Capture, PngEveryTwoWritesEveryOtherFrame) {
     const std::string out = outDir("every2");
@@ -44,7 +45,7 @@ TEST(Capture, PngEveryTwoWritesEveryOtherFrame) {
               0)
         << err;
     const int frames = framesOf(out);
-    ASSERT_GE(frames, 7); // t = 0, 1/30, ..., 6/30 and the last state
+    ASSERT_GE(frames, 7);  // t = 0, 1/30, ..., 6/30 and the last state
     EXPECT_EQ(pngsIn(out + "/frames"), (frames + 1) / 2);
     EXPECT_TRUE(fs::exists(out + "/frames/frame_000000.png"));
     EXPECT_FALSE(fs::exists(out + "/frames/frame_000001.png"));
@@ -65,5 +66,5 @@ TEST(Capture, PngEveryZeroWritesNoPng) {
     EXPECT_EQ(fs::exists(out + "/frames") ? pngsIn(out + "/frames") : 0, 0);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -89,4 +89,4 @@ inline void expectGolden(const std::string& scene, const render::Image& img, con
     }
 }
 
-} // namespace cutsim::test
+}  // namespace cutsim::test

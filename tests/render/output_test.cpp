@@ -53,7 +53,8 @@ TEST(RenderOutput, BackgroundWriterWritesEveryFrame) {
     for (int i = 0; i < 10; ++i) w.push(dir + "/f" + std::to_string(i) + ".png", pattern(40, 30, i));
     w.flush();
     EXPECT_EQ(w.written(), 10u);
-    for (int i = 0; i < 10; ++i) EXPECT_EQ(render::readPng(dir + "/f" + std::to_string(i) + ".png").rgba, pattern(40, 30, i).rgba);
+    for (int i = 0; i < 10; ++i)
+        EXPECT_EQ(render::readPng(dir + "/f" + std::to_string(i) + ".png").rgba, pattern(40, 30, i).rgba);
 }
 
 TEST(RenderOutput, BackgroundWriterReportsErrors) {
@@ -61,7 +62,7 @@ TEST(RenderOutput, BackgroundWriterReportsErrors) {
     render::PngWriter w(2);
     w.push(dir + "/missing/a.png", pattern(4, 4, 0));
     EXPECT_THROW(w.flush(), std::runtime_error);
-    w.push(dir + "/ok.png", pattern(4, 4, 0)); // the writer keeps working after an error
+    w.push(dir + "/ok.png", pattern(4, 4, 0));  // the writer keeps working after an error
     w.flush();
     EXPECT_TRUE(std::filesystem::exists(dir + "/ok.png"));
 }
@@ -92,7 +93,7 @@ TEST(RenderOutput, VideoEncodes) {
     const std::string dir = test::tempDir();
     render::VideoEncoder enc(dir + "/v.mp4", 64, 48, 30);
     for (int i = 0; i < 15; ++i) enc.addFrame(pattern(64, 48, i));
-    EXPECT_FALSE(std::filesystem::exists(dir + "/v.mp4")); // only the temporary file so far
+    EXPECT_FALSE(std::filesystem::exists(dir + "/v.mp4"));  // only the temporary file so far
     enc.finish();
     EXPECT_EQ(enc.frames(), 15);
     EXPECT_GT(std::filesystem::file_size(dir + "/v.mp4"), 100u);
@@ -100,5 +101,5 @@ TEST(RenderOutput, VideoEncodes) {
     EXPECT_THROW(render::VideoEncoder(dir + "/odd.mp4", 63, 48, 30), std::runtime_error);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

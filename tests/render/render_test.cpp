@@ -110,8 +110,9 @@ TEST(Render, ControlPointColourIsExact) {
         ColorMapKind kind;
         int point;
     };
-    for (Case c : {Case{ColorMapKind::Sequential, 0}, Case{ColorMapKind::Sequential, 2}, Case{ColorMapKind::Sequential, 8},
-                   Case{ColorMapKind::Diverging, 1}, Case{ColorMapKind::Diverging, 2}}) {
+    for (Case c :
+         {Case{ColorMapKind::Sequential, 0}, Case{ColorMapKind::Sequential, 2}, Case{ColorMapKind::Sequential, 8},
+          Case{ColorMapKind::Diverging, 1}, Case{ColorMapKind::Diverging, 2}}) {
         auto table = render::colorMapTable(c.kind);
         const double n = double(table.size() - 1);
         // Range [0, n]: value = index, so t * (n - 1) is an exact integer in float.
@@ -134,12 +135,13 @@ TEST(Render, LegendBarPixel) {
     o.floor = false;
     Renderer r(o);
     RenderSnapshot s = screenQuad(0.5, 0, 1, false);
-    s.positions *= 0.001; // quad far from the legend's corner of the screen... and tiny
+    s.positions *= 0.001;  // quad far from the legend's corner of the screen... and tiny
     s.scalarName = "value";
     const Image img = r.render(s);
     const render::PixelRect rect = r.legendRect();
     const int x = int(0.5f * (rect.x0 + rect.x1));
-    for (int y : {int(rect.y0) + 3, int(0.5f * (rect.y0 + rect.y1)), int(rect.y1) - 3, int(rect.y0 + 0.3f * (rect.y1 - rect.y0))}) {
+    for (int y : {int(rect.y0) + 3, int(0.5f * (rect.y0 + rect.y1)), int(rect.y1) - 3,
+                  int(rect.y0 + 0.3f * (rect.y1 - rect.y0))}) {
         const double t = (rect.y1 - (y + 0.5)) / (rect.y1 - rect.y0);
         const auto want = render::colorMapLookup(ColorMapKind::Sequential, t);
         auto p = img.pixel(x, y);
@@ -300,5 +302,5 @@ TEST(RenderGolden, LiverSaggingWithHud) {
     test::expectGolden("liver_sag", r.render(ms.snap), {8, 0.02});
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

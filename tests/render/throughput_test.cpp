@@ -23,7 +23,8 @@ RenderSnapshot bumpySphere(int nu, int nv) {
         for (int i = 0; i < nu; ++i) {
             const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
             const double r = 0.05 * (1 + 0.08 * std::sin(5 * ph) * std::sin(4 * th));
-            s.positions.col(j * nu + i) << r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th);
+            s.positions.col(j * nu + i) << r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph),
+                r * std::cos(th);
             s.scalar[j * nu + i] = std::cos(th);
         }
     s.triangles.resize(3, 2 * nu * nv);
@@ -43,10 +44,10 @@ RenderSnapshot bumpySphere(int nu, int nv) {
 
 TEST(RenderThroughput, DISABLED_Frames1280x720) {
     const RenderSnapshot s = bumpySphere(100, 100);
-    render::RenderOptions o; // 1280 x 720, 4x MSAA
+    render::RenderOptions o;  // 1280 x 720, 4x MSAA
     o.hud = true;
     render::Renderer r(o);
-    r.render(s); // warm up: shader compile, first ImGui frame
+    r.render(s);  // warm up: shader compile, first ImGui frame
     using clock = std::chrono::steady_clock;
     const int n = 30;
     auto t0 = clock::now();
@@ -59,10 +60,10 @@ TEST(RenderThroughput, DISABLED_Frames1280x720) {
     const int np = 10;
     for (int i = 0; i < np; ++i) render::writePng(dir + "/throughput.png", img);
     const double pngFps = np / std::chrono::duration<double>(clock::now() - t0).count();
-    std::printf("renderer %s, %d triangles at %dx%d, %d samples\n", r.context().renderer().c_str(), s.faces(),
-                o.width, o.height, r.samples());
+    std::printf("renderer %s, %d triangles at %dx%d, %d samples\n", r.context().renderer().c_str(), s.faces(), o.width,
+                o.height, r.samples());
     std::printf("render+readback %.1f frames/s, PNG encode+write %.1f frames/s\n", renderFps, pngFps);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

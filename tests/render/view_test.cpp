@@ -34,8 +34,8 @@ TEST(View, HeadlessFramesWriteAScreenshotOfTheScene) {
     const std::string dir = test::tempDir();
     const std::string png = dir + "/out.png";
     std::string err;
-    const int code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " +
-                               test::source("assets/scenes/bar_sag.json") + " --frames 5 --width 960 --height 540 --screenshot " + png,
+    const int code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/bar_sag.json") +
+                               " --frames 5 --width 960 --height 540 --screenshot " + png,
                            dir, &err);
     ASSERT_EQ(code, 0) << err;
     ASSERT_TRUE(std::filesystem::exists(png)) << err;
@@ -69,10 +69,10 @@ TEST(View, ScriptedCutsShowTheirFaces) {
     auto redPixels = [&](int frames) {
         const std::string png = dir + "/cut_" + std::to_string(frames) + ".png";
         std::string err;
-        const int code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " +
-                                   test::source("assets/scenes/liver_cuts.json") + " --frames " + std::to_string(frames) +
-                                   " --width 960 --height 540 --screenshot " + png,
-                               dir, &err);
+        const int code =
+            shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/liver_cuts.json") +
+                      " --frames " + std::to_string(frames) + " --width 960 --height 540 --screenshot " + png,
+                  dir, &err);
         EXPECT_EQ(code, 0) << err;
         const render::Image img = render::readPng(png);
         int red = 0;
@@ -83,9 +83,9 @@ TEST(View, ScriptedCutsShowTheirFaces) {
             }
         return red;
     };
-    EXPECT_EQ(redPixels(3), 0);      // t = 0.1 s: no cut yet
-    EXPECT_GT(redPixels(26), 100);   // t = 0.87 s: four cuts made (measured 165: the last cut's two
-                                     // free pieces below one element are fused back, not falling)
+    EXPECT_EQ(redPixels(3), 0);     // t = 0.1 s: no cut yet
+    EXPECT_GT(redPixels(26), 100);  // t = 0.87 s: four cuts made (measured 165: the last cut's two
+                                    // free pieces below one element are fused back, not falling)
 }
 
 // A blade cuts in the live view as in `cutsim run`: blade.json's stroke has not reached the liver at
@@ -97,9 +97,10 @@ TEST(View, BladeCutsAsItMoves) {
     auto run = [&](int frames, int* red) {
         const std::string png = dir + "/blade_" + std::to_string(frames) + ".png";
         std::string err;
-        const int code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") +
-                                   " --frames " + std::to_string(frames) + " --width 960 --height 540 --screenshot " + png,
-                               dir, &err);
+        const int code =
+            shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") +
+                      " --frames " + std::to_string(frames) + " --width 960 --height 540 --screenshot " + png,
+                  dir, &err);
         EXPECT_EQ(code, 0) << err;
         const render::Image img = render::readPng(png);
         *red = 0;
@@ -137,8 +138,8 @@ TEST(View, ToolPressesAndHoldsWhereTheMouseLeavesIt) {
         EXPECT_NE(at, std::string::npos) << out;
         return at == std::string::npos ? -1.0 : std::strtod(out.c_str() + at + 5, nullptr);
     };
-    EXPECT_EQ(maxForce(20, "--tool-at 0 0.5 0"), 0.0);   // held above: no contact at all
-    EXPECT_EQ(maxForce(3, ""), 0.0);                     // t = 0.1 s: keyframed probe still above
+    EXPECT_EQ(maxForce(20, "--tool-at 0 0.5 0"), 0.0);  // held above: no contact at all
+    EXPECT_EQ(maxForce(3, ""), 0.0);                    // t = 0.1 s: keyframed probe still above
     EXPECT_GT(maxForce(3, "--tool-at 0 0.125 0.008"), 0.1);
 }
 
@@ -153,13 +154,15 @@ TEST(View, RunAndViewTakeTheSameSteps) {
         " --threads 1 --set 'cutting.cuts=[{\"time\":0.25,\"point\":[-0.085,0.06,0.0],\"normal\":[1,0,0.15]},"
         "{\"time\":0.6,\"point\":[-0.045,0.06,0.0],\"normal\":[1,0.1,0]}]' ";
     std::string err;
-    int code = shell(std::string(CUTSIM_BINARY) + " run " + test::source("assets/scenes/blade.json") + " --no-render --quiet --out " +
-                         dir + "/run" + sets + "--set duration=" + std::to_string(frames / 30.0),
+    int code = shell(std::string(CUTSIM_BINARY) + " run " + test::source("assets/scenes/blade.json") +
+                         " --no-render --quiet --out " + dir + "/run" + sets +
+                         "--set duration=" + std::to_string(frames / 30.0),
                      dir, &err);
     ASSERT_EQ(code, 0) << err;
-    code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") + " --frames " +
-                     std::to_string(frames) + " --width 320 --height 180 --report " + dir + "/view.json" + sets,
-                 dir, &err);
+    code =
+        shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") + " --frames " +
+                  std::to_string(frames) + " --width 320 --height 180 --report " + dir + "/view.json" + sets,
+              dir, &err);
     ASSERT_EQ(code, 0) << err;
     const auto run = nlohmann::json::parse(test::readText(dir + "/run/report.json"));
     const auto view = nlohmann::json::parse(test::readText(dir + "/view.json"));
@@ -183,9 +186,10 @@ TEST(View, RunAndViewTakeTheSameSteps) {
 TEST(View, WithoutADisplayExitsWithAClearMessage) {
     const std::string dir = test::tempDir();
     std::string err;
-    const int code = shell("env -u DISPLAY -u WAYLAND_DISPLAY " + std::string(CUTSIM_BINARY) + " view " +
-                               test::source("assets/scenes/bar_sag.json") + " --frames 1 --screenshot " + dir + "/x.png",
-                           dir, &err);
+    const int code =
+        shell("env -u DISPLAY -u WAYLAND_DISPLAY " + std::string(CUTSIM_BINARY) + " view " +
+                  test::source("assets/scenes/bar_sag.json") + " --frames 1 --screenshot " + dir + "/x.png",
+              dir, &err);
     EXPECT_EQ(code, 5) << err;  // ExitCode::NoDisplay
     EXPECT_NE(err.find("display"), std::string::npos) << err;
     EXPECT_NE(err.find("DISPLAY is not set"), std::string::npos) << err;
@@ -200,5 +204,5 @@ TEST(View, BadSceneIsAnInputError) {
     EXPECT_NE(err.find("missing.json"), std::string::npos) << err;
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -126,5 +126,5 @@ TEST(Simulation, ThreadCountDoesNotChangeTheState) {
     EXPECT_EQ(hashes[0], hashes[2]);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -45,10 +45,10 @@ TEST(StepPolicy, AboveTheExactLimit) {
     EXPECT_DOUBLE_EQ(refused.dt, 1.045e-3);  // the step that was asked, for the message
     const StepChoice clamped = chooseStep(fraction(0.95, LimitOf::Estimate, OnLimit::Clamp), kLimits, true);
     EXPECT_EQ(clamped.action, LimitAction::Clamped);
-    EXPECT_DOUBLE_EQ(clamped.dt, 0.98e-3);   // kClampFraction of the exact limit
+    EXPECT_DOUBLE_EQ(clamped.dt, 0.98e-3);  // kClampFraction of the exact limit
     const StepChoice damped = chooseStep(fraction(0.95, LimitOf::Estimate, OnLimit::Damp), kLimits, true);
     EXPECT_EQ(damped.action, LimitAction::Damped);
-    EXPECT_DOUBLE_EQ(damped.dt, 1.045e-3);   // kept; the elements below it are damped
+    EXPECT_DOUBLE_EQ(damped.dt, 1.045e-3);  // kept; the elements below it are damped
 }
 
 TEST(StepPolicy, FixedStep) {
@@ -83,11 +83,12 @@ TEST(StepPolicy, FractionFollowsTheLimitThroughCuts) {
 }
 
 TEST(StepPolicy, NamesRoundTrip) {
-    for (LimitOf l : {LimitOf::Exact, LimitOf::Certified, LimitOf::Estimate}) EXPECT_EQ(parseLimitOf(limitOfName(l)), l);
+    for (LimitOf l : {LimitOf::Exact, LimitOf::Certified, LimitOf::Estimate})
+        EXPECT_EQ(parseLimitOf(limitOfName(l)), l);
     for (OnLimit o : {OnLimit::Refuse, OnLimit::Clamp, OnLimit::Damp}) EXPECT_EQ(parseOnLimit(onLimitName(o)), o);
     EXPECT_THROW(parseOnLimit("ignore"), InputError);
     EXPECT_STREQ(limitActionName(LimitAction::Clamped), "clamped");
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

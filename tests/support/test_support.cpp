@@ -33,9 +33,7 @@ std::string tempDir() {
 TetMesh unitTet() {
     TetMesh m;
     m.X.resize(3, 4);
-    m.X << 0, 1, 0, 0,
-           0, 0, 1, 0,
-           0, 0, 0, 1;
+    m.X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
     m.tets.resize(4, 1);
     m.tets << 0, 1, 2, 3;
     return m;
@@ -90,4 +88,4 @@ void fixBelow(Model& m, int axis, double value) {
     fixNodes(m, nodes);
 }
 
-} // namespace cutsim::test
+}  // namespace cutsim::test

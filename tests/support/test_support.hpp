@@ -36,4 +36,4 @@ void fixBelow(Model& m, int axis, double value);
 // Runs the cutsim executable with the given arguments; returns its exit code, fills out/err.
 int runCutsim(const std::string& args, std::string* out = nullptr, std::string* err = nullptr);
 
-} // namespace cutsim::test
+}  // namespace cutsim::test

@@ -106,5 +106,5 @@ TEST(TimestepAnalyzer, SummaryAndCorrelations) {
     for (const auto& [name, r] : corr) EXPECT_TRUE(std::isnan(r) || std::abs(r) <= 1 + 1e-12) << name;
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -14,8 +14,8 @@ namespace {
 TEST(CmdDt, JsonHoldsTheContractKeysAndTable43Values) {
     std::string out, err;
     const std::string vtu = test::tempDir() + "/liver_dt.vtu";
-    const int code = test::runCutsim("dt " + test::data("tet/sofa_liver.msh") + " --scale 0.0254 --json --worst 3 --vtu " + vtu,
-                                     &out, &err);
+    const int code = test::runCutsim(
+        "dt " + test::data("tet/sofa_liver.msh") + " --scale 0.0254 --json --worst 3 --vtu " + vtu, &out, &err);
     ASSERT_EQ(code, 0) << err;
     const nlohmann::json j = nlohmann::json::parse(out);
     for (const char* key : {"nodes", "tets", "dt_exact", "dt_certified", "dt_r1r", "dt_hs", "dt_hp", "dt_le",
@@ -44,9 +44,12 @@ TEST(CmdDt, JsonHoldsTheContractKeysAndTable43Values) {
 
 TEST(CmdDt, TableIsReadable) {
     std::string out, err;
-    ASSERT_EQ(test::runCutsim("dt " + test::data("tet/sofa_Armadillo_Tetra_4406.vtu") + " --scale 0.01 --worst 4", &out, &err), 0)
+    ASSERT_EQ(test::runCutsim("dt " + test::data("tet/sofa_Armadillo_Tetra_4406.vtu") + " --scale 0.01 --worst 4", &out,
+                              &err),
+              0)
         << err;
-    for (const char* s : {"nodes:", "tets:", "exact", "certified", "R1R", "Hs", "Hp", "Le", "element", "mean_ratio", "worst"})
+    for (const char* s :
+         {"nodes:", "tets:", "exact", "certified", "R1R", "Hs", "Hp", "Le", "element", "mean_ratio", "worst"})
         EXPECT_NE(out.find(s), std::string::npos) << s;
 }
 
@@ -62,5 +65,5 @@ TEST(CmdDt, BadInputExitsWithCodeTwoAndAMessage) {
     EXPECT_NE(err.find("error: material"), std::string::npos) << err;
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim

@@ -26,8 +26,8 @@ using test::denseLambdaMax;
 TetMesh regularTet(double a) {
     TetMesh t;
     t.X.resize(3, 4);
-    t.X << 0, a, a / 2, a / 2,                                      //
-        0, 0, a * std::sqrt(3.0) / 2, a * std::sqrt(3.0) / 6,       //
+    t.X << 0, a, a / 2, a / 2,                                 //
+        0, 0, a * std::sqrt(3.0) / 2, a * std::sqrt(3.0) / 6,  //
         0, 0, 0, a * std::sqrt(2.0 / 3.0);
     t.tets.resize(4, 1);
     t.tets << 0, 1, 2, 3;
@@ -397,13 +397,11 @@ TEST_P(ThesisTable43, EstimatorsMatchWithinHalfAPercent) {
     EXPECT_PRED2(within, minOf(est.le) * 1e3, row.le);
 }
 
-INSTANTIATE_TEST_SUITE_P(Meshes, ThesisTable43,
-                         ::testing::Values(Table43{"tet/sofa_liver.msh", 0.0254, 0.4510, 0.4514, 0.4189, 0.4838, 0.1630},
-                                           Table43{"tet/sofa_Armadillo_Tetra_4406.vtu", 0.01, 0.0642, 0.0642, 0.0879,
-                                                   0.1025, 0.0061}),
-                         [](const ::testing::TestParamInfo<Table43>& p) {
-                             return std::string(p.index == 0 ? "liver" : "armadillo");
-                         });
+INSTANTIATE_TEST_SUITE_P(
+    Meshes, ThesisTable43,
+    ::testing::Values(Table43{"tet/sofa_liver.msh", 0.0254, 0.4510, 0.4514, 0.4189, 0.4838, 0.1630},
+                      Table43{"tet/sofa_Armadillo_Tetra_4406.vtu", 0.01, 0.0642, 0.0642, 0.0879, 0.1025, 0.0061}),
+    [](const ::testing::TestParamInfo<Table43>& p) { return std::string(p.index == 0 ? "liver" : "armadillo"); });
 
 TEST(Shape, RegularTetScoresOne) {
     Eigen::Matrix<double, 3, 4> X = regularTet(2.0).X;
@@ -450,7 +448,8 @@ TEST(ElementLambda, SixBySixMatchesTheTwelveByTwelveProblem) {
         for (int i = 0; i < 4; ++i)
             for (int k = 0; k < 3; ++k) mesh.X(k, i) += 0.01 * u(rng);
         const Eigen::Matrix3d E = (Eigen::Matrix3d() << mesh.X.col(1) - mesh.X.col(0), mesh.X.col(2) - mesh.X.col(0),
-                                   mesh.X.col(3) - mesh.X.col(0)).finished();
+                                   mesh.X.col(3) - mesh.X.col(0))
+                                      .finished();
         if (!(E.determinant() > 1e-3 * 1e-6)) continue;  // keep distorted, not inverted
         Model m = buildModel(mesh, Material{});
         for (int i = 0; i < t % 4; ++i) m.fixed[static_cast<size_t>(i)] = 1;
@@ -469,5 +468,5 @@ TEST(ElementLambda, SixBySixMatchesTheTwelveByTwelveProblem) {
     EXPECT_GE(checked, 30);
 }
 
-} // namespace
-} // namespace cutsim
+}  // namespace
+}  // namespace cutsim
