@@ -14,6 +14,7 @@
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/timestep.hpp"
+#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
@@ -906,7 +907,7 @@ int runAccuracy(const AccuracyArgs& a) {
     if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
     if (!a.plot.empty()) plotPoints(pts, a.plot);
     if (a.json) {
-        std::cout << j.dump(2) << "\n";
+        std::cout << jsonText(j);
         return 0;
     }
     std::printf("%-26s %-42s %12s %14s %12s %6s %11s %11s %11s\n", "problem", "config", "error", "wall/sim [s/s]",
@@ -1224,7 +1225,7 @@ int runStability(const StabilityArgs& a) {
                         "drift (last tenth - first tenth)/E0 = %.3e\n",
                         models[0].name.c_str(), n, maxDev, drift);
     }
-    if (a.json) std::cout << j.dump(2) << "\n";
+    if (a.json) std::cout << jsonText(j);
     return 0;
 }
 
@@ -1303,7 +1304,7 @@ int runStep(const StepArgs& a) {
             }
     }
     setThreads(0);
-    if (a.json) std::cout << j.dump(2) << "\n";
+    if (a.json) std::cout << jsonText(j);
     return 0;
 }
 
@@ -1365,7 +1366,7 @@ int runCost(const CostArgs& a) {
                                  {"stage_seconds_per_step", perStep}});
     }
     if (a.json) {
-        std::cout << j.dump(2) << "\n";
+        std::cout << jsonText(j);
         return 0;
     }
     std::printf("scene %s (no rendering)\n%-20s %8s %10s", a.scene.c_str(), "variant", "steps", "wall [s]");

@@ -24,6 +24,7 @@
 #include "cut/baselines.hpp"
 #include "embed/mi.hpp"
 #include "timestep/timestep.hpp"
+#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -134,7 +135,7 @@ int runSweep(const MiBarArgs& a) {
     const double dtUncut = exactDtOf(barMesh(bo), a.material);
     const std::vector<Row> rows = measureRows(a, kept, false);
     if (a.json) {
-        std::cout << rowsJson(rows).dump(2) << "\n";
+        std::cout << jsonText(rowsJson(rows));
         return 0;
     }
     std::printf("cut through lattice cell %d along the bar (h = %.4g mm) at %d positions; dt / uncut (%.4f ms)\n", cell,
@@ -191,7 +192,7 @@ int runMiBar(const MiBarArgs& a) {
             }
 
         if (a.json) {
-            std::cout << rowsJson(rows).dump(2) << "\n";
+            std::cout << jsonText(rowsJson(rows));
             return 0;
         }
 

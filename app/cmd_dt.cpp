@@ -8,6 +8,7 @@
 #include "timestep/analyzer.hpp"
 #include "timestep/quality.hpp"
 #include "timestep/timestep.hpp"
+#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -116,7 +117,7 @@ int runDt(const DtArgs& a) {
         }
 
         if (a.json) {
-            std::cout << j.dump(2) << "\n";
+            std::cout << jsonText(j);
             return 0;
         }
         auto row = [&](const char* name, double dt, double seconds) {

@@ -2,6 +2,7 @@
 #include "commands.hpp"
 
 #include "mesh/io.hpp"
+#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -97,7 +98,7 @@ int runMesh(const MeshArgs& a) {
         j["bbox_max"] = {hi.x(), hi.y(), hi.z()};
 
         if (a.json) {
-            std::cout << j.dump(2) << "\n";
+            std::cout << jsonText(j);
         } else {
             std::cout << "mesh:                " << a.mesh << " (" << j["kind"].get<std::string>() << ")\n"
                       << "nodes:               " << j["nodes"] << "\n"

@@ -7,6 +7,7 @@
 #include "embed/winding.hpp"
 #include "mesh/io.hpp"
 #include "timestep/timestep.hpp"
+#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -47,7 +48,9 @@ int runMi(const MiArgs& a) {
         o.fixOutsideNodes = a.fixOutside;
         o.keepLatticeStep = a.keepStep;
         const MiResult r = buildMi(s, a.material, o);
-        const SurfaceCheck check = checkSurface(s);
+        SurfaceMesh cleaned = s;  // the edges and volume of the surface as MI classified it
+        cleanSurface(cleaned, 0);
+        const SurfaceCheck check = checkSurface(cleaned);
 
         t0 = WallClock::now();
         const StiffnessRows rows = assembleStiffnessRows(r.model);
@@ -61,7 +64,7 @@ int runMi(const MiArgs& a) {
         const double dtBg = a.keepStep ? r.dtLattice : exactCriticalDt(buildModel(r.lattice, a.material)).dt;
         const double tBg = a.keepStep ? 0.0 : secondsSince(t0);
 
-        const double vSurf = enclosedVolume(s), vEmb = r.embeddedVolume();
+        const double vSurf = enclosedVolume(cleaned), vEmb = r.embeddedVolume();
         nlohmann::json j;
         j["file"] = a.surface;
         j["surface"] = {{"vertices", s.vertices()},
@@ -69,7 +72,10 @@ int runMi(const MiArgs& a) {
                         {"closed", check.closed()},
                         {"open_edges", check.openEdges},
                         {"non_manifold_edges", check.nonManifoldEdges},
-                        {"misoriented_edges", check.misorientedEdges}};
+                        {"misoriented_edges", check.misorientedEdges},
+                        {"welded_vertices", r.cleanup.weldedVertices},
+                        {"dropped_duplicate_triangles", r.cleanup.duplicateFaces},
+                        {"dropped_degenerate_triangles", r.cleanup.degenerateFaces}};
         j["lattice"] = {{"h", r.h},
                         {"cells", {r.cells.x(), r.cells.y(), r.cells.z()}},
                         {"nodes", r.lattice.nodes()},
@@ -135,7 +141,7 @@ int runMi(const MiArgs& a) {
             j["written"] = a.vtu;
         }
         if (a.json) {
-            std::cout << j.dump(2) << "\n";
+            std::cout << jsonText(j);
             return 0;
         }
         std::printf("surface:   %s (%d vertices, %d triangles%s)\n", a.surface.c_str(), s.vertices(), s.faces(),
@@ -146,6 +152,10 @@ int runMi(const MiArgs& a) {
                 "           %zu refinement levels with winding numbers instead of exact clipping\n",
                 check.openEdges, check.nonManifoldEdges, check.misorientedEdges,
                 r.fractionRefined.empty() ? 0 : r.fractionRefined.size() - 1);
+        if (r.cleanup.weldedVertices + r.cleanup.total() > 0)
+            std::printf("           cleaned: %d coincident vertices welded, %d duplicate and %d degenerate triangles "
+                        "dropped\n",
+                        r.cleanup.weldedVertices, r.cleanup.duplicateFaces, r.cleanup.degenerateFaces);
         std::printf("lattice:   h = %.4g m, %d x %d x %d cells, %d nodes, %d tets (Kuhn, 6 per cube)\n", r.h,
                     r.cells.x(), r.cells.y(), r.cells.z(), r.lattice.nodes(), r.lattice.elements());
         std::printf("nodes:     %d inside, %d outside, %d boundary (lattice)\n", r.count(NodeClass::Inside),

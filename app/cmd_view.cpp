@@ -12,6 +12,7 @@
 #include "png_writer.hpp"
 #include "renderer.hpp"
 #include "window.hpp"
+#include "util/json_text.hpp"
 
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
@@ -340,7 +341,7 @@ int runView(const ViewArgs& a) {
     }
     if (!a.report.empty()) {
         const nlohmann::json report = sim->report({{"wall_time", secondsSince(start)}, {"frames", 0}, {"video", ""}});
-        writeFileAtomic(a.report, report.dump(2) + "\n");
+        writeFileAtomic(a.report, jsonText(report));
     }
     if (headless) {
         std::printf("view: t = %.4f s, %ld steps, %d cuts", sim->state().time, sim->state().steps,

@@ -2,18 +2,20 @@
 
 #include "fem/forces.hpp"
 #include "frames.hpp"
+#include "output_folder.hpp"
 #include "mesh/io.hpp"
 #include "sim/simulation.hpp"
 #include "util/atomic_file.hpp"
 #include "util/stopwatch.hpp"
+#include "util/json_text.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <unistd.h>
 
 namespace cutsim::app {
@@ -82,20 +84,12 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     so.renderSurface = capturing;
     Simulation sim(sc, so);
 
-    // Output folder: created and probed before the first step.
-    const fs::path out(opt.out);
-    std::error_code ec;
-    fs::create_directories(out, ec);
-    {
-        const fs::path probe = out / ".write_probe";
-        std::ofstream p(probe);
-        if (ec || !p) throw InputError(opt.out, 0, "output folder is not writable");
-        p.close();
-        fs::remove(probe);
-    }
+    // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
+    StagedFolder folder(opt.out);
+    const fs::path out = folder.staging();
     std::unique_ptr<FrameSink> sink;
     if (capturing)
-        sink = makeFrameSink(sc, opt.out, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+        sink = makeFrameSink(sc, out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
 
     // A frame of the state now; its render and encode time go to the run's stages.
     const Stopwatch loop;
@@ -123,7 +117,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     const double frameDt = 1.0 / sc.capture.fps;
     double nextFrame = 0;
     int drawnVersion = sim.topologyVersion();
-    while (sim.status() == RunStatus::Running && !sim.finished()) {
+    const InterruptGuard interrupt;
+    while (sim.status() == RunStatus::Running && !sim.finished() && !interrupt.signal()) {
         if (sim.state().time >= nextFrame - 1e-12) {
             frame();
             nextFrame += frameDt;
@@ -136,6 +131,21 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         }
         progress.update(sim.state().time, sim.state().steps);
     }
+    if (const int sig = interrupt.signal()) {
+        // stopped between steps: the frames so far and a report that says so, under FOLDER.incomplete
+        sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
+        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", 0}, {"video", ""}});
+        report["status"] = "interrupted";
+        report["exit_code"] = 128 + sig;
+        report["message"] = std::string("stopped by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") +
+                            " at t = " + std::to_string(sim.state().time) + " s of " + std::to_string(sc.duration) +
+                            " s";
+        writeFileAtomic((out / "report.json").string(), jsonText(report));
+        folder.keepIncomplete();
+        std::fprintf(stderr, "\n%s: interrupted at t = %.4g of %.4g s; partial outputs in %s (%s left as it was)\n",
+                     sc.name.c_str(), sim.state().time, sc.duration, folder.incomplete().c_str(), opt.out.c_str());
+        return 128 + sig;
+    }
     sim.finish();
     sim.compareCutMethods();
     const bool ok = sim.status() == RunStatus::Finished;
@@ -147,12 +157,14 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     }
     progress.update(sim.state().time, sim.state().steps, true);
 
-    // Outputs: the final mesh with per-element fields, then the report.
+    // Outputs: the final mesh with per-element fields, then the report; then the folder moves into place.
     if (sc.writeVtu && ok) writeFinalVtu(sim, (out / "final.vtu").string());
+    const bool video = sink && !sink->videoPath().empty();
     const json report = sim.report({{"wall_time", wall.seconds()},
                                     {"frames", sink ? sink->frames() : 0},
-                                    {"video", sink ? sink->videoPath() : ""}});
-    writeFileAtomic((out / "report.json").string(), report.dump(2) + "\n");
+                                    {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
+    writeFileAtomic((out / "report.json").string(), jsonText(report));
+    folder.commit();
     if (!opt.quiet || !ok)  // a failure is always said
         std::fprintf(stderr, "%s: %s, %ld steps of %.3g s (exact limit %.3g s), %.2f s wall, %d frames -> %s\n",
                      sc.name.c_str(), report["status"].get<std::string>().c_str(), sim.state().steps, sim.dt(),

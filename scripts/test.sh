@@ -1,11 +1,17 @@
 #!/usr/bin/env bash
-# Installs what is missing, builds Release, runs the unit tests, then the unit tests again
-# under AddressSanitizer + UBSan. Stress tests and benchmarks have their own commands (README).
+# Installs what is missing, builds Release, runs the unit tests, the fuzz targets briefly, then the
+# unit tests again under AddressSanitizer + UBSan. Stress tests and benchmarks have their own
+# commands (README).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 scripts/build.sh
 (cd build && ctest -LE stress --output-on-failure -j"$(nproc)" --timeout 900)
+# the libFuzzer targets (clang), a fixed number of runs each from a fixed seed
+if [ "${CUTSIM_SKIP_FUZZ:-0}" != 1 ]; then
+  scripts/fuzz.sh --build-only
+  (cd build-fuzz && ctest -L fuzz --output-on-failure -j"$(nproc)")
+fi
 if [ "${CUTSIM_SKIP_SANITIZE:-0}" != 1 ]; then
   cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUTSIM_SANITIZE=ON -DCUTSIM_BENCH=OFF >/dev/null
   cmake --build build-asan -j"$(nproc)"

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <set>
 #include <string>
 #include <utility>
 
@@ -48,6 +49,28 @@ struct Acc {
 };
 
 }  // namespace
+
+double contactPointCount(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& X,
+                         double spacing) {
+    Eigen::Matrix3Xd rest;
+    embeddedPositions(s, tets, X, rest);
+    auto pieces = [&](int a, int b) {  // as in contactPoints, in doubles: a tiny spacing must not overflow
+        return spacing > 0 ? std::max(1.0, std::ceil((rest.col(a) - rest.col(b)).norm() / spacing)) : 1.0;
+    };
+    std::set<std::pair<int, int>> edges;
+    double n = s.vertices();
+    for (int t = 0; t < s.faces(); ++t) {
+        double longest = 1;
+        for (int k = 0; k < 3; ++k) {
+            const int a = s.triangles(k, t), b = s.triangles((k + 1) % 3, t);
+            const double p = pieces(a, b);
+            longest = std::max(longest, p);
+            if (edges.insert(std::minmax(a, b)).second) n += p - 1;
+        }
+        n += (longest - 1) * (longest - 2) / 2;
+    }
+    return n;
+}
 
 ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& X,
                             double spacing) {
@@ -180,7 +203,7 @@ double stableStiffness(const ContactPoints& pts, const Model& model, double dt, 
     if (bop.info() != Spectra::CompInfo::Successful) return 0;  // rounding at dt ~ dtCrit: no headroom
     Spectra::SymGEigsSolver<Op, BOp, Spectra::GEigsMode::Cholesky> eigs(op, bop, 1, std::min(24, nf));
     eigs.init();
-    eigs.compute(Spectra::SortRule::LargestAlge, 2000, 1e-10);
+    computeEigs(eigs, "contact stiffness limit", Spectra::SortRule::LargestAlge, 2000, 1e-10);
     if (eigs.info() != Spectra::CompInfo::Successful)
         throw EigenSolveError("contact stiffness limit: Lanczos did not converge (" + std::to_string(nf) +
                               " free DOFs)");

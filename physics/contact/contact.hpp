@@ -45,6 +45,10 @@ struct ContactPoints {
     int points() const { return static_cast<int>(nodes.cols()); }
 };
 
+// How many points contactPoints would make, without making them (a bound checked up front).
+double contactPointCount(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& X,
+                         double spacing);
+
 // Surface vertices, plus points on each edge and inside each face so that neighbours are at most
 // `spacing` apart in the rest shape X (3 x nNodes) [m]; spacing <= 0: vertices only.
 ContactPoints contactPoints(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& X,

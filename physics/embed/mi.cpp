@@ -1,4 +1,5 @@
 #include "embed/mi.hpp"
+#include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
 #include "embed/clip.hpp"
@@ -58,10 +59,14 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
         r.origin = opts.latticeOrigin;
     } else {
         r.h = opts.h > 0 ? opts.h : (opts.cells > 0 ? ext.maxCoeff() / opts.cells : 0.0);
-        if (!(r.h > 0) || !std::isfinite(r.h))
+        if (!(ext.maxCoeff() > 0) || !ext.allFinite())
+            throw InputError(src, 0, "the surface has no extent to lay a lattice over (all its vertices coincide)");
+        if (!(ext.minCoeff() > 1e-6 * ext.maxCoeff()))
             throw InputError(src, 0,
-                             "cannot size the lattice: give cells >= 1 or h > 0 (surface extent " +
-                                 std::to_string(ext.maxCoeff()) + " m)");
+                             "the surface is flat (extent " + std::to_string(ext.minCoeff()) + " m across, " +
+                                 std::to_string(ext.maxCoeff()) + " m along): it encloses no volume");
+        if (!(r.h > 0) || !std::isfinite(r.h))
+            throw InputError(src, 0, "cannot size the lattice: give cells >= 1 or h > 0");
         for (int k = 0; k < 3; ++k) {
             const double n = std::ceil(ext[k] / r.h) + 1;
             if (n > 1e6) throw InputError(src, 0, "lattice too fine: " + std::to_string(n) + " cells along an axis");
@@ -76,6 +81,8 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
         throw InputError(src, 0,
                          "lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
                              std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
+    // about 800 B per lattice tet measured at 3.3M tets (with the lattice's own step), plus margin
+    checkMemory(src + ": a lattice of " + std::to_string(static_cast<long>(nTets)) + " tets", nTets * 1000.0);
     const int nx = r.cells.x(), ny = r.cells.y(), nz = r.cells.z();
     const int px = nx + 1, py = ny + 1;
     r.lattice = boxMesh(nx * r.cellSize.x(), ny * r.cellSize.y(), nz * r.cellSize.z(), nx, ny, nz);
@@ -92,6 +99,9 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     const Eigen::Vector3d shift =
         hMin * 1e-10 * Eigen::Vector3d(0.5773502691896258, 0.3141592653589793, 0.7536347069560302);
     s.V.colwise() += shift;
+    // defects (welded seams, repeated or zero-area triangles) would multiply the work below
+    r.cleanup = cleanSurface(s, 1e-12 * hMin * hMin);
+    if (s.faces() == 0) throw InputError(src, 0, "surface has no triangle of nonzero area");
     const SurfaceCheck check = checkSurface(s);
     r.closed = check.closed();
 

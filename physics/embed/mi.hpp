@@ -79,6 +79,7 @@ struct MiResult {
                                       // keepLatticeStep [s]
     KeepStepResult massScaling;       // what keepLatticeStep added (model.addedMass)
 
+    SurfaceCleanup cleanup;  // what was welded and dropped before classification (mesh.hpp cleanSurface)
     MiTimings seconds;
 
     int count(ElementClass c) const;

@@ -18,7 +18,9 @@ namespace detail {
 std::string readFile(const std::string& path) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) throw InputError(path, 0, "file not found");
-    if (std::filesystem::is_directory(path, ec)) throw InputError(path, 0, "is a folder, not a mesh file");
+    if (std::filesystem::is_directory(path, ec)) throw InputError(path, 0, "is a folder, not a file");
+    // a pipe or a device would block or never end
+    if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path, 0, "is not a regular file");
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path, 0, "cannot open file");
     std::ostringstream ss;
@@ -139,6 +141,25 @@ void Tokens::fail(const std::string& why, long line) const {
     throw InputError(path_, line >= 0 ? line : lastLine_, why);
 }
 
+void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X) {
+    if (X.cols() == 0) return;
+    Eigen::Index node = 0;
+    const double far = X.cwiseAbs().colwise().maxCoeff().maxCoeff(&node);
+    if (far > kMaxCoordinate) {
+        std::ostringstream why;
+        why << "coordinates must lie within +-" << kMaxCoordinate << " m after scaling; node " << node << " is at "
+            << far << " m";
+        throw InputError(path, 0, why.str());
+    }
+    const double extent = (X.rowwise().maxCoeff() - X.rowwise().minCoeff()).maxCoeff();
+    if (X.cols() > 1 && extent < kMinExtent) {
+        std::ostringstream why;
+        why << "the mesh spans " << extent << " m after scaling; the smallest object simulated is " << kMinExtent
+            << " m across";
+        throw InputError(path, 0, why.str());
+    }
+}
+
 TetMesh finishTetMesh(const std::string& path, RawTets&& raw, const ReadOptions& opts, ReadReport* report) {
     const std::string& tetFile = raw.tetFile.empty() ? path : raw.tetFile;
     const long nN = static_cast<long>(raw.xyz.size() / 3), nT = static_cast<long>(raw.tets.size() / 4);
@@ -154,6 +175,7 @@ TetMesh finishTetMesh(const std::string& path, RawTets&& raw, const ReadOptions&
     TetMesh m;
     m.X = Eigen::Map<const Eigen::Matrix3Xd>(raw.xyz.data(), 3, nN) * opts.scale;
     if (!m.X.allFinite()) throw InputError(path, 0, "coordinates overflow after scaling");
+    checkCoordinateRange(path, m.X);
     m.tets = Eigen::Map<const Eigen::Matrix4Xi>(raw.tets.data(), 4, nT);
     m.nodeIds = std::move(raw.nodeIds);
     m.source = path;
@@ -171,12 +193,22 @@ TetMesh finishTetMesh(const std::string& path, RawTets&& raw, const ReadOptions&
         vol[e] = tetSignedVolume(m, static_cast<int>(e));
         mean += std::abs(vol[e]) / static_cast<double>(nT);
     }
-    // Zero volume: relative to the mean so the rule does not depend on units.
+    // Zero volume: relative to the mean so the rule does not depend on units, and relative to the
+    // tet's own longest edge cubed, so a mesh flattened as a whole is caught too.
     const double tiny = std::max(1e-14, opts.minVolume) * mean;
     for (long e = 0; e < nT; ++e) {
-        if (std::abs(vol[e]) <= tiny) {
+        double edge2 = 0;
+        for (int a = 0; a < 4; ++a)
+            for (int b = a + 1; b < 4; ++b)
+                edge2 = std::max(edge2, (m.X.col(m.tets(a, e)) - m.X.col(m.tets(b, e))).squaredNorm());
+        const double flat = std::abs(vol[e]) / (edge2 * std::sqrt(edge2));
+        if (std::abs(vol[e]) <= tiny || !(flat > kMinTetFlatness)) {
             std::ostringstream why;
-            why << name(e) << " has zero volume (" << vol[e] << ", mean " << mean << ")";
+            if (std::abs(vol[e]) <= tiny)
+                why << name(e) << " has zero volume (" << vol[e] << "; the mean tet has " << mean << ")";
+            else
+                why << name(e) << " is degenerate: its volume " << vol[e] << " is " << flat
+                    << " of its longest edge cubed (at least " << kMinTetFlatness << " needed)";
             throw InputError(tetFile, lineOf(e), why.str());
         }
     }
@@ -303,6 +335,7 @@ SurfaceMesh readSurfaceMesh(const std::string& path, double scale) {
     if (s.faces() == 0) throw InputError(path, 0, "no faces");
     s.V *= scale;
     if (!s.V.allFinite()) throw InputError(path, 0, "coordinates overflow after scaling");
+    detail::checkCoordinateRange(path, s.V);
     s.source = path;
     return s;
 }

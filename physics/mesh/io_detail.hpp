@@ -14,6 +14,10 @@ namespace cutsim::detail {
 // Whole file as bytes; InputError if it is missing or unreadable.
 std::string readFile(const std::string& path);
 
+// InputError naming `path` unless every coordinate is within kMaxCoordinate and the points span at
+// least kMinExtent.
+void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X);
+
 // Lower-case copy, for case-insensitive keywords and extensions.
 std::string lower(std::string_view s);
 

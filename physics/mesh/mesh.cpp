@@ -7,8 +7,79 @@
 
 namespace cutsim {
 
+std::string printableText(const std::string& s) {
+    std::string out;
+    out.reserve(s.size());
+    auto hex = [&](unsigned char c) {
+        static const char* d = "0123456789abcdef";
+        out += "\\x";
+        out += d[c >> 4];
+        out += d[c & 15];
+    };
+    for (size_t i = 0; i < s.size();) {
+        const auto c = static_cast<unsigned char>(s[i]);
+        if (c < 0x80) {
+            if (c < 0x20 || c == 0x7f)
+                hex(c);
+            else
+                out += static_cast<char>(c);
+            ++i;
+            continue;
+        }
+        // a well-formed UTF-8 sequence (no overlongs or surrogates checked beyond the lead byte)
+        const int n = (c & 0xE0) == 0xC0 && c >= 0xC2   ? 2
+                      : (c & 0xF0) == 0xE0              ? 3
+                      : (c & 0xF8) == 0xF0 && c <= 0xF4 ? 4
+                                                        : 0;
+        bool ok = n > 0 && i + n <= s.size();
+        for (int k = 1; ok && k < n; ++k) ok = (static_cast<unsigned char>(s[i + k]) & 0xC0) == 0x80;
+        if (ok) {
+            out.append(s, i, n);
+            i += n;
+        } else {
+            hex(c);
+            ++i;
+        }
+    }
+    return out;
+}
+
 InputError::InputError(const std::string& file, long line, const std::string& what)
-    : std::runtime_error(line > 0 ? file + ":" + std::to_string(line) + ": " + what : file + ": " + what) {}
+    : std::runtime_error(
+          printableText(line > 0 ? file + ":" + std::to_string(line) + ": " + what : file + ": " + what)) {}
+
+InputError::InputError(const std::string& what) : std::runtime_error(printableText(what)) {}
+
+SurfaceCleanup cleanSurface(SurfaceMesh& s, double minArea) {
+    SurfaceCleanup c;
+    std::map<std::array<double, 3>, int> at;
+    std::vector<int> to(static_cast<size_t>(s.vertices()));
+    for (int i = 0; i < s.vertices(); ++i) {
+        const auto [it, fresh] = at.try_emplace({s.V(0, i), s.V(1, i), s.V(2, i)}, i);
+        to[static_cast<size_t>(i)] = it->second;
+        c.weldedVertices += fresh ? 0 : 1;
+    }
+    std::map<std::array<int, 3>, int> seen;
+    int kept = 0;
+    for (int f = 0; f < s.faces(); ++f) {
+        std::array<int, 3> v{};
+        for (int k = 0; k < 3; ++k) v[k] = to[static_cast<size_t>(s.F(k, f))];
+        const double area = 0.5 * (s.V.col(v[1]) - s.V.col(v[0])).cross(s.V.col(v[2]) - s.V.col(v[0])).norm();
+        if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2] || !(area > minArea)) {
+            ++c.degenerateFaces;
+            continue;
+        }
+        std::array<int, 3> key = v;
+        std::sort(key.begin(), key.end());
+        if (!seen.emplace(key, f).second) {
+            ++c.duplicateFaces;
+            continue;
+        }
+        s.F.col(kept++) = Eigen::Vector3i(v[0], v[1], v[2]);
+    }
+    s.F.conservativeResize(3, kept);
+    return c;
+}
 
 double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
                        const Eigen::Vector3d& d) {

@@ -14,8 +14,18 @@ namespace cutsim {
 class InputError : public std::runtime_error {
 public:
     InputError(const std::string& file, long line, const std::string& what);
-    explicit InputError(const std::string& what) : std::runtime_error(what) {}
+    explicit InputError(const std::string& what);
 };
+
+// `s` with control bytes and bytes that are not UTF-8 written as \xNN, so that a message quoting a
+// file name or a token of a binary file prints as text.
+std::string printableText(const std::string& s);
+
+// Documented bounds on geometry read from files and scenes: beyond them volumes, stiffness rows or
+// their eigenvalues leave the range of a double.
+constexpr double kMaxCoordinate = 1e6;     // |coordinate| after scaling [m]
+constexpr double kMinExtent = 1e-6;        // smallest object span [m]
+constexpr double kMinTetFlatness = 1e-10;  // |volume| / (longest edge)^3 of any tet
 
 // A tetrahedral volume mesh.
 struct TetMesh {
@@ -37,6 +47,19 @@ struct SurfaceMesh {
     int vertices() const { return static_cast<int>(V.cols()); }
     int faces() const { return static_cast<int>(F.cols()); }
 };
+
+// What cleanSurface removed.
+struct SurfaceCleanup {
+    int weldedVertices = 0;   // vertices merged into an earlier one at exactly the same position
+    int duplicateFaces = 0;   // triangles over the same three vertices as an earlier one
+    int degenerateFaces = 0;  // triangles repeating a vertex or with area <= minArea
+    int total() const { return duplicateFaces + degenerateFaces; }
+};
+
+// Welds exactly coincident vertices, then drops degenerate and duplicated triangles, so work that
+// follows the triangles (spatial hashing, clipping, winding numbers) grows with the surface and not
+// with its defects. Unreferenced vertices stay.
+SurfaceCleanup cleanSurface(SurfaceMesh& s, double minArea);
 
 // Signed volume of tet (a,b,c,d): det[b-a, c-a, d-a] / 6, positive when d sees abc counter-clockwise.
 double tetSignedVolume(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,

@@ -91,8 +91,17 @@ Eigen::Vector3d ObjectReader::vec3(const std::string& key, const Eigen::Vector3d
     for (int i = 0; i < 3; ++i) {
         if (!v[i].is_number() || !std::isfinite(v[i].get<double>())) fail(key, "must be an array of 3 finite numbers");
         r(i) = v[i].get<double>();
+        if (std::abs(r(i)) > kMaxComponent) fail(key, "components must lie within +-1e9");
     }
     return r;
+}
+
+Eigen::Vector3d ObjectReader::requiredUnitVec3(const std::string& key) {
+    const Eigen::Vector3d v = requiredVec3(key);
+    // scaled by the largest component first: the norm of (1e-200, 0, 0) underflows
+    const double big = v.cwiseAbs().maxCoeff();
+    if (!(big > 1e-300)) fail(key, "must not be zero");
+    return (v / big).normalized();
 }
 
 Eigen::Vector3d ObjectReader::requiredVec3(const std::string& key) {

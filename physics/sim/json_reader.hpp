@@ -28,6 +28,8 @@ public:
     std::string requiredString(const std::string& key);
     Eigen::Vector3d vec3(const std::string& key, const Eigen::Vector3d& def);
     Eigen::Vector3d requiredVec3(const std::string& key);
+    Eigen::Vector3d requiredUnitVec3(const std::string& key);  // normalised; zero refused
+    static constexpr double kMaxComponent = 1e9;               // bound on every vector component read
     std::vector<int> intList(const std::string& key);
     ObjectReader object(const std::string& key);              // required object
     std::vector<ObjectReader> array(const std::string& key);  // array of objects, empty if absent

@@ -2,6 +2,7 @@
 
 #include "sim/json_reader.hpp"
 #include "mesh/io.hpp"
+#include "mesh/io_detail.hpp"
 
 #include "cut/xfem.hpp"
 
@@ -47,9 +48,7 @@ Region readRegion(ObjectReader& r) {
         ObjectReader p = r.object("plane");
         g.kind = Region::Kind::Plane;
         g.point = p.requiredVec3("point");
-        g.normal = p.requiredVec3("normal");
-        if (g.normal.norm() < 1e-12) p.fail("normal", "must not be zero");
-        g.normal.normalize();
+        g.normal = p.requiredUnitVec3("normal");
         g.distance = p.number("distance", 1e-3, 0, 1e300);
         p.finish();
         ++kinds;
@@ -137,10 +136,11 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
             bool ok = q.is_array() && q.size() == 4;
             for (size_t i = 0; ok && i < 4; ++i) ok = q[i].is_number() && std::isfinite(q[i].get<double>());
             if (!ok) k.fail("quaternion", "must be an array of 4 finite numbers [w, x, y, z]");
-            key.pose.orientation =
-                Eigen::Quaterniond(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(), q[3].get<double>());
-            if (key.pose.orientation.norm() < 1e-12) k.fail("quaternion", "must not be zero");
-            key.pose.orientation.normalize();
+            Eigen::Vector4d w(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(), q[3].get<double>());
+            const double big = w.cwiseAbs().maxCoeff();  // scaled first: the norm of 1e200 overflows
+            if (!(big > 1e-300)) k.fail("quaternion", "must not be zero");
+            w = (w / big).normalized();
+            key.pose.orientation = Eigen::Quaterniond(w(0), w(1), w(2), w(3));
             k.touch("quaternion");
         }
         key.opening = t.kind == ToolDef::Kind::Grasper ? k.number("opening", 0, 0, 1e3) : 0.0;
@@ -152,16 +152,50 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     return t;
 }
 
+// Deeper nesting than any scene needs is refused while parsing: copies and comparisons of a
+// nlohmann document recurse, so 200,000 nested arrays would overflow the stack later.
+constexpr int kMaxJsonDepth = 64;
+
+// Parses `text`; a syntax error, a number out of double range or nesting deeper than
+// kMaxJsonDepth names `where` and, for a file, the line.
+json parseJson(const std::string& text, const std::string& where, bool isFile) {
+    auto lineOf = [&](size_t byte) {
+        long line = 1;
+        for (size_t i = 0; i < std::min(text.size(), byte); ++i) line += text[i] == '\n';
+        return isFile ? line : 0;
+    };
+    const json::parser_callback_t limit = [&](int depth, json::parse_event_t ev, json&) {
+        if (depth > kMaxJsonDepth &&
+            (ev == json::parse_event_t::object_start || ev == json::parse_event_t::array_start))
+            throw std::length_error("nested");
+        return true;
+    };
+    try {
+        return json::parse(text, limit);
+    } catch (const json::parse_error& e) {
+        throw InputError(where, lineOf(e.byte), std::string("invalid JSON: ") + e.what());
+    } catch (const json::out_of_range& e) {
+        // 406: a number beyond double range, e.g. 1e400; nlohmann gives no position
+        std::string why = e.what();
+        const auto q = why.find('\'');
+        size_t at = std::string::npos;
+        if (q != std::string::npos) at = text.find(why.substr(q + 1, why.find('\'', q + 1) - q - 1));
+        throw InputError(where, at == std::string::npos ? 0 : lineOf(at),
+                         "invalid JSON: a number beyond the range of a double (" + why.substr(why.find(' ') + 1) + ")");
+    } catch (const std::length_error&) {
+        throw InputError(where, 0, "invalid JSON: nested deeper than " + std::to_string(kMaxJsonDepth) + " levels");
+    }
+}
+
 void setPath(json& j, const std::string& assignment) {
     const auto eq = assignment.find('=');
     if (eq == std::string::npos || eq == 0) throw InputError("--set " + assignment + ": expected key.path=value");
     const std::string key = assignment.substr(0, eq), text = assignment.substr(eq + 1);
     json value;
-    try {
-        value = json::parse(text);
-    } catch (const json::parse_error&) {
-        value = text;
-    }
+    if (!json::accept(text))
+        value = text;  // a bare word is a string
+    else
+        value = parseJson(text, "--set " + key, false);
     json* node = &j;
     size_t pos = 0;
     while (true) {
@@ -248,7 +282,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
         } else {
             ObjectReader b = o.object("box");
             s.boxSize = b.requiredVec3("size");
-            if ((s.boxSize.array() <= 0).any()) b.fail("size", "must be positive in every axis");
+            if ((s.boxSize.array() < kMinExtent).any() || (s.boxSize.array() > kMaxCoordinate).any())
+                b.fail("size", "must lie within [1e-6, 1e6] m in every axis");
             const Eigen::Vector3d cells = b.requiredVec3("cells");
             for (int k = 0; k < 3; ++k)
                 if (cells(k) < 1 || cells(k) > 1000 || cells(k) != std::floor(cells(k)))
@@ -257,7 +292,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
             if (static_cast<double>(s.boxCells.prod()) * 6 > 2e7) b.fail("cells", "more than 2e7 tets");
             b.finish();
         }
-        s.scale = o.number("scale", 1, 0, 1e300, true);
+        s.scale = o.number("scale", 1, 0, 1e9, true);
         s.translate = o.vec3("translate", s.translate);
         s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
         s.reorient = o.boolean("reorient", false);
@@ -269,9 +304,10 @@ SceneDef parseScene(const json& j, const std::string& file) {
     }
     if (root.has("material")) {
         ObjectReader m = root.object("material");
-        s.material.E = m.number("E", s.material.E, 0, 1e300, true);
+        // documented ranges: beyond them the stiffness rows over- or underflow in the Lanczos solve
+        s.material.E = m.number("E", s.material.E, 1e-3, 1e13);
         s.material.nu = m.number("nu", s.material.nu, -1, 0.5, true, true);
-        s.material.rho = m.number("rho", s.material.rho, 0, 1e300, true);
+        s.material.rho = m.number("rho", s.material.rho, 1e-3, 1e6);
         s.damping = m.number("damping", 0, 0, 1e300);
         m.finish();
     }
@@ -364,9 +400,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
             cd.path = k.path();
             cd.time = k.number("time", 0, 0);
             cd.point = k.requiredVec3("point");
-            cd.normal = k.requiredVec3("normal");
-            if (!(cd.normal.norm() > 0)) k.fail("normal", "must not be zero");
-            cd.normal.normalize();
+            cd.normal = k.requiredUnitVec3("normal");
             if (k.has("polygon")) {
                 const json& poly = k.raw("polygon");
                 k.touch("polygon");
@@ -445,19 +479,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
 }
 
 SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets) {
-    std::ifstream in(path);
-    if (!in) throw InputError(path, 0, "cannot open scene file");
-    json j;
-    try {
-        j = json::parse(in);
-    } catch (const json::parse_error& e) {
-        // nlohmann reports a byte offset; turn it into a line number
-        std::ifstream again(path);
-        std::string text((std::istreambuf_iterator<char>(again)), std::istreambuf_iterator<char>());
-        long line = 1;
-        for (size_t i = 0; i < std::min(text.size(), static_cast<size_t>(e.byte)); ++i) line += text[i] == '\n';
-        throw InputError(path, line, std::string("invalid JSON: ") + e.what());
-    }
+    json j = parseJson(detail::readFile(path), path, true);
     for (const auto& a : sets) setPath(j, a);
     return parseScene(j, path);
 }

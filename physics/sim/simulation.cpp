@@ -4,6 +4,7 @@
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
 #include <Eigen/Geometry>
@@ -24,8 +25,10 @@ namespace {
 constexpr double kKeepStepWarnFraction = 0.01;  // keep_step adding more of the mass than this is reported
 constexpr double kMinObjectSize = 1e-3;         // [m] below or above these the scale is most likely wrong
 constexpr double kMaxObjectSize = 10;
-constexpr long kBoundsEvery = 4;          // steps between the speed and displacement checks
-constexpr double kOneCoreTetSteps = 3e7;  // tet-steps per second of one core (BENCHMARKS.md, step)
+constexpr long kBoundsEvery = 4;           // steps between the speed and displacement checks
+constexpr double kBytesPerTet = 1000;      // a run's peak memory per element: 870 B measured on boxes, plus margin
+constexpr double kMaxContactPoints = 5e6;  // docs/scene-format.md, contact.spacing
+constexpr double kOneCoreTetSteps = 3e7;   // tet-steps per second of one core (BENCHMARKS.md, step)
 
 std::string fmt(const char* f, auto... args) {
     char buf[512];
@@ -178,8 +181,13 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
 
     // Time step: exact, certified and estimated limits, then the scene's policy (docs/method.md sec. 2-3).
     Stopwatch ts;
-    ta_ = TimestepAnalyzer(model_);
-    const ExactResult exact = ta_.exact(model_);
+    ExactResult exact;
+    try {
+        ta_ = TimestepAnalyzer(model_);
+        exact = ta_.exact(model_);
+    } catch (const EigenSolveError& e) {
+        throw EigenSolveError(sc_.file + ": " + e.what());
+    }
     limits_ = {exact.dt, ta_.certifiedDt(), ta_.minDt().r1r};
     initial_ = limits_;
     rec_.stages[Stage::Timestep] += ts.seconds();
@@ -284,12 +292,15 @@ void Simulation::buildObject() {
         model_.elementModel = sc.element;
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
     } else {
+        if (sc.mesh.empty())
+            checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
         TetMesh mesh = sc.mesh.empty()
                            ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
                                      sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
                            : readTetMesh(sc.mesh, ro);
         mesh.X = (R * mesh.X).colwise() + sc.translate;
         checkSize(mesh.X);
+        if (!sc.mesh.empty()) checkMemory(sc.mesh, mesh.elements() * kBytesPerTet);
         model_ = buildModel(mesh, sc.material, sc.element);
     }
     model_.gravity = sc.gravity;
@@ -366,8 +377,14 @@ void Simulation::setupContact() {
     c.spacing = spacing;
     // an embedded (MI) object is touched on its own fine surface, through the embedding weights;
     // each point's penalty scaled by its effective mass (contact/contact.hpp scaleByMass)
-    ContactPoints pts =
-        contactPoints(embedded_ ? *embedded_ : boundarySurface(model_.tets, model_.X), model_.tets, model_.X, spacing);
+    const EmbeddedSurface touched = embedded_ ? *embedded_ : boundarySurface(model_.tets, model_.X);
+    const double n = contactPointCount(touched, model_.tets, model_.X, spacing);
+    if (n > kMaxContactPoints)
+        throw InputError(sc_.file + ": " + (sc_.contactSpacing > 0 ? "contact.spacing" : "tools (the smallest size)") +
+                         fmt(": contact points %.3g m apart would make %.3g of them on this surface, above the "
+                             "limit of %.0e; give a larger contact.spacing",
+                             spacing, n, kMaxContactPoints));
+    ContactPoints pts = contactPoints(touched, model_.tets, model_.X, spacing);
     c.massRef = referenceMass(pts, model_.invMass);
     scaleByMass(pts, model_.invMass, c.massRef);
     contact_->setSurface(std::move(pts));

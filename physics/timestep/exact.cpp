@@ -88,7 +88,7 @@ ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const Exa
     const int ncv = std::min<int>(std::max(opts.ncv, 3), op.n);
     Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, 1, ncv);
     eigs.init();
-    eigs.compute(Spectra::SortRule::LargestAlge, opts.maxIterations, opts.tol);
+    computeEigs(eigs, "exact time step", Spectra::SortRule::LargestAlge, opts.maxIterations, opts.tol);
     res.iterations = static_cast<int>(eigs.num_iterations());
     res.matvecs = static_cast<int>(eigs.num_operations());
     if (eigs.info() != Spectra::CompInfo::Successful)
@@ -121,7 +121,7 @@ TopModes topModes(const Model& m, const StiffnessRows& rows, int k, int ncvMin, 
     const int ncv = std::min(std::max(2 * k + 8, ncvMin), n);
     Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, k, ncv);
     eigs.init();
-    eigs.compute(Spectra::SortRule::LargestAlge, maxIterations, tol);
+    computeEigs(eigs, "keep step", Spectra::SortRule::LargestAlge, maxIterations, tol);
     if (eigs.info() != Spectra::CompInfo::Successful)
         throw EigenSolveError("keep step: Lanczos did not converge for the " + std::to_string(k) + " largest modes (" +
                               std::to_string(n) + " free DOFs)");

@@ -21,7 +21,7 @@ Modes lowestModes(const Model& m, int k) {
     const int ncv = std::min(nf, std::max(2 * k + 1, k == 1 ? 12 : 20));
     Spectra::SymEigsShiftSolver<Spectra::SparseSymShiftSolve<double>> eigs(op, k, ncv, 0.0);
     eigs.init();
-    eigs.compute(Spectra::SortRule::LargestMagn, 1000, 1e-10);
+    computeEigs(eigs, "lowest modes", Spectra::SortRule::LargestMagn, 1000, 1e-10);
     if (eigs.info() != Spectra::CompInfo::Successful)
         throw EigenSolveError("lowest modes: Lanczos did not converge for " + std::to_string(k) + " modes (" +
                               std::to_string(nf) + " free DOFs)");

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace cutsim {
@@ -17,6 +18,18 @@ class EigenSolveError : public std::runtime_error {
 public:
     using std::runtime_error::runtime_error;
 };
+
+// Runs a Spectra solver's compute; Spectra's own failures (a tridiagonal eigen-decomposition that
+// fails on entries out of range) become EigenSolveError naming `what`.
+template <class Solver, class... Args>
+void computeEigs(Solver& eigs, const char* what, Args... args) {
+    try {
+        eigs.compute(args...);
+    } catch (const std::runtime_error& e) {
+        throw EigenSolveError(std::string(what) + ": " + e.what() +
+                              " (stiffness or mass entries out of range: check coordinates and material)");
+    }
+}
 
 // Critical step of central differences / symplectic Euler, eq. 3.10 with c = 2; +inf if lambda <= 0.
 double dtFromLambda(double lambda);

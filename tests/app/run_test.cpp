@@ -19,17 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-// test::runCutsim() calls test::tempDir(), which wipes the test's temp folder, so scenes and
-// output folders live in a separate folder of their own.
-std::string workDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    const std::string name = std::string(info->test_suite_name()) + "_" + info->name();
-    const fs::path dir = fs::temp_directory_path() / ("cutsim_run_" + name + "_" + std::to_string(::getpid()));
-    fs::remove_all(dir);
-    fs::create_directories(dir);
-    return dir.string();
-}
+using test::workDir;
 
 json barSag() {
     std::ifstream in(test::source("assets/scenes/bar_sag.json"));

@@ -19,6 +19,16 @@ namespace cutsim::test {
 std::string data(const std::string& rel) { return std::string(CUTSIM_DATA_DIR) + "/" + rel; }
 std::string source(const std::string& rel) { return std::string(CUTSIM_SOURCE_DIR) + "/" + rel; }
 
+std::string workDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const std::string name = std::string(info->test_suite_name()) + "_" + info->name();
+    const auto dir =
+        std::filesystem::temp_directory_path() / ("cutsim_work_" + name + "_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir);
+    std::filesystem::create_directories(dir);
+    return dir.string();
+}
+
 std::string tempDir() {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     std::string name = info ? std::string(info->test_suite_name()) + "_" + info->name() : "cutsim";

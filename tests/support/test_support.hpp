@@ -14,6 +14,9 @@ std::string data(const std::string& rel);
 std::string source(const std::string& rel);
 // A fresh empty temporary directory for this test.
 std::string tempDir();
+// A fresh empty folder named after the running test, apart from tempDir() (which runCutsim wipes),
+// for scenes and output folders that commands read and write.
+std::string workDir();
 
 // The unit right tet: corners 0, e_x, e_y, e_z.
 TetMesh unitTet();

@@ -1,0 +1,36 @@
+#include "util/memory.hpp"
+
+#include "mesh/mesh.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+
+namespace cutsim {
+
+double memoryLimitBytes() {
+    double limit = static_cast<double>(sysconf(_SC_PHYS_PAGES)) * static_cast<double>(sysconf(_SC_PAGESIZE));
+    for (int r : {RLIMIT_AS, RLIMIT_DATA}) {
+        rlimit rl{};
+        if (getrlimit(r, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY)
+            limit = std::min(limit, static_cast<double>(rl.rlim_cur));
+    }
+    std::ifstream cg("/sys/fs/cgroup/memory.max");
+    double v = 0;
+    if (cg >> v && v > 0) limit = std::min(limit, v);  // "max" fails to parse: no limit
+    return limit;
+}
+
+void checkMemory(const std::string& what, double bytes) {
+    const double limit = memoryLimitBytes();
+    if (bytes <= limit) return;
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "needs about %.3g GB of memory, above the %.3g GB this process may use", bytes / 1e9,
+                  limit / 1e9);
+    throw InputError(what + ": " + buf);
+}
+
+}  // namespace cutsim

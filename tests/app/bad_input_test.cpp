@@ -1,0 +1,208 @@
+// Bad input and faults end in a clear error with a non-zero exit, never in a crash, a hang, an
+// exit-0 run of nonsense or a half-written output folder. Each test is a reproducer: a shipped
+// mesh scaled to extreme coordinates, a surface with repeated faces, deep JSON, a signal mid-run.
+#include "test_support.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace cutsim {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using test::workDir;
+
+// The shipped liver (Gmsh v1) with every coordinate multiplied by (fx, fy, fz).
+std::string scaledLiver(const std::string& path, double fx, double fy, double fz) {
+    std::istringstream in(test::readText(test::source("assets/meshes/liver.msh")));
+    std::ostringstream out;
+    bool nodes = false;
+    for (std::string line; std::getline(in, line);) {
+        if (line.rfind("$NOD", 0) == 0) nodes = true;
+        if (line.rfind("$ENDNOD", 0) == 0) nodes = false;
+        std::istringstream ls(line);
+        long id;
+        double x, y, z;
+        if (nodes && (ls >> id >> x >> y >> z)) {
+            char buf[128];
+            std::snprintf(buf, sizeof buf, "%ld %.17g %.17g %.17g", id, x * fx, y * fy, z * fz);
+            out << buf << "\n";
+        } else {
+            out << line << "\n";
+        }
+    }
+    return test::writeText(path, out.str());
+}
+
+json barSag() { return json::parse(test::readText(test::source("assets/scenes/bar_sag.json"))); }
+
+std::string writeScene(const std::string& path, const json& j) { return test::writeText(path, j.dump(2)); }
+
+// exit 2 with "error:" and `needle` on stderr; never an abort (134) or an exit 0
+void expectBadInput(const std::string& args, const std::string& needle) {
+    std::string err;
+    const int code = test::runCutsim(args, nullptr, &err);
+    EXPECT_EQ(code, 2) << args << "\n" << err;
+    EXPECT_NE(err.find("error:"), std::string::npos) << err;
+    EXPECT_NE(err.find(needle), std::string::npos) << "expected '" << needle << "' in: " << err;
+}
+
+TEST(BadInput, ExtremeCoordinatesAreRefusedWhereTheyAreRead) {
+    const std::string dir = workDir();
+    const std::string flat = scaledLiver(dir + "/flat.msh", 1e-200, 1, 1);
+    const std::string huge = scaledLiver(dir + "/huge.msh", 1e100, 1e100, 1e100);
+    const std::string tiny = scaledLiver(dir + "/tiny.msh", 1e-100, 1e-100, 1e-100);
+    expectBadInput("dt " + flat, "flat.msh");
+    expectBadInput("dt " + flat, "is degenerate");
+    expectBadInput("dt " + huge + " --json", "coordinates must lie within");
+    expectBadInput("dt " + tiny, "the mesh spans");
+    expectBadInput("mesh " + huge + " --json", "huge.msh");
+    expectBadInput("dt " + test::source("assets/meshes/liver.msh") + " --scale 1e100", "coordinates");
+}
+
+TEST(BadInput, MaterialOutsideItsRangeNamesTheKey) {
+    const std::string dir = workDir();
+    json j = barSag();
+    j["material"]["E"] = 1e-300;
+    expectBadInput("run " + writeScene(dir + "/e.json", j) + " --out " + dir + "/o --no-render --quiet", "material.E");
+    j = barSag();
+    j["material"]["rho"] = 1e300;
+    expectBadInput("run " + writeScene(dir + "/rho.json", j) + " --out " + dir + "/o --no-render --quiet",
+                   "material.rho");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
+TEST(BadInput, NonUtf8NamesGiveValidJson) {
+    const std::string dir = workDir();
+    const std::string mesh = dir + "/liver\xff.msh";
+    test::writeText(mesh, test::readText(test::source("assets/meshes/liver.msh")));
+    std::string out, err;
+    ASSERT_EQ(test::runCutsim("mesh '" + mesh + "' --json", &out, &err), 0) << err;
+    EXPECT_EQ(json::parse(out)["elements"], 596);
+    // a run named by --set with a byte that is not UTF-8: the report is written and valid
+    const std::string o = dir + "/out";
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + o +
+                                  " --no-render --quiet --set duration=0.01 --set 'name=bar\xff'",
+                              nullptr, &err),
+              0)
+        << err;
+    const json r = json::parse(test::readText(o + "/report.json"));
+    EXPECT_EQ(r["status"], "ok");
+    for (const auto& e : fs::recursive_directory_iterator(o))
+        EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
+}
+
+TEST(BadInput, DeeplyNestedJsonIsRefusedNotRecursedInto) {
+    const std::string dir = workDir();
+    const int depth = 200000;
+    const std::string scene = test::writeText(
+        dir + "/deep.json", R"({"name": "deep", "description": )" + std::string(depth, '[') + std::string(depth, ']') +
+                                R"(, "object": {"box": {"size": [1, 0.1, 0.1], "cells": [4, 1, 1]}}})");
+    expectBadInput("run " + scene + " --out " + dir + "/o --no-render --quiet", "nested deeper than 64");
+    expectBadInput("run " + test::source("assets/scenes/bar_sag.json") + " --out " + dir +
+                       "/o --no-render --quiet --set 'description=" + std::string(100, '[') + std::string(100, ']') +
+                       "'",
+                   "--set description");
+}
+
+TEST(BadInput, NumberBeyondDoubleRangeNamesTheLine) {
+    const std::string dir = workDir();
+    const std::string scene =
+        test::writeText(dir + "/big.json", "{\n  \"name\": \"big\",\n  \"object\": {\"box\": {\"size\": [1, 0.1, 0.1], "
+                                           "\"cells\": [4, 1, 1]}},\n  \"duration\": 1e400\n}\n");
+    expectBadInput("run " + scene + " --out " + dir + "/o --no-render --quiet", "big.json:4:");
+    expectBadInput("run " + scene + " --out " + dir + "/o --no-render --quiet", "beyond the range of a double");
+}
+
+TEST(BadInput, FoldersAndPipesAreNotFiles) {
+    const std::string dir = workDir();
+    expectBadInput("run " + dir + " --out " + dir + "/o --no-render --quiet", "is a folder, not a file");
+    const std::string fifo = dir + "/mesh.msh";
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    expectBadInput("mesh " + fifo, "is not a regular file");  // a read would block forever
+    expectBadInput("dt " + fifo, "is not a regular file");
+}
+
+TEST(BadInput, UsageErrorsExitTwo) {
+    std::string err;
+    EXPECT_EQ(test::runCutsim("dt --no-such-flag x.msh", nullptr, &err), 2) << err;
+    EXPECT_EQ(test::runCutsim("run", nullptr, &err), 2) << err;
+    EXPECT_EQ(test::runCutsim("no-such-command", nullptr, &err), 2) << err;
+    EXPECT_EQ(test::runCutsim("--help"), 0);
+}
+
+TEST(BadInput, ContactPointsAreBoundedUpFront) {
+    const std::string dir = workDir();
+    const std::string probe = test::source("assets/scenes/probe.json");
+    expectBadInput("run " + probe + " --out " + dir + "/o --no-render --quiet --set contact.spacing=1e-6",
+                   "contact.spacing");
+    // a tool radius of 1e-9 m sets the automatic spacing to half of it
+    json j = json::parse(test::readText(probe));
+    j["tools"][0]["radius"] = 1e-9;
+    j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    expectBadInput("run " + writeScene(dir + "/tiny_tool.json", j) + " --out " + dir + "/o --no-render --quiet",
+                   "the smallest size");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
+TEST(BadInput, TinyNormalsAreNormalisedAndHugeOnesRefused) {
+    const std::string dir = workDir();
+    // (1e-200, 0, 0) has a norm that underflows: it must still be the x axis
+    json j = barSag();
+    j["duration"] = 0.01;
+    j["fixed"][0]["plane"]["normal"] = {1e-200, 0, 0};
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + writeScene(dir + "/tiny.json", j) + " --out " + dir + "/a --no-render --quiet",
+                              nullptr, &err),
+              0)
+        << err;
+    j["fixed"][0]["plane"]["normal"] = {1, 0, 0};
+    ASSERT_EQ(test::runCutsim("run " + writeScene(dir + "/unit.json", j) + " --out " + dir + "/b --no-render --quiet",
+                              nullptr, &err),
+              0)
+        << err;
+    const json a = json::parse(test::readText(dir + "/a/report.json"));
+    const json b = json::parse(test::readText(dir + "/b/report.json"));
+    EXPECT_EQ(a["mesh"]["fixed_nodes"], b["mesh"]["fixed_nodes"]);
+    EXPECT_GT(b["mesh"]["fixed_nodes"].get<int>(), 0);
+    j["fixed"][0]["plane"]["normal"] = {1e308, 1e308, 0};
+    expectBadInput("run " + writeScene(dir + "/huge.json", j) + " --out " + dir + "/c --no-render --quiet",
+                   "fixed[0].plane.normal");
+}
+
+TEST(BadInput, MeshIntersectionDropsRepeatedAndDegenerateTriangles) {
+    const std::string dir = workDir();
+    std::string obj = test::readText(test::source("assets/meshes/sofa_liver.obj"));
+    std::string face;
+    {
+        std::istringstream in(obj);
+        for (std::string line; std::getline(in, line);)
+            if (line.rfind("f ", 0) == 0) {
+                face = line;
+                break;
+            }
+    }
+    std::string extra;
+    for (int i = 0; i < 4000; ++i) extra += face + "\n";
+    const std::string rep = test::writeText(dir + "/rep.obj", obj + "\n" + extra);
+    std::string out, err;
+    ASSERT_EQ(test::runCutsim("mi " + rep + " --cells 8 --json", &out, &err), 0) << err;
+    const json r = json::parse(out);
+    EXPECT_EQ(r["surface"]["dropped_duplicate_triangles"], 4000);
+    EXPECT_EQ(r["volume_method"], "exact");  // the cleaned surface is closed again
+}
+
+}  // namespace
+}  // namespace cutsim
