@@ -361,6 +361,10 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     if (opts.keepLatticeStep) {
         t0 = WallClock::now();
         r.dtLattice = exactCriticalDt(buildModel(r.lattice, material)).dt;
+        if (!(r.dtLattice > 0) || !std::isfinite(r.dtLattice))
+            throw InputError(src, 0,
+                             "the lattice's stable step is " + std::to_string(r.dtLattice) +
+                                 " s: check the material and the scale");
         r.massScaling = keepStep(r.model, r.dtLattice);
         r.seconds.keepStep = secondsSince(t0);
     }

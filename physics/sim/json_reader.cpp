@@ -47,9 +47,16 @@ int ObjectReader::integer(const std::string& key, int def, int lo, int hi) {
     if (!has(key)) return def;
     const auto& v = get(key);
     if (!v.is_number_integer()) fail(key, "must be an integer, got " + std::string(v.type_name()));
+    const std::string range = "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got ";
+    // nlohmann keeps integers above 2^63 as unsigned: read as signed they would wrap to -1
+    if (v.is_number_unsigned()) {
+        const auto u = v.get<unsigned long long>();
+        if (u > static_cast<unsigned long long>(hi) || (lo > 0 && u < static_cast<unsigned long long>(lo)))
+            fail(key, range + std::to_string(u));
+        return static_cast<int>(u);
+    }
     const long long x = v.get<long long>();
-    if (x < lo || x > hi)
-        fail(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " + std::to_string(x));
+    if (x < lo || x > hi) fail(key, range + std::to_string(x));
     return static_cast<int>(x);
 }
 

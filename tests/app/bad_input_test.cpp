@@ -126,6 +126,13 @@ TEST(BadInput, NumberBeyondDoubleRangeNamesTheLine) {
     expectBadInput("run " + scene + " --out " + dir + "/o --no-render --quiet", "beyond the range of a double");
 }
 
+TEST(BadInput, IntegersAbove63BitsAreNotReadAsMinusOne) {
+    const std::string dir = workDir();
+    expectBadInput("run " + test::source("assets/scenes/bar_sag.json") + " --out " + dir +
+                       "/o --quiet --set capture.width=18446744073709551615",
+                   "got 18446744073709551615");
+}
+
 TEST(BadInput, FoldersAndPipesAreNotFiles) {
     const std::string dir = workDir();
     expectBadInput("run " + dir + " --out " + dir + "/o --no-render --quiet", "is a folder, not a file");

@@ -14,19 +14,26 @@ namespace cutsim::fuzz {
 
 namespace fs = std::filesystem;
 
-const std::string& scratch() {
-    static const std::string dir = [] {
+// Removed with the process: the folder's own destructor, not atexit (which would run after the
+// static string is gone).
+struct Scratch {
+    std::string dir;
+    Scratch() {
         const fs::path d = fs::temp_directory_path() / ("cutsim-fuzz-" + std::to_string(::getpid()));
         fs::create_directories(d / "scenes");
         std::error_code ec;
         fs::create_directory_symlink(fs::path(CUTSIM_SOURCE_DIR) / "assets" / "meshes", d / "meshes", ec);
-        std::atexit([] {
-            std::error_code e;
-            fs::remove_all(scratch(), e);
-        });
-        return d.string();
-    }();
-    return dir;
+        dir = d.string();
+    }
+    ~Scratch() {
+        std::error_code ec;
+        fs::remove_all(dir, ec);
+    }
+};
+
+const std::string& scratch() {
+    static const Scratch s;
+    return s.dir;
 }
 
 std::pair<std::string, std::string> scratchPair(const std::string& a, const std::string& b) {

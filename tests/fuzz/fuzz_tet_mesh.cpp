@@ -14,7 +14,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     fuzz::expectInputError([&] { detail::finishTetMesh("f.vtu", detail::readVtu("f.vtu", text), opts, nullptr); });
     // TetGen: a .node and an .ele file, split at the first line "#ele"
     const size_t cut = text.find("\n#ele\n");
-    const auto [node, ele] = fuzz::scratchPair("f.node", "f.ele");
+    const auto files = fuzz::scratchPair("f.node", "f.ele");
+    const std::string& node = files.first;  // not a structured binding: clang 14 cannot capture one
+    const std::string& ele = files.second;
     fuzz::writeFile(node, text.substr(0, cut));
     fuzz::writeFile(ele, cut == std::string::npos ? std::string() : text.substr(cut + 6));
     fuzz::expectInputError([&] { readTetMesh(node, opts); });
