@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <unistd.h>
 
 namespace cutsim::app {
@@ -98,7 +99,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         sink = makeFrameSink(sc, opt.out, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
 
     // A frame of the state now; its render and encode time go to the run's stages.
-    const Stopwatch loop;
     auto frame = [&] {
         if (!sink) return;
         FrameInfo fi;
@@ -108,7 +108,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         fi.dtExact = sim.limits().exact;
         fi.criticalElements = sim.criticalElements();
         fi.cuts = sim.record().cutsMade;
-        fi.wall = loop.seconds();
+        // No wall-clock rates in captured frames: they would make every run's frames differ
+        // (report.json has them).
+        fi.wall = std::numeric_limits<double>::quiet_NaN();
         fi.toolForce = sim.record().tool.force;
         fi.forceHistory = sim.record().tool.history;
         if (sim.contact())
@@ -149,9 +151,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
 
     // Outputs: the final mesh with per-element fields, then the report.
     if (sc.writeVtu && ok) writeFinalVtu(sim, (out / "final.vtu").string());
-    const json report = sim.report({{"wall_time", wall.seconds()},
-                                    {"frames", sink ? sink->frames() : 0},
-                                    {"video", sink ? sink->videoPath() : ""}});
+    json report = sim.report({{"wall_time", wall.seconds()},
+                              {"frames", sink ? sink->frames() : 0},
+                              {"video", sink ? sink->videoPath() : ""}});
+    if (sink) report["renderer"] = sink->renderer();
     writeFileAtomic((out / "report.json").string(), report.dump(2) + "\n");
     if (!opt.quiet || !ok)  // a failure is always said
         std::fprintf(stderr, "%s: %s, %ld steps of %.3g s (exact limit %.3g s), %.2f s wall, %d frames -> %s\n",
