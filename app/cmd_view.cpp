@@ -52,6 +52,7 @@ struct ViewArgs {
     bool recordCamera = false;         // the take's camera moves as camera keyframes
     std::vector<std::string> drags;    // "F,DX,DY": a shift-drag of the first tool at frame F [px]
     std::vector<std::string> presses;  // "F,KEY": a key pressed at frame F
+    std::vector<std::string> orbits;   // "F,DX,DY": a drag of the camera at frame F [px]
 };
 
 #ifdef CUTSIM_HAVE_RENDER
@@ -146,19 +147,23 @@ constexpr Integrator kIntegrators[] = {Integrator::SymplecticEuler, Integrator::
 
 int runView(const ViewArgs& a) {
     SceneDef sc = loadScene(a.scene, a.sets);
-    const auto drags = parseScript(a.drags, "--drag", 2);
     const auto presses = parseScript(a.presses, "--press", 1);
     std::vector<std::pair<int, int>> pressKeys;
     for (const auto& [f, k] : presses) pressKeys.emplace_back(f, keyCode(k[0]));
-    std::vector<std::tuple<int, double, double>> dragMoves;
-    for (const auto& [f, d] : drags) {
-        char* e1 = nullptr;
-        char* e2 = nullptr;
-        const double dx = std::strtod(d[0].c_str(), &e1), dy = std::strtod(d[1].c_str(), &e2);
-        if (*e1 || *e2 || d[0].empty() || d[1].empty())
-            throw InputError("--drag: expected FRAME,DX,DY in pixels, got \"" + d[0] + "," + d[1] + "\"");
-        dragMoves.emplace_back(f, dx, dy);
-    }
+    auto moves = [](const std::vector<std::string>& items, const char* flag) {
+        std::vector<std::tuple<int, double, double>> out;
+        for (const auto& [f, d] : parseScript(items, flag, 2)) {
+            char* e1 = nullptr;
+            char* e2 = nullptr;
+            const double dx = std::strtod(d[0].c_str(), &e1), dy = std::strtod(d[1].c_str(), &e2);
+            if (*e1 || *e2 || d[0].empty() || d[1].empty())
+                throw InputError(std::string(flag) + ": expected FRAME,DX,DY in pixels, got \"" + d[0] + "," + d[1] +
+                                 "\"");
+            out.emplace_back(f, dx, dy);
+        }
+        return out;
+    };
+    const auto dragMoves = moves(a.drags, "--drag"), orbitMoves = moves(a.orbits, "--orbit");
     Simulation::Options simOpt;
     simOpt.threads = a.threads;
     simOpt.renderSurface = true;
@@ -307,6 +312,8 @@ int runView(const ViewArgs& a) {
         if (sim->contact() && !sim->contact()->tools().empty())
             for (const auto& [f, dx, dy] : dragMoves)
                 if (f == frame) dragTool(dx, dy, 0);
+        for (const auto& [f, dx, dy] : orbitMoves)
+            if (f == frame) orbit.rotate(dx, dy);
         const double wallFrame = std::min(secondsSince(last), 0.1);
         last = WallClock::now();
         const auto simStart = WallClock::now();
@@ -490,6 +497,8 @@ void addViewCommand(CLI::App& app) {
     cmd->add_flag("--record-camera", args->recordCamera, "With --record: the camera's moves as camera keyframes");
     cmd->add_option("--drag", args->drags,
                     "F,DX,DY: at frame F, shift-drag the first tool by DX, DY pixels (scripted input, repeatable)");
+    cmd->add_option("--orbit", args->orbits,
+                    "F,DX,DY: at frame F, drag the camera by DX, DY pixels (scripted input, repeatable)");
     cmd->add_option("--press", args->presses, "F,KEY: at frame F, press KEY (a letter, space or escape; repeatable)");
     cmd->callback([args] {
 #ifdef CUTSIM_HAVE_RENDER
