@@ -62,6 +62,20 @@ TEST(Check, GoldensPassBitwiseOnAnotherThreadCountAndAMaterialChangeFails) {
     const std::string xml = test::readText(dir + "/fail.xml");
     EXPECT_NE(xml.find("failures=\"1\""), std::string::npos) << xml;
     EXPECT_NE(xml.find("<failure"), std::string::npos) << xml;
+
+    // Goldens from another GL driver are named as such; a golden file gone is a failing frame.
+    auto meta2 = meta;
+    meta2["renderer"]["renderer"] = "another GPU";
+    std::FILE* f = std::fopen((dir + "/golden/golden.json").c_str(), "w");
+    ASSERT_TRUE(f);
+    std::fputs(meta2.dump().c_str(), f);
+    std::fclose(f);
+    fs::remove(dir + "/golden/frame_000002.png");
+    EXPECT_EQ(shell(check(dir, "--frames 1,2"), dir, &out, &err), 1) << out << err;
+    EXPECT_NE(out.find("note: the goldens were made with renderer"), std::string::npos) << out;
+    EXPECT_NE(out.find("another GPU / "), std::string::npos) << out;
+    EXPECT_NE(out.find("frame 1: pass"), std::string::npos) << out;
+    EXPECT_NE(out.find("frame 2: FAIL: no golden image"), std::string::npos) << out;
 }
 
 TEST(Check, BadInputIsExitTwoNamingIt) {
