@@ -6,6 +6,7 @@
 #include "fem/forces.hpp"
 #include "mesh/mesh.hpp"
 #include "sim/simulation.hpp"
+#include "sim/take.hpp"
 #include "util/atomic_file.hpp"
 
 #ifdef CUTSIM_HAVE_RENDER
@@ -29,8 +30,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
 
 namespace cutsim::app {
 namespace {
@@ -42,8 +47,13 @@ struct ViewArgs {
     int frames = 0;             // > 0: draw this many frames, save the screenshot, exit
     std::string screenshot;     // where p (and the end of --frames) writes
     int threads = 0;
-    std::vector<double> toolAt;  // x y z: the first tool held there from the start, as a mouse drag leaves it [m]
-    std::string report;          // report.json of the session, written at exit
+    std::vector<double> toolAt;        // x y z: the first tool held there from the start, as a mouse drag leaves it [m]
+    std::string report;                // report.json of the session, written at exit
+    std::string record;                // the take written as a scene at exit
+    bool recordCamera = false;         // the take's camera moves as camera keyframes
+    std::vector<std::string> drags;    // "F,DX,DY": a shift-drag of the first tool at frame F [px]
+    std::vector<std::string> presses;  // "F,KEY": a key pressed at frame F
+    std::vector<std::string> orbits;   // "F,DX,DY": a drag of the camera at frame F [px]
 };
 
 #ifdef CUTSIM_HAVE_RENDER
@@ -99,12 +109,62 @@ std::string nextShotName() {
     }
 }
 
+// Scripted input for --drag and --press: "F,A,B" -> frame F and the numbers after it.
+std::vector<std::pair<int, std::vector<std::string>>> parseScript(const std::vector<std::string>& items,
+                                                                  const char* flag, size_t fields) {
+    std::vector<std::pair<int, std::vector<std::string>>> out;
+    for (const auto& item : items) {
+        std::vector<std::string> parts;
+        std::string cur;
+        for (char c : item + ",") {
+            if (c == ',') {
+                parts.push_back(cur);
+                cur.clear();
+            } else {
+                cur += c;
+            }
+        }
+        char* end = nullptr;
+        const long f = parts.empty() ? -1 : std::strtol(parts[0].c_str(), &end, 10);
+        if (parts.size() != fields + 1 || f < 0 || *end || parts[0].empty())
+            throw InputError(std::string(flag) + ": expected FRAME," + (fields == 2 ? "DX,DY" : "KEY") + ", got \"" +
+                             item + "\"");
+        out.emplace_back(static_cast<int>(f), std::vector<std::string>(parts.begin() + 1, parts.end()));
+    }
+    return out;
+}
+
+// A key name of --press as GLFW's key code: a letter, or space/escape.
+int keyCode(const std::string& k) {
+    if (k.size() == 1 && k[0] >= 'a' && k[0] <= 'z') return GLFW_KEY_A + (k[0] - 'a');
+    if (k == "space") return GLFW_KEY_SPACE;
+    if (k == "escape") return GLFW_KEY_ESCAPE;
+    throw InputError("--press: unknown key \"" + k + "\" (a letter, space or escape)");
+}
+
 constexpr const char* kColormaps[] = {"timestep", "displacement", "stress", "none"};
 constexpr Integrator kIntegrators[] = {Integrator::SymplecticEuler, Integrator::CentralDifference, Integrator::Newmark,
                                        Integrator::BackwardEuler};
 
 int runView(const ViewArgs& a) {
     SceneDef sc = loadScene(a.scene, a.sets);
+    const auto presses = parseScript(a.presses, "--press", 1);
+    std::vector<std::pair<int, int>> pressKeys;
+    for (const auto& [f, k] : presses) pressKeys.emplace_back(f, keyCode(k[0]));
+    auto moves = [](const std::vector<std::string>& items, const char* flag) {
+        std::vector<std::tuple<int, double, double>> out;
+        for (const auto& [f, d] : parseScript(items, flag, 2)) {
+            char* e1 = nullptr;
+            char* e2 = nullptr;
+            const double dx = std::strtod(d[0].c_str(), &e1), dy = std::strtod(d[1].c_str(), &e2);
+            if (*e1 || *e2 || d[0].empty() || d[1].empty())
+                throw InputError(std::string(flag) + ": expected FRAME,DX,DY in pixels, got \"" + d[0] + "," + d[1] +
+                                 "\"");
+            out.emplace_back(f, dx, dy);
+        }
+        return out;
+    };
+    const auto dragMoves = moves(a.drags, "--drag"), orbitMoves = moves(a.orbits, "--orbit");
     Simulation::Options simOpt;
     simOpt.threads = a.threads;
     simOpt.renderSurface = true;
@@ -177,19 +237,56 @@ int runView(const ViewArgs& a) {
         sc.dt = p;
         scene.setStep(sim->dt(), sc.capture.criticalFactor);
     };
-    auto cutNext = [&] { sim->cutNextScripted(); };  // the message follows with the topology change
+    // Running, the cut is made due now and the next step makes it, as a scripted cut of this time
+    // (a recorded take replays it exactly); paused, it is made at once. The message follows with
+    // the topology change.
+    auto cutNext = [&] {
+        if (paused)
+            sim->cutNextScripted();
+        else
+            sim->dueNextScripted();
+    };
+    // The take's camera: a key whenever the orbit moves (record-camera).
+    std::vector<CameraKey> cameraKeys;
+    auto cameraKey = [&] {
+        const Camera c = orbit.camera();
+        CameraKey k;
+        k.time = sim->state().time;
+        k.eye = c.eye;
+        k.target = c.target;
+        k.up = c.up;
+        k.fov = c.fovY;
+        return k;
+    };
+    CameraKey lastCamera = cameraKey();
+    // A held tool takes its new pose a tick after now (Simulation::holdTool): drags add up and
+    // the tool is drawn where it was left, also while paused.
+    auto justAfterNow = [&] { return std::nextafter(sim->state().time, std::numeric_limits<double>::infinity()); };
+    // A shift-drag of the first tool by (dx, dy) pixels, or a shift-scroll of `wheel` clicks.
+    auto dragTool = [&](double dx, double dy, double wheel) {
+        const Eigen::Vector3d p = toolPose(sim->contact()->tools().front(), justAfterNow()).position;
+        if (dx != 0 || dy != 0) sim->holdTool(0, orbit.dragged(p, dx, dy, renderer.height()));
+        if (wheel != 0) sim->holdTool(0, p - 0.05 * orbit.distance * wheel * orbit.dir);
+    };
 
     for (int frame = 0; !win.shouldClose(); ++frame) {
         win.beginFrame();
         ImGuiIO& io = ImGui::GetIO();
-        for (int key : win.takeKeys()) {
+        std::vector<int> keys = win.takeKeys();
+        for (const auto& [f, k] : pressKeys)
+            if (f == frame) keys.push_back(k);
+        for (int key : keys) {
             switch (key) {
             case GLFW_KEY_SPACE: paused = !paused; break;
             case GLFW_KEY_S:
                 stepOnce = true;
                 paused = true;
                 break;
-            case GLFW_KEY_R: reset(); break;
+            case GLFW_KEY_R:
+                reset();
+                cameraKeys.clear();  // the take starts again
+                lastCamera = cameraKey();
+                break;
             case GLFW_KEY_C: renderer.options().xray = !renderer.options().xray; break;
             case GLFW_KEY_W: scene.setWireframe(!scene.wireframe()); break;
             case GLFW_KEY_P: shot = true; break;
@@ -201,10 +298,8 @@ int runView(const ViewArgs& a) {
         }
         const bool toolDrag = io.KeyShift && sim->contact() && !sim->contact()->tools().empty();
         if (!io.WantCaptureMouse && toolDrag) {
-            const Eigen::Vector3d p = toolPose(sim->contact()->tools().front(), sim->state().time).position;
-            if (ImGui::IsMouseDown(ImGuiMouseButton_Left) && (io.MouseDelta.x != 0 || io.MouseDelta.y != 0))
-                sim->holdTool(0, orbit.dragged(p, io.MouseDelta.x, io.MouseDelta.y, renderer.height()));
-            if (io.MouseWheel != 0) sim->holdTool(0, p - 0.05 * orbit.distance * io.MouseWheel * orbit.dir);
+            const bool down = ImGui::IsMouseDown(ImGuiMouseButton_Left);
+            dragTool(down ? io.MouseDelta.x : 0.0, down ? io.MouseDelta.y : 0.0, io.MouseWheel);
         } else if (!io.WantCaptureMouse) {
             if (ImGui::IsMouseDown(ImGuiMouseButton_Left)) orbit.rotate(io.MouseDelta.x, io.MouseDelta.y);
             if (ImGui::IsMouseDown(ImGuiMouseButton_Right))
@@ -215,6 +310,11 @@ int runView(const ViewArgs& a) {
         // Simulate: up to the next capture frame's time when headless (the same steps as
         // `cutsim run`), else the wall time since the last frame, stopping early to keep the
         // window responsive.
+        if (sim->contact() && !sim->contact()->tools().empty())
+            for (const auto& [f, dx, dy] : dragMoves)
+                if (f == frame) dragTool(dx, dy, 0);
+        for (const auto& [f, dx, dy] : orbitMoves)
+            if (f == frame) orbit.rotate(dx, dy);
         const double wallFrame = std::min(secondsSince(last), 0.1);
         last = WallClock::now();
         const auto simStart = WallClock::now();
@@ -322,9 +422,14 @@ int runView(const ViewArgs& a) {
         fi.wall = secondsSince(start);
         RenderSnapshot& snap = scene.update(model, sim->state(), fi);
         snap.camera = orbit.camera();
+        if (a.recordCamera) {
+            const CameraKey now = cameraKey();
+            addCameraKey(cameraKeys, lastCamera, now);
+            lastCamera = now;
+        }
         snap.tools.clear();
         if (sim->contact())
-            for (const auto& t : sim->contact()->tools()) appendToolShapes(t, sim->state().time, snap.tools);
+            for (const auto& t : sim->contact()->tools()) appendToolShapes(t, justAfterNow(), snap.tools);
         renderer.draw(snap);
         renderer.present(0);
         win.endFrame();
@@ -338,6 +443,10 @@ int runView(const ViewArgs& a) {
         }
         win.swap();
         if (lastFrame) break;
+    }
+    if (!a.record.empty()) {
+        writeFileAtomic(a.record, jsonText(takeScene(*sim, a.record, a.recordCamera ? &cameraKeys : nullptr)));
+        std::fprintf(stderr, "recorded: %s (replay: cutsim run %s --out DIR)\n", a.record.c_str(), a.record.c_str());
     }
     if (!a.report.empty()) {
         const nlohmann::json report = sim->report({{"wall_time", secondsSince(start)}, {"frames", 0}, {"video", ""}});
@@ -383,20 +492,27 @@ void addViewCommand(CLI::App& app) {
     cmd->add_option("--tool-at", args->toolAt,
                     "x y z: hold the scene's first tool there from the start, as shift-drag leaves it [m]")
         ->expected(3);
+    cmd->add_option("--record", args->record,
+                    "Write the take as a scene here at exit: the tools' paths as keyframes, the cuts made with x as "
+                    "scripted cuts, so `cutsim run` replays it offscreen");
+    cmd->add_flag("--record-camera", args->recordCamera, "With --record: the camera's moves as camera keyframes");
+    cmd->add_option("--drag", args->drags,
+                    "F,DX,DY: at frame F, shift-drag the first tool by DX, DY pixels (scripted input, repeatable)");
+    cmd->add_option("--orbit", args->orbits,
+                    "F,DX,DY: at frame F, drag the camera by DX, DY pixels (scripted input, repeatable)");
+    cmd->add_option("--press", args->presses, "F,KEY: at frame F, press KEY (a letter, space or escape; repeatable)");
     cmd->callback([args] {
 #ifdef CUTSIM_HAVE_RENDER
-        try {
-            setExitCode(runView(*args));
-        } catch (const render::NoDisplayError& e) {
-            std::fprintf(stderr, "error: %s\n", e.what());
-            setExitCode(static_cast<int>(ExitCode::NoDisplay));
-        } catch (const std::exception& e) {
-            std::fprintf(stderr, "error: %s\n", e.what());
-            setExitCode(2);
-        }
+        runCommand([&] {
+            try {
+                return runView(*args);
+            } catch (const render::NoDisplayError& e) {
+                std::fprintf(stderr, "error: %s\n", e.what());
+                return static_cast<int>(ExitCode::NoDisplay);
+            }
+        });
 #else
-        std::fprintf(stderr, "error: this cutsim was built without the renderer (-DCUTSIM_RENDER=OFF)\n");
-        setExitCode(2);
+        needsRenderer();
 #endif
     });
 }

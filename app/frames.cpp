@@ -131,8 +131,8 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
     h.dtUsed = info.dt;
     h.dtCertified = info.dtCertified;
     h.dtExact = info.dtExact;
-    h.stepsPerSecond = info.wall > 0 ? state.steps / info.wall : 0;
-    h.realTimeFactor = info.wall > 0 ? info.time / info.wall : 0;
+    h.stepsPerSecond = std::isnan(info.wall) ? info.wall : info.wall > 0 ? state.steps / info.wall : 0;
+    h.realTimeFactor = std::isnan(info.wall) ? info.wall : info.wall > 0 ? info.time / info.wall : 0;
     h.criticalElements = info.criticalElements;
     h.cuts = info.cuts;
     h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) +
@@ -209,6 +209,11 @@ public:
     int frames() const override { return frames_; }
     std::string videoPath() const override { return video_ ? videoPath_ : ""; }
     double lastEncodeSeconds() const override { return encode_; }
+    nlohmann::json renderer() const override {
+        return {{"vendor", renderer_->glVendor()},
+                {"renderer", renderer_->glRenderer()},
+                {"version", renderer_->glVersion()}};
+    }
 
 private:
     const SceneDef& sc_;

@@ -4,9 +4,10 @@
 
 #include "fem/state.hpp"
 #include "mesh/embedding.hpp"
-#include "snapshot/snapshot.hpp"
 #include "sim/scene.hpp"
 #include "snapshot/snapshot.hpp"
+
+#include <nlohmann/json.hpp>
 
 #include <memory>
 #include <string>
@@ -20,7 +21,8 @@ struct FrameInfo {
     double dtExact = 0;      // exact limit [s] (NaN when unknown)
     int criticalElements = 0;
     int cuts = 0;
-    double wall = 0;                                      // wall time since the loop started [s]
+    double wall = 0;                                      // wall time since the loop started [s]; NaN: the
+                                                          // HUD shows no wall-clock rates
     std::vector<ToolShape> tools;                         // tools to draw
     Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();  // reaction force on the tools [N]
     std::vector<float> forceHistory;                      // recent |tool force| samples, oldest first [N]
@@ -68,6 +70,8 @@ public:
     virtual int frames() const = 0;
     virtual std::string videoPath() const = 0;     // "" when no video was made
     virtual double lastEncodeSeconds() const = 0;  // part of the last frame() spent handing off/encoding
+    // The renderer that drew the frames: GL_VENDOR, GL_RENDERER, GL_VERSION.
+    virtual nlohmann::json renderer() const = 0;
     // After a cut: the surface to draw from now on, and the new per-element limits (nElems) [s].
     virtual void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt,
                                  double dt) = 0;

@@ -16,6 +16,7 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <unistd.h>
 
 namespace cutsim::app {
@@ -92,7 +93,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         sink = makeFrameSink(sc, out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
 
     // A frame of the state now; its render and encode time go to the run's stages.
-    const Stopwatch loop;
     auto frame = [&] {
         if (!sink) return;
         FrameInfo fi;
@@ -102,7 +102,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         fi.dtExact = sim.limits().exact;
         fi.criticalElements = sim.criticalElements();
         fi.cuts = sim.record().cutsMade;
-        fi.wall = loop.seconds();
+        // No wall-clock rates in captured frames: they would make every run's frames differ
+        // (report.json has them).
+        fi.wall = std::numeric_limits<double>::quiet_NaN();
         fi.toolForce = sim.record().tool.force;
         fi.forceHistory = sim.record().tool.history;
         if (sim.contact())
@@ -160,9 +162,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // Outputs: the final mesh with per-element fields, then the report; then the folder moves into place.
     if (sc.writeVtu && ok) writeFinalVtu(sim, (out / "final.vtu").string());
     const bool video = sink && !sink->videoPath().empty();
-    const json report = sim.report({{"wall_time", wall.seconds()},
-                                    {"frames", sink ? sink->frames() : 0},
-                                    {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
+    json report = sim.report({{"wall_time", wall.seconds()},
+                              {"frames", sink ? sink->frames() : 0},
+                              {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
+    if (sink) report["renderer"] = sink->renderer();
     writeFileAtomic((out / "report.json").string(), jsonText(report));
     folder.commit();
     if (!opt.quiet || !ok)  // a failure is always said

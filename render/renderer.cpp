@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cutsim::render {
@@ -282,6 +283,8 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     const auto* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
     if (!name) throw std::runtime_error("no current OpenGL context to render with");
     glRenderer_ = name;
+    for (auto [e, out] : {std::pair{GLenum(GL_VENDOR), &glVendor_}, std::pair{GLenum(GL_VERSION), &glVersion_}})
+        if (const auto* v = reinterpret_cast<const char*>(glGetString(e))) *out = v;
     Gl& g = *gl_;
     GLint maxSamples = 1;
     glGetIntegerv(GL_MAX_SAMPLES, &maxSamples);
@@ -671,8 +674,10 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
             ImGui::Text("dt exact n/a");
         else
             ImGui::Text("dt exact %.3e s", h.dtExact);
-        ImGui::Text("steps/s  %.0f", h.stepsPerSecond);
-        ImGui::Text("RT x     %.3f", h.realTimeFactor);
+        if (!std::isnan(h.stepsPerSecond)) {  // NaN: not shown (wall-clock rates differ run to run)
+            ImGui::Text("steps/s  %.0f", h.stepsPerSecond);
+            ImGui::Text("RT x     %.3f", h.realTimeFactor);
+        }
         ImGui::Text("critical %d", h.criticalElements);
         ImGui::Text("cuts     %d", h.cuts);
         for (const auto& line : h.lines) ImGui::TextUnformatted(line.c_str());

@@ -75,6 +75,8 @@ public:
     int samples() const { return samples_; }                       // MSAA samples in use
     const EglContext& context() const { return *ctx_; }            // Offscreen only
     const std::string& glRenderer() const { return glRenderer_; }  // GL_RENDERER
+    const std::string& glVendor() const { return glVendor_; }      // GL_VENDOR
+    const std::string& glVersion() const { return glVersion_; }    // GL_VERSION
     PixelRect legendRect() const;                                  // where the legend bar is drawn
 
 private:
@@ -89,7 +91,7 @@ private:
     void makeCurrent() const;
     void allocateTargets();  // framebuffers at opts_ size
     RenderOptions opts_;
-    std::string glRenderer_;
+    std::string glRenderer_, glVendor_, glVersion_;
     int samples_ = 1;
     std::unique_ptr<EglContext> ctx_;
     std::unique_ptr<Gl> gl_;

@@ -69,12 +69,18 @@ void partAabb(const ToolPart& p, const ToolDef& tool, const Pose& pose, Eigen::V
     hi = hi.cwiseMax(c + half);
 }
 
+// Keys of the same pose: the pose is held, and w = 0 gives it bitwise as a single key would
+// ((1 - w) x + w x is not always x in floating point).
+bool samePose(const ToolKey& a, const ToolKey& b) {
+    return a.pose.position == b.pose.position && a.pose.orientation.coeffs() == b.pose.orientation.coeffs();
+}
 }  // namespace
 
 Pose toolPose(const ToolDef& tool, double t) {
     const ToolKey *a, *b;
     double w;
     bracket(tool.keys, t, a, b, w);
+    if (samePose(*a, *b)) w = 0;
     Pose p;
     p.position = (1 - w) * a->pose.position + w * b->pose.position;
     p.orientation = a->pose.orientation.slerp(w, b->pose.orientation).normalized();
@@ -85,7 +91,23 @@ double toolOpening(const ToolDef& tool, double t) {
     const ToolKey *a, *b;
     double w;
     bracket(tool.keys, t, a, b, w);
+    if (a->opening == b->opening) w = 0;
     return (1 - w) * a->opening + w * b->opening;
+}
+
+ToolKey toolKeyAt(const ToolDef& tool, double t) {
+    const ToolKey *a, *b;
+    double w;
+    bracket(tool.keys, t, a, b, w);
+    ToolKey k;
+    if (samePose(*a, *b) && a->opening == b->opening) {
+        k = *a;
+    } else {
+        k.pose = toolPose(tool, t);
+        k.opening = toolOpening(tool, t);
+    }
+    k.time = t;
+    return k;
 }
 
 std::vector<ToolPart> toolParts(const ToolDef& tool, double t) {

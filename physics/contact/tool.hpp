@@ -52,6 +52,9 @@ struct ToolPart {
 Pose toolPose(const ToolDef& tool, double t);
 // Grasper opening at time t [m] (linear between keyframes).
 double toolOpening(const ToolDef& tool, double t);
+// The keyframe that holds the tool as it is at time t (a copy of a key where the path rests, so a
+// path re-keyed through it gives bitwise the same poses).
+ToolKey toolKeyAt(const ToolDef& tool, double t);
 
 // Convex parts of a tool at time t (grasper jaws move with the opening).
 std::vector<ToolPart> toolParts(const ToolDef& tool, double t);

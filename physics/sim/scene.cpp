@@ -139,7 +139,8 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
             Eigen::Vector4d w(q[0].get<double>(), q[1].get<double>(), q[2].get<double>(), q[3].get<double>());
             const double big = w.cwiseAbs().maxCoeff();  // scaled first: the norm of 1e200 overflows
             if (!(big > 1e-300)) k.fail("quaternion", "must not be zero");
-            w = (w / big).normalized();
+            // a unit quaternion as written (a recorded take) is kept bitwise: normalising again can move its last bits
+            if (std::abs(w.norm() - 1) > 4e-16) w = (w / big).normalized();
             key.pose.orientation = Eigen::Quaterniond(w(0), w(1), w(2), w(3));
             k.touch("quaternion");
         }
@@ -467,6 +468,27 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.capture.wireframe = c.boolean("wireframe", false);
         s.capture.xray = c.boolean("xray", true);
         s.capture.criticalFactor = c.number("critical_factor", 1.1, 0, 100, true);
+        if (c.has("check")) {
+            ObjectReader k = c.object("check");
+            CheckSettings& ch = s.capture.check;
+            ch.maxDiff = k.integer("max_diff", ch.maxDiff, 0, 255);
+            ch.maxFailing = k.number("max_failing", ch.maxFailing, 0, 1);
+            if (k.has("frames")) {
+                const json& f = k.raw("frames");
+                if (!f.is_array() || f.empty())
+                    k.fail("frames", "must be a non-empty array of frame numbers or \"last\"");
+                for (const json& e : f) {
+                    if (e.is_string() && e.get<std::string>() == "last")
+                        ch.frames.push_back(-1);
+                    else if (e.is_number_integer() && e.get<long>() >= 0 && e.get<long>() < 100000000)
+                        ch.frames.push_back(e.get<int>());
+                    else
+                        k.fail("frames", "entries must be frame numbers >= 0 or \"last\", got " + e.dump());
+                }
+                k.touch("frames");
+            }
+            k.finish();
+        }
         c.finish();
     }
     if (root.has("output")) {

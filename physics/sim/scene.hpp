@@ -63,6 +63,13 @@ struct CameraKey {
     double fov = 40;  // vertical field of view [deg]
 };
 
+// `cutsim check`: how far a frame may be from its golden image (the renderdiff rule).
+struct CheckSettings {
+    int maxDiff = 5;            // a pixel fails when a channel differs by more than this [0, 255]
+    double maxFailing = 0.001;  // a frame fails when more than this share of its pixels fail [-]
+    std::vector<int> frames;    // frames to compare; -1 is the last; empty: every frame
+};
+
 struct Capture {
     bool enabled = true;
     double fps = 30;  // frames per simulated second
@@ -74,6 +81,7 @@ struct Capture {
     bool wireframe = false;
     bool xray = true;             // critical elements drawn through the surface
     double criticalFactor = 1.1;  // critical: element estimate < factor * dt
+    CheckSettings check;          // capture.check
 };
 
 // A scripted cut at a given time: the plane through point with normal, in world coordinates of

@@ -656,9 +656,19 @@ CutResult Simulation::cut(const CutSurface& surface, const std::string& key) {
 
 bool Simulation::cutNextScripted() {
     if (nextCut_ >= sc_.cutting.cuts.size() || status_ != RunStatus::Running) return false;
-    const CutDef& cd = sc_.cutting.cuts[nextCut_++];
+    CutDef& cd = sc_.cutting.cuts[nextCut_++];
+    cd.time = std::min(cd.time, state_.time);  // when it was made, for a recording
     cut(cutSurfaceOf(cd), cd.path);
     return true;
+}
+
+int Simulation::dueNextScripted() {
+    auto& cuts = sc_.cutting.cuts;
+    size_t k = nextCut_;  // cuts due by now already wait for the next step
+    while (k < cuts.size() && cuts[k].time <= state_.time + 1e-12) ++k;
+    if (k >= cuts.size() || status_ != RunStatus::Running) return -1;
+    cuts[k].time = state_.time;
+    return static_cast<int>(k);
 }
 
 void Simulation::applyTopologyChange(const CutResult& r, const std::string& key) {
@@ -733,11 +743,15 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
 void Simulation::holdTool(int i, const Eigen::Vector3d& position) {
     if (!contact_ || i < 0 || i >= static_cast<int>(contact_->tools().size())) return;
     ToolDef& t = contact_->tools()[static_cast<size_t>(i)];
-    ToolKey k;
-    k.pose = toolPose(t, state_.time);
-    k.opening = toolOpening(t, state_.time);
-    k.pose.position = position;
-    t.keys.assign(1, k);
+    // The pose now stays what the last step saw; the new one starts one tick of time later. The
+    // keys before now stay, so the tool's keys are the path it took (what a recording writes).
+    const ToolKey now = toolKeyAt(t, state_.time);
+    ToolKey held = now;
+    held.time = std::nextafter(state_.time, std::numeric_limits<double>::infinity());
+    held.pose.position = position;
+    std::erase_if(t.keys, [&](const ToolKey& k) { return k.time >= now.time; });
+    t.keys.push_back(now);
+    t.keys.push_back(held);
 }
 
 std::string Simulation::setPolicy(Integrator integrator, const StepPolicy& policy) {

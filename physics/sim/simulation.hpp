@@ -103,8 +103,14 @@ public:
     CutResult cut(const CutSurface& surface, const std::string& key);
     // The next scripted cut (cutting.cuts) now, ahead of its time; false when none is left.
     bool cutNextScripted();
+    // The next scripted cut made due now: the next step applies it in its cut stage, as it applies
+    // a scripted cut of this time (so a take that gives the cut this time replays it exactly).
+    // Returns its index in cutting.cuts, or -1 when none is left.
+    int dueNextScripted();
 
-    // Interactive control: hold tool i at `position` from now on (its keyframes are dropped).
+    // Interactive control: hold tool i at `position` from just after now on. Its keys become the
+    // pose now (toolKeyAt) and the held pose one tick of time later, so the step that ends now
+    // and the next one see the tool as a recording of these keys replays it.
     void holdTool(int i, const Eigen::Vector3d& position);
     // A new scheme or policy; returns an empty string when accepted, else why it was refused
     // (nothing changes then).

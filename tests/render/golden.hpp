@@ -1,4 +1,5 @@
-// Golden-image comparison for render tests (Filament renderdiff style): each scene has an explicit
+// Golden-image comparison for render tests (the renderdiff rule of render/image_diff.hpp, also
+// `cutsim check`'s): each scene has an explicit
 // tolerance, a failure writes the actual frame and a diff image under golden_diff/ in the test's
 // working folder (the build tree), and one command accepts new references:
 //
@@ -8,6 +9,7 @@
 #pragma once
 
 #include "image.hpp"
+#include "image_diff.hpp"
 #include "png_writer.hpp"
 #include "test_support.hpp"
 
@@ -26,30 +28,8 @@ struct GoldenTolerance {
     double fraction = 0.0;  // the scene passes when at most this fraction of pixels differ
 };
 
-struct ImageDiff {
-    int maxChannel = 0;     // largest channel difference over the image
-    double fraction = 0.0;  // fraction of pixels differing by more than the tolerance
-    render::Image diff;     // differing pixels red, the rest the reference dimmed
-};
-
-inline ImageDiff diffImages(const render::Image& ref, const render::Image& img, int channelTol) {
-    ImageDiff d;
-    d.diff.width = img.width;
-    d.diff.height = img.height;
-    d.diff.rgba.resize(img.rgba.size());
-    long bad = 0;
-    for (size_t p = 0; p < img.rgba.size(); p += 4) {
-        int m = 0;
-        for (int c = 0; c < 4; ++c) m = std::max(m, std::abs(int(img.rgba[p + c]) - int(ref.rgba[p + c])));
-        d.maxChannel = std::max(d.maxChannel, m);
-        const bool differs = m > channelTol;
-        bad += differs;
-        for (int c = 0; c < 3; ++c) d.diff.rgba[p + c] = differs ? (c == 0 ? 255 : 0) : ref.rgba[p + c] / 4;
-        d.diff.rgba[p + 3] = 255;
-    }
-    d.fraction = img.rgba.empty() ? 0.0 : double(bad) / double(img.rgba.size() / 4);
-    return d;
-}
+using render::diffImages;
+using render::ImageDiff;
 
 inline bool updatingGolden() {
     const char* u = std::getenv("CUTSIM_UPDATE_GOLDEN");

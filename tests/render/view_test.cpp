@@ -183,6 +183,51 @@ TEST(View, RunAndViewTakeTheSameSteps) {
     EXPECT_EQ(run["pieces"], view["pieces"]);
 }
 
+// A take recorded in the live view replays offscreen: a scripted shift-drag moves the blade
+// down through the liver in four jumps (holding it between them), x brings a scripted cut
+// forward; `cutsim run` of the recorded scene makes the same cuts (keys, elements split), the
+// same pieces, the same steps and bitwise the same final state.
+TEST(View, RecordedTakeReplaysWithTheSameCutsAndPieces) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    const std::string cut = " --set 'cutting.cuts=[{\"time\":0.8,\"point\":[-0.085,0.06,0.0],\"normal\":[1,0,0.15]}]' ";
+    std::string err;
+    int code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/blade.json") +
+                         " --frames 12 --width 320 --height 180 --threads 1" + cut +
+                         "--drag 2,0,30 --drag 4,0,30 --drag 6,0,30 --drag 8,0,30 --press 5,x "
+                         "--orbit 10,60,0 --record-camera --record " +
+                         dir + "/take.json --report " + dir + "/view.json",
+                     dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    const auto take = nlohmann::json::parse(test::readText(dir + "/take.json"));
+    EXPECT_GE(take["tools"][0]["keyframes"].size(), 8u) << take["tools"][0].dump();
+    EXPECT_LT(take["cutting"]["cuts"][0]["time"].get<double>(), 0.2);  // made at frame 5 with x
+    const auto& cam = take["camera"]["keyframes"];                     // still, turned at frame 10, still again
+    ASSERT_GE(cam.size(), 2u) << cam.dump();
+    EXPECT_NE(cam.front()["eye"], cam.back()["eye"]) << cam.dump();
+    code = shell(std::string(CUTSIM_BINARY) + " run " + dir + "/take.json --no-render --quiet --threads 1 --out " +
+                     dir + "/replay",
+                 dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    const auto view = nlohmann::json::parse(test::readText(dir + "/view.json"));
+    const auto run = nlohmann::json::parse(test::readText(dir + "/replay/report.json"));
+    ASSERT_EQ(run["cuts"].size(), view["cuts"].size());
+    int blade = 0;
+    for (size_t i = 0; i < run["cuts"].size(); ++i) {
+        EXPECT_EQ(run["cuts"][i]["key"], view["cuts"][i]["key"]) << i;
+        EXPECT_EQ(run["cuts"][i]["time"], view["cuts"][i]["time"]) << i;
+        EXPECT_EQ(run["cuts"][i]["split"], view["cuts"][i]["split"]) << i;
+        EXPECT_EQ(run["cuts"][i]["elements"], view["cuts"][i]["elements"]) << i;
+        blade += run["cuts"][i]["key"].get<std::string>().rfind("tools", 0) == 0;
+    }
+    EXPECT_GT(blade, 0) << "the dragged blade cut nothing";
+    EXPECT_EQ(run["pieces"], view["pieces"]);
+    EXPECT_EQ(run["piece_volumes"], view["piece_volumes"]);
+    EXPECT_EQ(run["steps"], view["steps"]);
+    EXPECT_EQ(run["state_hash"], view["state_hash"]);
+    std::printf("take: %zu cuts (%d by the blade), %d pieces\n", run["cuts"].size(), blade, run["pieces"].get<int>());
+}
+
 TEST(View, WithoutADisplayExitsWithAClearMessage) {
     const std::string dir = test::tempDir();
     std::string err;
