@@ -101,18 +101,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     const Stopwatch loop;
     auto frame = [&] {
         if (!sink) return;
-        FrameInfo fi;
-        fi.time = sim.state().time;
-        fi.dt = sim.dt();
-        fi.dtCertified = sim.limits().certified;
-        fi.dtExact = sim.limits().exact;
-        fi.criticalElements = sim.criticalElements();
-        fi.cuts = sim.record().cutsMade;
-        fi.wall = loop.seconds();
-        fi.toolForce = sim.record().tool.force;
-        fi.forceHistory = sim.record().tool.history;
-        if (sim.contact())
-            for (const auto& t : sim.contact()->tools()) appendToolShapes(t, fi.time, fi.tools);
+        const FrameInfo fi = frameInfoOf(sim, loop.seconds());
         const Stopwatch tr;
         sink->frame(sim.model(), sim.state(), fi);
         sim.record().stages[Stage::Render] += tr.seconds() - sink->lastEncodeSeconds();

@@ -284,7 +284,8 @@ void Simulation::buildObject() {
         model_.elementModel = sc.element;
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
     } else {
-        TetMesh mesh = sc.mesh.empty()
+        TetMesh mesh = sc.meshData ? TetMesh{sc.scale * sc.meshData->X, sc.meshData->tets, {}, sc.meshData->source}
+                       : sc.mesh.empty()
                            ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
                                      sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
                            : readTetMesh(sc.mesh, ro);
