@@ -5,7 +5,8 @@ PKGS=(build-essential cmake pkg-config
       libeigen3-dev libspectra-dev libbullet-dev libtet1.5-dev
       libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libglfw3-dev libimgui-dev libstb-dev libpng-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
-      ffmpeg xvfb xauth gnuplot-nox clang-format)
+      ffmpeg xvfb xauth gnuplot-nox clang-format
+      pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib parallel)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
