@@ -12,10 +12,11 @@ void registerCommands(CLI::App& app);
 int exitCode();
 void setExitCode(int code);
 
-void addDtCommand(CLI::App& app);    // cmd_dt.cpp: time-step analysis of a mesh
-void addMeshCommand(CLI::App& app);  // cmd_mesh.cpp: mesh conversion and checks
-void addRunCommand(CLI::App& app);   // cmd_run.cpp: run a scene
-void addViewCommand(CLI::App& app);  // cmd_view.cpp: run a scene live in a window
-void addMiCommand(CLI::App& app);    // cmd_mi.cpp: mesh intersection of a surface
+void addDtCommand(CLI::App& app);     // cmd_dt.cpp: time-step analysis of a mesh
+void addMeshCommand(CLI::App& app);   // cmd_mesh.cpp: mesh conversion and checks
+void addRunCommand(CLI::App& app);    // cmd_run.cpp: run a scene
+void addViewCommand(CLI::App& app);   // cmd_view.cpp: run a scene live in a window
+void addMiCommand(CLI::App& app);     // cmd_mi.cpp: mesh intersection of a surface
+void addSweepCommand(CLI::App& app);  // cmd_sweep.cpp: a scene over a product of overrides
 
 }  // namespace cutsim::app
