@@ -1,0 +1,61 @@
+"""Stepping from Python against the CLI: 1000 steps of the demo object, one thread, the two taking
+turns for --rounds rounds; prints the medians (BENCHMARKS.md, "Python"). From the checkout:
+
+    PYTHONPATH=build/python python3 scripts/bench_python.py [--cutsim build/cutsim] [--rounds 9]
+
+CLI: the loop seconds of `cutsim run` (report.json: steps / steps_per_second, step() calls only).
+Python: wall time around the whole loop, binding included: sim.step(1000), and a Python loop of
+1000 sim.step() calls that reads the tool force after each (a haptic loop).
+"""
+import argparse
+import json
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+import cutsim
+
+SCENE = str(Path(__file__).resolve().parents[1] / "assets" / "scenes" / "demo.json")
+STEPS = 1000
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cutsim", default="build/cutsim")
+    ap.add_argument("--rounds", type=int, default=9)
+    args = ap.parse_args()
+    dt = cutsim.Simulation(SCENE, threads=1).dt
+    sets = [f"duration={(STEPS - 0.5) * dt!r}", "capture.enabled=false"]
+    cli, block, loop = [], [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(args.rounds):
+            cmd = [args.cutsim, "run", SCENE, "--out", tmp, "--no-render", "--quiet", "--threads", "1"]
+            subprocess.run(cmd + [a for s in sets for a in ("--set", s)], check=True)
+            r = json.loads((Path(tmp) / "report.json").read_text())
+            assert r["steps"] == STEPS, r["steps"]
+            cli.append(r["steps"] / r["steps_per_second"])
+
+            sim = cutsim.Simulation(SCENE, set=sets, threads=1)
+            t = time.perf_counter()
+            assert sim.step(STEPS) == STEPS
+            block.append(time.perf_counter() - t)
+            assert sim.state_hash() == r["state_hash"]  # the same run
+
+            sim = cutsim.Simulation(SCENE, set=sets, threads=1)
+            t = time.perf_counter()
+            for _ in range(STEPS):
+                sim.step()
+                sim.tool_force(0)
+            loop.append(time.perf_counter() - t)
+    c = statistics.median(cli)
+    print(f"{STEPS} steps of the demo object ({sim.elements} tets), 1 thread, median of {args.rounds} rounds")
+    for name, v in (("cli (report loop time)", cli), ("python sim.step(1000)", block),
+                    ("python loop step()+tool_force()", loop)):
+        m = statistics.median(v)
+        print(f"  {name:34s} {1e3 * m:8.2f} ms  {100 * (m / c - 1):+6.1f}%  (min {1e3 * min(v):.2f} ms)")
+
+
+if __name__ == "__main__":
+    main()
