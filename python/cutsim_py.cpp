@@ -186,6 +186,15 @@ json inlineMesh(const py::array_t<double, py::array::c_style | py::array::forcec
     return {{"nodes", std::move(n)}, {"tets", std::move(t)}};
 }
 
+// The contact world when the scene has tool i, else IndexError.
+const ContactWorld& checkTool(const Simulation& sim, int i) {
+    const ContactWorld* c = sim.contact();
+    if (!c || i < 0 || i >= static_cast<int>(c->tools().size()))
+        throw py::index_error("tool " + std::to_string(i) + ": the scene has " +
+                              std::to_string(c ? c->tools().size() : 0) + " tools");
+    return *c;
+}
+
 py::dict limitsDict(const StepLimits& l) {
     py::dict d;
     d["exact"] = l.exact;  // NaN: not known (not computed after a cut)
@@ -247,21 +256,14 @@ PYBIND11_MODULE(cutsim, m) {
         .def(
             "set_tool",
             [](PySimulation& s, int i, const py::object& pos) {
-                const auto* c = s.sim().contact();
-                if (!c || i < 0 || i >= static_cast<int>(c->tools().size()))
-                    throw py::index_error("tool " + std::to_string(i) + ": the scene has " +
-                                          std::to_string(c ? c->tools().size() : 0) + " tools");
+                checkTool(s.sim(), i);
                 s.sim().holdTool(i, vec3(pos, "position"));
             },
             py::arg("tool"), py::arg("position"), "Holds tool i at position [m] from now on (keyframes dropped)")
         .def(
             "tool_force",
             [](PySimulation& s, int i) {
-                const auto* c = s.sim().contact();
-                if (!c || i < 0 || i >= static_cast<int>(c->tools().size()))
-                    throw py::index_error("tool " + std::to_string(i) + ": the scene has " +
-                                          std::to_string(c ? c->tools().size() : 0) + " tools");
-                const auto& r = c->last().reaction;
+                const auto& r = checkTool(s.sim(), i).last().reaction;
                 const Eigen::Vector3d f =
                     static_cast<size_t>(i) < r.size() ? r[static_cast<size_t>(i)] : Eigen::Vector3d::Zero();
                 return py::array_t<double>(3, f.data());
@@ -270,9 +272,8 @@ PYBIND11_MODULE(cutsim, m) {
         .def(
             "tool_position",
             [](PySimulation& s, int i) {
-                const auto* c = s.sim().contact();
-                if (!c || i < 0 || i >= static_cast<int>(c->tools().size())) throw py::index_error("no such tool");
-                const Eigen::Vector3d p = toolPose(c->tools()[static_cast<size_t>(i)], s.sim().state().time).position;
+                const Eigen::Vector3d p =
+                    toolPose(checkTool(s.sim(), i).tools()[static_cast<size_t>(i)], s.sim().state().time).position;
                 return py::array_t<double>(3, p.data());
             },
             py::arg("tool") = 0)
