@@ -1,7 +1,7 @@
 """Stepping from Python against the CLI: 1000 steps of the demo object, one thread, the two taking
 turns for --rounds rounds; prints the medians (BENCHMARKS.md, "Python"). From the checkout:
 
-    PYTHONPATH=build/python python3 scripts/bench_python.py [--cutsim build/cutsim] [--rounds 9]
+    PYTHONPATH=build/python python3 scripts/bench_python.py [--cutsim build/cutsim] [--rounds 21]
 
 CLI: the loop seconds of `cutsim run` (report.json: steps / steps_per_second, step() calls only).
 Python: wall time around the whole loop, binding included: sim.step(1000), and a Python loop of
@@ -24,33 +24,45 @@ STEPS = 1000
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cutsim", default="build/cutsim")
-    ap.add_argument("--rounds", type=int, default=9)
+    ap.add_argument("--rounds", type=int, default=21)
     args = ap.parse_args()
     dt = cutsim.Simulation(SCENE, threads=1).dt
     sets = [f"duration={(STEPS - 0.5) * dt!r}", "capture.enabled=false"]
     cli, block, loop = [], [], []
+    hashes = set()
     with tempfile.TemporaryDirectory() as tmp:
-        for _ in range(args.rounds):
+
+        def run_cli():
             cmd = [args.cutsim, "run", SCENE, "--out", tmp, "--no-render", "--quiet", "--threads", "1"]
             subprocess.run(cmd + [a for s in sets for a in ("--set", s)], check=True)
             r = json.loads((Path(tmp) / "report.json").read_text())
             assert r["steps"] == STEPS, r["steps"]
             cli.append(r["steps"] / r["steps_per_second"])
+            hashes.add(r["state_hash"])
 
+        def run_block():
             sim = cutsim.Simulation(SCENE, set=sets, threads=1)
             t = time.perf_counter()
             assert sim.step(STEPS) == STEPS
             block.append(time.perf_counter() - t)
-            assert sim.state_hash() == r["state_hash"]  # the same run
+            hashes.add(sim.state_hash())
 
+        def run_loop():
             sim = cutsim.Simulation(SCENE, set=sets, threads=1)
             t = time.perf_counter()
             for _ in range(STEPS):
                 sim.step()
                 sim.tool_force(0)
             loop.append(time.perf_counter() - t)
+            hashes.add(sim.state_hash())
+
+        sides = [run_cli, run_block, run_loop]
+        for k in range(args.rounds):
+            for side in sides[k % 3 :] + sides[: k % 3]:  # each side first in turn
+                side()
+    assert len(hashes) == 1, hashes  # the same run everywhere
     c = statistics.median(cli)
-    print(f"{STEPS} steps of the demo object ({sim.elements} tets), 1 thread, median of {args.rounds} rounds")
+    print(f"{STEPS} steps of the demo object, 1 thread, median of {args.rounds} rounds")
     for name, v in (("cli (report loop time)", cli), ("python sim.step(1000)", block),
                     ("python loop step()+tool_force()", loop)):
         m = statistics.median(v)
