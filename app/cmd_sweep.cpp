@@ -181,9 +181,9 @@ std::string summary(const std::vector<Axis>& axes, const std::vector<Job>& jobs,
         const double force = r.contains("tool") ? r["tool"].value("max_force", 0.0) : 0.0;
         const long cutSteps = r.contains("blade") ? r["blade"].value("cut_steps", 0L) : 0L;
         const size_t cuts = r.contains("cuts") && r["cuts"].is_array() ? r["cuts"].size() : 0;
-        os << ',' << status << ',' << r.value("steps", 0L) << ',' << num(r.value("dt", 0.0)) << ',' << cuts << ','
-           << cutSteps << ',' << num(force) << ',' << r.value("state_hash", "") << ',' << num(r.value("wall_time", 0.0))
-           << '\n';
+        os << ',' << csvField(status) << ',' << r.value("steps", 0L) << ',' << num(r.value("dt", 0.0)) << ',' << cuts
+           << ',' << cutSteps << ',' << num(force) << ',' << r.value("state_hash", "") << ','
+           << num(r.value("wall_time", 0.0)) << '\n';
     }
     return os.str();
 }

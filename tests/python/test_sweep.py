@@ -59,3 +59,14 @@ def test_slurm_script_and_bad_input(tmp_path):
     p = subprocess.run([cutsim_binary(), "sweep", PROBE, "--set", "material.nu=0.3,0.5", "--out", str(tmp_path / "b")],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "material.nu" in p.stderr and p.stderr.startswith("error: ")
+
+
+def test_a_failed_job_is_a_row_and_exit_1(tmp_path):
+    bar = str(SCENES / "bar_sag.json")
+    p = subprocess.run([cutsim_binary(), "sweep", bar, "--set", "duration=0.05", "--set", "checks.max_speed=0.0001,100",
+                        "--out", str(tmp_path)], capture_output=True, text=True)
+    assert p.returncode == 1 and "1 not ok" in p.stderr
+    r = rows(tmp_path)
+    assert [x["checks.max_speed"] for x in r] == ["0.0001", "100"]
+    assert r[0]["status"].startswith("diverged: ") and "," in r[0]["status"]  # quoted in the CSV
+    assert r[1]["status"] == "ok" and int(r[1]["steps"]) > int(r[0]["steps"])
