@@ -116,8 +116,12 @@ public:
             snapshot_ = std::make_unique<SceneSnapshot>(sc_, sim_.model(), sim_.analyzer().estimates().r1r, sim_.dt(),
                                                         sim_.surface());
             drawnVersion_ = sim_.topologyVersion();
+            drawnDt_ = sim_.dt();
         }
-        snapshot_->setStep(sim_.dt(), cap.criticalFactor);
+        if (drawnDt_ != sim_.dt()) {  // colours and critical elements follow the step
+            snapshot_->setStep(sim_.dt(), cap.criticalFactor);
+            drawnDt_ = sim_.dt();
+        }
         const render::Image img =
             renderer_->render(snapshot_->update(sim_.model(), sim_.state(), frameInfoOf(sim_, sim_.record().wallLoop)));
         py::array_t<std::uint8_t> out({img.height, img.width, 3});
@@ -139,6 +143,7 @@ private:
     std::unique_ptr<render::Renderer> renderer_;
     std::unique_ptr<SceneSnapshot> snapshot_;
     int drawnVersion_ = -1;
+    double drawnDt_ = 0;
 #endif
 };
 
