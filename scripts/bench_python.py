@@ -5,12 +5,14 @@ turns for --rounds rounds; prints the medians (BENCHMARKS.md, "Python"). From th
 
 CLI: the loop seconds of `cutsim run` (report.json: steps / steps_per_second, step() calls only).
 Python: wall time around the whole loop, binding included: sim.step(1000), and a Python loop of
-1000 sim.step() calls that reads the tool force after each (a haptic loop).
+1000 sim.step() calls that reads the tool force after each (a haptic loop). Every measurement is a
+fresh process, as the CLI's is.
 """
 import argparse
 import json
 import statistics
 import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -21,13 +23,34 @@ SCENE = str(Path(__file__).resolve().parents[1] / "assets" / "scenes" / "demo.js
 STEPS = 1000
 
 
+def child(kind, duration):
+    """One Python measurement, printed as JSON: sim.step(1000), or a loop of step() and tool_force()."""
+    import numpy  # noqa: F401  (imported by any caller that reads arrays; not inside the timing)
+
+    sim = cutsim.Simulation(SCENE, set=[f"duration={duration!r}", "capture.enabled=false"], threads=1)
+    t = time.perf_counter()
+    if kind == "block":
+        assert sim.step(STEPS) == STEPS
+    else:
+        for _ in range(STEPS):
+            sim.step()
+            sim.tool_force(0)
+    seconds = time.perf_counter() - t
+    assert sim.steps == STEPS
+    print(json.dumps({"seconds": seconds, "state_hash": sim.state_hash()}))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cutsim", default="build/cutsim")
     ap.add_argument("--rounds", type=int, default=21)
+    ap.add_argument("--child", choices=["block", "loop"], help=argparse.SUPPRESS)
+    ap.add_argument("--duration", type=float, help=argparse.SUPPRESS)
     args = ap.parse_args()
-    dt = cutsim.Simulation(SCENE, threads=1).dt
-    sets = [f"duration={(STEPS - 0.5) * dt!r}", "capture.enabled=false"]
+    if args.child:
+        return child(args.child, args.duration)
+    duration = (STEPS - 0.5) * cutsim.Simulation(SCENE, threads=1).dt
+    sets = [f"duration={duration!r}", "capture.enabled=false"]
     cli, block, loop = [], [], []
     hashes = set()
     with tempfile.TemporaryDirectory() as tmp:
@@ -40,21 +63,20 @@ def main():
             cli.append(r["steps"] / r["steps_per_second"])
             hashes.add(r["state_hash"])
 
+        def run_python(kind, out):
+            # a fresh process, as the CLI's: a long-lived one that waited for the CLI is scheduled
+            # differently on a shared machine
+            p = subprocess.run([sys.executable, __file__, "--child", kind, "--duration", repr(duration)],
+                               check=True, capture_output=True, text=True)
+            r = json.loads(p.stdout)
+            out.append(r["seconds"])
+            hashes.add(r["state_hash"])
+
         def run_block():
-            sim = cutsim.Simulation(SCENE, set=sets, threads=1)
-            t = time.perf_counter()
-            assert sim.step(STEPS) == STEPS
-            block.append(time.perf_counter() - t)
-            hashes.add(sim.state_hash())
+            run_python("block", block)
 
         def run_loop():
-            sim = cutsim.Simulation(SCENE, set=sets, threads=1)
-            t = time.perf_counter()
-            for _ in range(STEPS):
-                sim.step()
-                sim.tool_force(0)
-            loop.append(time.perf_counter() - t)
-            hashes.add(sim.state_hash())
+            run_python("loop", loop)
 
         sides = [run_cli, run_block, run_loop]
         for k in range(args.rounds):
