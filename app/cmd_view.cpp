@@ -412,14 +412,7 @@ int runView(const ViewArgs& a) {
 
         // Scene, then the panel over it.
         renderer.resize(win.framebufferWidth(), win.framebufferHeight());
-        FrameInfo fi;
-        fi.time = sim->state().time;
-        fi.dt = sim->dt();
-        fi.dtCertified = sim->limits().certified;
-        fi.dtExact = sim->limits().exact;
-        fi.criticalElements = sim->criticalElements();
-        fi.cuts = sim->record().cutsMade;
-        fi.wall = secondsSince(start);
+        const FrameInfo fi = frameInfoOf(*sim, secondsSince(start));
         RenderSnapshot& snap = scene.update(model, sim->state(), fi);
         snap.camera = orbit.camera();
         if (a.recordCamera) {

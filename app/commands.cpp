@@ -33,6 +33,7 @@ void registerCommands(CLI::App& app) {
     addDtCommand(app);
     addMeshCommand(app);
     addRunCommand(app);
+    addSweepCommand(app);
     addMiCommand(app);
     addRenderCommand(app);
     addViewCommand(app);

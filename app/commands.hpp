@@ -24,5 +24,6 @@ void addRunCommand(CLI::App& app);    // cmd_run.cpp: run a scene
 void addViewCommand(CLI::App& app);   // cmd_view.cpp: run a scene live in a window
 void addCheckCommand(CLI::App& app);  // cmd_check.cpp: compare a scene's frames with golden images
 void addMiCommand(CLI::App& app);     // cmd_mi.cpp: mesh intersection of a surface
+void addSweepCommand(CLI::App& app);  // cmd_sweep.cpp: a scene over a product of overrides
 
 }  // namespace cutsim::app

@@ -95,20 +95,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // A frame of the state now; its render and encode time go to the run's stages.
     auto frame = [&] {
         if (!sink) return;
-        FrameInfo fi;
-        fi.time = sim.state().time;
-        fi.dt = sim.dt();
-        fi.dtCertified = sim.limits().certified;
-        fi.dtExact = sim.limits().exact;
-        fi.criticalElements = sim.criticalElements();
-        fi.cuts = sim.record().cutsMade;
-        // No wall-clock rates in captured frames: they would make every run's frames differ
-        // (report.json has them).
-        fi.wall = std::numeric_limits<double>::quiet_NaN();
-        fi.toolForce = sim.record().tool.force;
-        fi.forceHistory = sim.record().tool.history;
-        if (sim.contact())
-            for (const auto& t : sim.contact()->tools()) appendToolShapes(t, fi.time, fi.tools);
+        // no wall-clock rates in captured frames: they would make every run's frames differ (report.json has them)
+        const FrameInfo fi = frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN());
         const Stopwatch tr;
         sink->frame(sim.model(), sim.state(), fi);
         sim.record().stages[Stage::Render] += tr.seconds() - sink->lastEncodeSeconds();

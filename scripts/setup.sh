@@ -6,7 +6,8 @@ PKGS=(build-essential cmake pkg-config
       libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libglfw3-dev libimgui-dev libstb-dev libpng-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
       ffmpeg xvfb xauth gnuplot-nox clang-format
-      clang libfuzzer-14-dev libomp-dev)
+      clang libfuzzer-14-dev libomp-dev
+      pybind11-dev python3-dev python3-numpy python3-pytest python3-matplotlib parallel)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -6,6 +6,7 @@
 
 #include "cut/xfem.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -188,6 +189,41 @@ json parseJson(const std::string& text, const std::string& where, bool isFile) {
     }
 }
 
+// object.mesh as {"nodes": [[x, y, z], ...], "tets": [[a, b, c, d], ...]} (0-based), as the Python
+// bindings pass numpy arrays.
+TetMesh readInlineMesh(ObjectReader r) {
+    const std::string source = r.file() + ": object.mesh";
+    auto rows = [&](const char* key, size_t width) -> const json& {
+        if (!r.has(key)) r.fail(key, "is required");
+        const json& a = r.raw(key);
+        r.touch(key);
+        if (!a.is_array() || a.empty()) r.fail(key, "must be a non-empty array");
+        for (const json& row : a)
+            if (!row.is_array() || row.size() != width ||
+                !std::all_of(row.begin(), row.end(), [](const json& v) { return v.is_number(); }))
+                r.fail(key, "every entry must be " + std::to_string(width) + " numbers");
+        return a;
+    };
+    const json& nodes = rows("nodes", 3);
+    const json& tets = rows("tets", 4);
+    detail::RawTets raw;
+    raw.xyz.reserve(3 * nodes.size());
+    for (const json& row : nodes)
+        for (const json& v : row) raw.xyz.push_back(v.get<double>());
+    raw.tets.reserve(4 * tets.size());
+    const long n = static_cast<long>(nodes.size());
+    for (size_t e = 0; e < tets.size(); ++e)
+        for (const json& v : tets[e]) {
+            if (!v.is_number_integer() || v.get<long>() < 0 || v.get<long>() >= n)
+                r.fail("tets", "tet " + std::to_string(e) + ": node index must be an integer in [0, " +
+                                   std::to_string(n) + ")");
+            raw.tets.push_back(v.get<int>());
+        }
+    r.finish();
+    // the checks of every mesh file: coordinate range, zero-volume, flat and inverted tets
+    return detail::finishTetMesh(source, std::move(raw), ReadOptions{}, nullptr);
+}
+
 void setPath(json& j, const std::string& assignment) {
     const auto eq = assignment.find('=');
     if (eq == std::string::npos || eq == 0) throw InputError("--set " + assignment + ": expected key.path=value");
@@ -203,6 +239,21 @@ void setPath(json& j, const std::string& assignment) {
         const size_t dot = key.find('.', pos);
         const std::string part = key.substr(pos, dot == std::string::npos ? std::string::npos : dot - pos);
         if (part.empty()) throw InputError("--set " + assignment + ": empty key in path");
+        // an array element by its index (tools.0.keyframes.2.position.1), never appended
+        if (node->is_array()) {
+            size_t idx = 0;
+            const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), idx);
+            if (ec != std::errc() || end != part.data() + part.size() || idx >= node->size())
+                throw InputError("--set " + assignment + ": '" + part + "' is not an index of an array of " +
+                                 std::to_string(node->size()));
+            node = &(*node)[idx];
+            if (dot == std::string::npos) {
+                *node = value;
+                return;
+            }
+            pos = dot + 1;
+            continue;
+        }
         if (!node->is_object()) throw InputError("--set " + assignment + ": '" + part + "' is inside a non-object");
         if (dot == std::string::npos) {
             (*node)[part] = value;
@@ -262,7 +313,9 @@ SceneDef parseScene(const json& j, const std::string& file) {
         ObjectReader o = root.object("object");
         if (int(o.has("mesh")) + int(o.has("box")) + int(o.has("surface")) != 1)
             o.fail("mesh", "give exactly one of mesh (a tet mesh file), box and surface");
-        if (o.has("mesh")) {
+        if (o.has("mesh") && o.raw("mesh").is_object()) {
+            s.meshData = std::make_shared<const TetMesh>(readInlineMesh(o.object("mesh")));
+        } else if (o.has("mesh")) {
             fs::path p(o.requiredString("mesh"));
             if (p.is_relative()) p = fs::path(s.dir) / p;
             if (!fs::exists(p)) o.fail("mesh", "file not found: " + p.string());
@@ -501,9 +554,12 @@ SceneDef parseScene(const json& j, const std::string& file) {
 }
 
 SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets) {
-    json j = parseJson(detail::readFile(path), path, true);
+    return parseScene(applySets(parseJson(detail::readFile(path), path, true), sets), path);
+}
+
+json applySets(json j, const std::vector<std::string>& sets) {
     for (const auto& a : sets) setPath(j, a);
-    return parseScene(j, path);
+    return j;
 }
 
 CutOptions cutOptions(const Cutting& c) {

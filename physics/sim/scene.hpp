@@ -12,6 +12,7 @@
 
 #include <Eigen/Core>
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -116,12 +117,13 @@ struct SceneDef {
     std::string name;
 
     // object
-    std::string mesh;                // tet mesh path (resolved); empty when a box is generated
-    std::string surface;             // surface path (resolved) embedded by mesh intersection; empty otherwise
-    int surfaceCells = 0;            // MI lattice cells across the surface's longest side (when surfaceH is 0)
-    double surfaceH = 0;             // MI lattice cell edge [m] (after scale); > 0 takes precedence
-    bool surfaceFixOutside = false;  // MI: fix the outside corners of interface tets (thesis sec. 6.3)
-    bool surfaceKeepStep = true;     // MI: add mass where needed so the step is at least the lattice's
+    std::string mesh;                         // tet mesh path (resolved); empty when a box is generated
+    std::shared_ptr<const TetMesh> meshData;  // object.mesh given inline ({nodes, tets}); null otherwise
+    std::string surface;                      // surface path (resolved) embedded by mesh intersection; empty otherwise
+    int surfaceCells = 0;                     // MI lattice cells across the surface's longest side (when surfaceH is 0)
+    double surfaceH = 0;                      // MI lattice cell edge [m] (after scale); > 0 takes precedence
+    bool surfaceFixOutside = false;           // MI: fix the outside corners of interface tets (thesis sec. 6.3)
+    bool surfaceKeepStep = true;              // MI: add mass where needed so the step is at least the lattice's
     Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();    // generated box [0,size] (before scale) [m]
     Eigen::Vector3i boxCells = Eigen::Vector3i::Zero();   // cubes along each axis, 6 tets each
     double scale = 1;                                     // coordinates times scale give meters
@@ -176,6 +178,8 @@ const char* precisionConflict(Integrator integ, ForcePrecision precision);
 // Reads and validates a scene file; `sets` are "key.path=value" overrides (value parsed as JSON,
 // else taken as a string). Throws InputError naming the file and key path.
 SceneDef loadScene(const std::string& path, const std::vector<std::string>& sets = {});
+// The same overrides on a scene's JSON (array elements by index: tools.0.radius=0.02).
+nlohmann::json applySets(nlohmann::json j, const std::vector<std::string>& sets);
 SceneDef parseScene(const nlohmann::json& j, const std::string& file);
 
 // Nodes of a mesh selected by a region (rest positions X).

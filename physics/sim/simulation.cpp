@@ -292,15 +292,15 @@ void Simulation::buildObject() {
         model_.elementModel = sc.element;
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
     } else {
-        if (sc.mesh.empty())
-            checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
-        TetMesh mesh = sc.mesh.empty()
-                           ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
-                                     sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
-                           : readTetMesh(sc.mesh, ro);
+        const bool box = sc.mesh.empty() && !sc.meshData;
+        if (box) checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
+        TetMesh mesh = sc.meshData ? TetMesh{sc.scale * sc.meshData->X, sc.meshData->tets, {}, sc.meshData->source}
+                       : box ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
+                                       sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
+                             : readTetMesh(sc.mesh, ro);
         mesh.X = (R * mesh.X).colwise() + sc.translate;
         checkSize(mesh.X);
-        if (!sc.mesh.empty()) checkMemory(sc.mesh, mesh.elements() * kBytesPerTet);
+        if (!box) checkMemory(mesh.source, mesh.elements() * kBytesPerTet);
         model_ = buildModel(mesh, sc.material, sc.element);
     }
     model_.gravity = sc.gravity;

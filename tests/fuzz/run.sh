@@ -9,7 +9,7 @@ flags=()
 while [ $# -gt 0 ] && [ "$1" != "--" ]; do flags+=("$1"); shift; done
 [ $# -gt 0 ] && shift
 seeds=()
-for d in "$@"; do [ -d "$d" ] && seeds+=("$d"); done
+for d in "$@"; do [ -d "$d" ] && seeds+=("$(cd "$d" && pwd)"); done  # absolute: the run changes folder
 rm -rf "$work"
 mkdir -p "$work/corpus"
 cd "$work"

@@ -1,0 +1,407 @@
+// The Python module `cutsim`: the library's Simulation driven from Python (docs/python.md).
+// Arrays of the state are read-only numpy views of the Simulation's own memory (no copy); they
+// follow the state step by step and are stale after a cut adds nodes or elements.
+#include "sim/scene.hpp"
+#include "sim/simulation.hpp"
+#include "snapshot/scene_snapshot.hpp"
+#include "util/atomic_file.hpp"
+
+#ifdef CUTSIM_HAVE_RENDER
+#include "renderer.hpp"
+#endif
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace py = pybind11;
+using nlohmann::json;
+
+namespace cutsim {
+namespace {
+
+// A Python value of the scene format (dict, list, numbers, strings, numpy arrays) as JSON.
+json toJson(const py::handle& o) {
+    if (o.is_none()) return nullptr;
+    if (py::isinstance<py::bool_>(o)) return o.cast<bool>();
+    if (py::isinstance<py::int_>(o)) return o.cast<long long>();
+    if (py::isinstance<py::float_>(o)) return o.cast<double>();
+    if (py::isinstance<py::str>(o)) return o.cast<std::string>();
+    if (py::isinstance<py::dict>(o)) {
+        json j = json::object();
+        for (const auto& [k, v] : o.cast<py::dict>()) j[py::str(k).cast<std::string>()] = toJson(v);
+        return j;
+    }
+    if (py::isinstance<py::array>(o) || py::hasattr(o, "tolist")) return toJson(o.attr("tolist")());
+    if (py::isinstance<py::list>(o) || py::isinstance<py::tuple>(o)) {
+        json j = json::array();
+        for (const auto& v : o) j.push_back(toJson(v));
+        return j;
+    }
+    throw InputError("scene: a value of type " + py::str(o.get_type()).cast<std::string>() +
+                     " is not part of the scene format");
+}
+
+py::object toPython(const json& j) { return py::module_::import("json").attr("loads")(j.dump()); }
+
+class SimulationError : public std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+// A Simulation with what Python adds: the renderer, created on the first frame.
+class PySimulation {
+public:
+    PySimulation(const SceneDef& sc, int threads, bool renderSurface)
+        : sc_(sc), sim_(sc_, Simulation::Options{threads, renderSurface}) {}
+
+    Simulation& sim() { return sim_; }
+
+    // Steps n times (stops early at the scene's end); a diverged or refused step raises.
+    long step(long n) {
+        long done = 0;
+        {
+            py::gil_scoped_release release;
+            while (done < n && sim_.status() == RunStatus::Running && !sim_.finished()) {
+                sim_.step();
+                ++done;
+            }
+        }
+        raiseOnFailure();
+        return done;
+    }
+    void advance(double until) {
+        {
+            py::gil_scoped_release release;
+            sim_.advance(until);
+        }
+        raiseOnFailure();
+    }
+    void raiseOnFailure() const {
+        if (sim_.status() == RunStatus::Diverged || sim_.status() == RunStatus::Refused)
+            throw SimulationError(sim_.message().empty() ? runStatusName(sim_.status()) : sim_.message());
+    }
+
+    py::dict cut(const CutDef& cd, const std::string& key) {
+        const CutResult r = sim_.cut(cutSurfaceOf(cd), key);
+        raiseOnFailure();
+        py::dict d;
+        d["id"] = r.cut;
+        d["crossed"] = r.crossed;
+        d["split"] = r.split;
+        d["new_nodes"] = r.newNodes.size();
+        return d;
+    }
+
+#ifdef CUTSIM_HAVE_RENDER
+    py::array_t<std::uint8_t> render(int width, int height) {
+        const Capture& cap = sc_.capture;
+        width = width > 0 ? width : cap.width;
+        height = height > 0 ? height : cap.height;
+        if (!renderer_ || renderer_->width() != width || renderer_->height() != height) {
+            render::RenderOptions ro;
+            ro.width = width;
+            ro.height = height;
+            ro.wireframe = cap.wireframe;
+            ro.xray = cap.xray;
+            ro.hud = cap.hud;
+            renderer_ = std::make_unique<render::Renderer>(ro);
+        }
+        if (!snapshot_ || drawnVersion_ != sim_.topologyVersion()) {
+            // a tet-mesh object before any cut draws its boundary (no surface)
+            snapshot_ = std::make_unique<SceneSnapshot>(sc_, sim_.model(), sim_.analyzer().estimates().r1r, sim_.dt(),
+                                                        sim_.surface());
+            drawnVersion_ = sim_.topologyVersion();
+            drawnDt_ = sim_.dt();
+        }
+        if (drawnDt_ != sim_.dt()) {  // colours and critical elements follow the step
+            snapshot_->setStep(sim_.dt(), cap.criticalFactor);
+            drawnDt_ = sim_.dt();
+        }
+        const render::Image img =
+            renderer_->render(snapshot_->update(sim_.model(), sim_.state(), frameInfoOf(sim_, sim_.record().wallLoop)));
+        py::array_t<std::uint8_t> out({img.height, img.width, 3});
+        auto o = out.mutable_unchecked<3>();
+        for (int y = 0; y < img.height; ++y)
+            for (int x = 0; x < img.width; ++x)
+                for (int c = 0; c < 3; ++c)
+                    o(y, x, c) = img.rgba[4 * (static_cast<size_t>(y) * static_cast<size_t>(img.width) +
+                                               static_cast<size_t>(x)) +
+                                          static_cast<size_t>(c)];
+        return out;
+    }
+#endif
+
+private:
+    SceneDef sc_;
+    Simulation sim_;
+#ifdef CUTSIM_HAVE_RENDER
+    std::unique_ptr<render::Renderer> renderer_;
+    std::unique_ptr<SceneSnapshot> snapshot_;
+    int drawnVersion_ = -1;
+    double drawnDt_ = 0;
+#endif
+};
+
+// A read-only (rows x cols) numpy view of column-major Eigen data of `owner`, kept alive by it.
+py::array view(const double* data, py::ssize_t rows, py::ssize_t cols, const py::object& owner) {
+    py::array a(py::dtype::of<double>(), {cols, rows},
+                {static_cast<py::ssize_t>(sizeof(double)) * rows, static_cast<py::ssize_t>(sizeof(double))}, data,
+                owner);
+    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return a;
+}
+py::array vectorView(const Eigen::VectorXd& v, const py::object& owner) {
+    py::array a(py::dtype::of<double>(), {v.size()}, {static_cast<py::ssize_t>(sizeof(double))}, v.data(), owner);
+    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return a;
+}
+
+Eigen::Vector3d vec3(const py::handle& o, const char* what) {
+    const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
+    if (!a || a.size() != 3) throw InputError(std::string(what) + ": must be 3 numbers");
+    return {a.at(0), a.at(1), a.at(2)};
+}
+
+std::unique_ptr<PySimulation> fromScene(const py::object& scene, const std::vector<std::string>& sets, int threads,
+                                        bool renderSurface, const std::string& path) {
+    if (py::isinstance<py::str>(scene) || py::hasattr(scene, "__fspath__")) {
+        const std::string file = py::str(py::module_::import("os").attr("fspath")(scene)).cast<std::string>();
+        return std::make_unique<PySimulation>(loadScene(file, sets), threads, renderSurface);
+    }
+    if (!py::isinstance<py::dict>(scene)) throw InputError("scene: expected a file path or a dict");
+    // a dict is read as a file at `path` would be: its name in messages, relative paths from its folder
+    return std::make_unique<PySimulation>(parseScene(applySets(toJson(scene), sets), path), threads, renderSurface);
+}
+
+// object.mesh given inline from numpy nodes (N x 3) and tets (M x 4, 0-based).
+json inlineMesh(const py::array_t<double, py::array::c_style | py::array::forcecast>& nodes,
+                const py::array_t<long long, py::array::c_style | py::array::forcecast>& tets) {
+    if (nodes.ndim() != 2 || nodes.shape(1) != 3) throw InputError("nodes: must be an array of shape (N, 3)");
+    if (tets.ndim() != 2 || tets.shape(1) != 4) throw InputError("tets: must be an array of shape (M, 4)");
+    json n = json::array(), t = json::array();
+    const auto nv = nodes.unchecked<2>();
+    const auto tv = tets.unchecked<2>();
+    for (py::ssize_t i = 0; i < nv.shape(0); ++i) n.push_back({nv(i, 0), nv(i, 1), nv(i, 2)});
+    for (py::ssize_t e = 0; e < tv.shape(0); ++e) t.push_back({tv(e, 0), tv(e, 1), tv(e, 2), tv(e, 3)});
+    return {{"nodes", std::move(n)}, {"tets", std::move(t)}};
+}
+
+// The contact world when the scene has tool i, else IndexError.
+const ContactWorld& checkTool(const Simulation& sim, int i) {
+    const ContactWorld* c = sim.contact();
+    if (!c || i < 0 || i >= static_cast<int>(c->tools().size()))
+        throw py::index_error("tool " + std::to_string(i) + ": the scene has " +
+                              std::to_string(c ? c->tools().size() : 0) + " tools");
+    return *c;
+}
+
+py::dict limitsDict(const StepLimits& l) {
+    py::dict d;
+    d["exact"] = l.exact;  // NaN: not known (not computed after a cut)
+    d["certified"] = l.certified;
+    d["estimate"] = l.estimate;
+    return d;
+}
+
+}  // namespace
+}  // namespace cutsim
+
+PYBIND11_MODULE(cutsim, m) {
+    using namespace cutsim;
+    m.doc() = "cutsim: explicit FEM soft-tissue cutting (docs/python.md)";
+    // the CLI's messages: what it prints after "error: "
+    static py::exception<InputError> inputError(m, "InputError", PyExc_ValueError);
+    static py::exception<SimulationError> simError(m, "SimulationError", PyExc_RuntimeError);
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const InputError& e) {
+            inputError(e.what());
+        } catch (const SimulationError& e) {
+            simError(e.what());
+        }
+    });
+
+    py::class_<PySimulation>(m, "Simulation")
+        .def(py::init(&fromScene), py::arg("scene"), py::arg("set") = std::vector<std::string>{},
+             py::arg("threads") = 0, py::arg("render_surface") = true, py::arg("path") = "scene.json",
+             "A scene file (path) or a dict of the scene format; set: 'key.path=value' overrides as --set; "
+             "threads 0: chosen by measuring as the CLI does")
+        .def_static(
+            "from_arrays",
+            [](const py::array_t<double, py::array::c_style | py::array::forcecast>& nodes,
+               const py::array_t<long long, py::array::c_style | py::array::forcecast>& tets, const py::dict& material,
+               const py::object& scene, int threads) {
+                json j = scene.is_none() ? json::object() : toJson(scene);
+                j["object"] = {{"mesh", inlineMesh(nodes, tets)}};
+                j["material"] = toJson(material);
+                return std::make_unique<PySimulation>(parseScene(j, "arrays.json"), threads, true);
+            },
+            py::arg("nodes"), py::arg("tets"), py::arg("material"), py::arg("scene") = py::none(),
+            py::arg("threads") = 0,
+            "An object from numpy nodes (N x 3) [m] and tets (M x 4, 0-based) with a material dict "
+            "(E, nu, rho, damping); scene: the other keys of the scene format (fixed, loads, ...)")
+        .def("step", &PySimulation::step, py::arg("n") = 1,
+             "n steps (fewer at the scene's end); returns the steps taken; raises SimulationError on divergence")
+        .def("advance", &PySimulation::advance, py::arg("until"), "Steps until simulated time `until` [s]")
+        .def(
+            "run",
+            [](PySimulation& s) {
+                s.advance(s.sim().scene().duration);
+                s.sim().finish();
+                s.raiseOnFailure();
+            },
+            "Steps to the scene's duration and finishes the run (its status and final energy)")
+        .def("finish", [](PySimulation& s) { s.sim().finish(); })
+        .def(
+            "set_tool",
+            [](PySimulation& s, int i, const py::object& pos) {
+                checkTool(s.sim(), i);
+                s.sim().holdTool(i, vec3(pos, "position"));
+            },
+            py::arg("tool"), py::arg("position"), "Holds tool i at position [m] from now on (keyframes dropped)")
+        .def(
+            "tool_force",
+            [](PySimulation& s, int i) {
+                const auto& r = checkTool(s.sim(), i).last().reaction;
+                const Eigen::Vector3d f =
+                    static_cast<size_t>(i) < r.size() ? r[static_cast<size_t>(i)] : Eigen::Vector3d::Zero();
+                return py::array_t<double>(3, f.data());
+            },
+            py::arg("tool") = 0, "Reaction force of the tissue on tool i in the last step [N]")
+        .def(
+            "tool_position",
+            [](PySimulation& s, int i) {
+                const Eigen::Vector3d p =
+                    toolPose(checkTool(s.sim(), i).tools()[static_cast<size_t>(i)], s.sim().state().time).position;
+                return py::array_t<double>(3, p.data());
+            },
+            py::arg("tool") = 0)
+        .def(
+            "cut_plane",
+            [](PySimulation& s, const py::object& point, const py::object& normal, const std::string& key) {
+                CutDef cd;
+                cd.point = vec3(point, "point");
+                cd.normal = vec3(normal, "normal");
+                if (cd.normal.norm() < 1e-12) throw InputError("normal: must not be zero");
+                cd.normal.normalize();
+                return s.cut(cd, key);
+            },
+            py::arg("point"), py::arg("normal"), py::arg("key") = "python",
+            "Cuts the deformed object by the plane now (XFEM); returns the cut's figures")
+        .def(
+            "cut_polygon",
+            [](PySimulation& s, const py::object& point, const py::object& normal,
+               const py::array_t<double, py::array::c_style | py::array::forcecast>& corners, const std::string& key) {
+                CutDef cd;
+                cd.point = vec3(point, "point");
+                cd.normal = vec3(normal, "normal");
+                if (cd.normal.norm() < 1e-12) throw InputError("normal: must not be zero");
+                cd.normal.normalize();
+                if (corners.ndim() != 2 || corners.shape(1) != 3 || corners.shape(0) < 3)
+                    throw InputError("polygon: must be an array of shape (K >= 3, 3)");
+                const auto c = corners.unchecked<2>();
+                for (py::ssize_t k = 0; k < c.shape(0); ++k) {
+                    const Eigen::Vector3d p(c(k, 0), c(k, 1), c(k, 2));
+                    if (std::abs((p - cd.point).dot(cd.normal)) > 1e-9)
+                        throw InputError("polygon: its points must lie in the cut plane");
+                    cd.polygon.push_back(p);
+                }
+                return s.cut(cd, key);
+            },
+            py::arg("point"), py::arg("normal"), py::arg("polygon"), py::arg("key") = "python",
+            "Cuts by the convex polygon (K x 3 corners in the plane) now")
+        .def(
+            "cut_next_scripted", [](PySimulation& s) { return s.sim().cutNextScripted(); },
+            "The scene's next scripted cut now; False when none is left")
+        .def_property_readonly(
+            "positions",
+            [](py::object self) {
+                const auto& x = self.cast<PySimulation&>().sim().state().x;
+                return view(x.data(), 3, x.cols(), self);
+            },
+            "Node positions (N x 3) [m]: a read-only view, stale after a cut")
+        .def_property_readonly(
+            "velocities",
+            [](py::object self) {
+                const auto& v = self.cast<PySimulation&>().sim().state().v;
+                return view(v.data(), 3, v.cols(), self);
+            },
+            "Node velocities (N x 3) [m/s]: a read-only view, stale after a cut")
+        .def_property_readonly("rest_positions",
+                               [](py::object self) {
+                                   const auto& x = self.cast<PySimulation&>().sim().model().X;
+                                   return view(x.data(), 3, x.cols(), self);
+                               })
+        .def_property_readonly("tets",
+                               [](PySimulation& s) {
+                                   const auto& t = s.sim().model().tets;
+                                   py::array_t<int> a({t.cols(), Eigen::Index(4)});
+                                   std::copy(t.data(), t.data() + t.size(), a.mutable_data());
+                                   return a;
+                               })
+        .def_property_readonly(
+            "element_steps",
+            [](py::object self) {
+                return vectorView(self.cast<PySimulation&>().sim().analyzer().estimates().r1r, self);
+            },
+            "Each element's stable step estimate (reduced one ring) [s]: a read-only view")
+        .def_property_readonly(
+            "critical_elements",
+            [](PySimulation& s) {
+                const auto& r1r = s.sim().analyzer().estimates().r1r;
+                const double bound = s.sim().scene().capture.criticalFactor * s.sim().dt();
+                std::vector<int> out;
+                for (Eigen::Index e = 0; e < r1r.size(); ++e)
+                    if (r1r(e) < bound) out.push_back(static_cast<int>(e));
+                return py::array_t<int>(static_cast<py::ssize_t>(out.size()), out.data());
+            },
+            "Elements whose estimate is under capture.critical_factor times dt")
+        .def_property_readonly(
+            "limits", [](PySimulation& s) { return limitsDict(s.sim().limits()); },
+            "Current stable limits {exact, certified, estimate} [s]; exact NaN: unknown")
+        .def_property_readonly("initial_limits", [](PySimulation& s) { return limitsDict(s.sim().initialLimits()); })
+        .def_property_readonly("dt", [](PySimulation& s) { return s.sim().dt(); })
+        .def_property_readonly("time", [](PySimulation& s) { return s.sim().state().time; })
+        .def_property_readonly("steps", [](PySimulation& s) { return s.sim().state().steps; })
+        .def_property_readonly("duration", [](PySimulation& s) { return s.sim().scene().duration; })
+        .def_property_readonly("finished", [](PySimulation& s) { return s.sim().finished(); })
+        .def_property_readonly("status", [](PySimulation& s) { return runStatusName(s.sim().status()); })
+        .def_property_readonly("message", [](PySimulation& s) { return s.sim().message(); })
+        .def_property_readonly("nodes", [](PySimulation& s) { return s.sim().model().nodes(); })
+        .def_property_readonly("elements", [](PySimulation& s) { return s.sim().model().elements(); })
+        .def_property_readonly("cuts", [](PySimulation& s) { return s.sim().record().cutsMade; })
+        .def_property_readonly("threads", [](PySimulation& s) { return s.sim().threads(); })
+        .def_property_readonly("tool_names",
+                               [](PySimulation& s) {
+                                   std::vector<std::string> names;
+                                   for (const auto& t : s.sim().scene().tools) names.push_back(t.name);
+                                   return names;
+                               })
+        .def(
+            "state_hash",
+            [](PySimulation& s) {
+                char h[20];
+                std::snprintf(h, sizeof h, "%016llx", static_cast<unsigned long long>(s.sim().stateHash()));
+                return std::string(h);
+            },
+            "FNV-1a of positions and velocities, as report.json's state_hash")
+        .def(
+            "report",
+            [](PySimulation& s, const std::optional<std::string>& path) {
+                const json r = s.sim().report();
+                if (path) writeFileAtomic(*path, r.dump(2) + "\n");
+                return toPython(r);
+            },
+            py::arg("path") = py::none(), "The run's report (report.json) as a dict, written to path when given")
+#ifdef CUTSIM_HAVE_RENDER
+        .def("render", &PySimulation::render, py::arg("width") = 0, py::arg("height") = 0,
+             "The frame now, offscreen, as an (H x W x 3) uint8 image; size 0: the scene's capture size")
+#endif
+        ;
+}
