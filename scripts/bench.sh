@@ -44,6 +44,10 @@ gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plo
 # per-stage cost of a scene
 "$B/cutsim" bench cost assets/scenes/bar_sag.json --set duration=0.5 > "$D/cost.txt"
 
+# stepping from Python against the CLI (taking turns, fresh processes)
+cmake --build "$B" --target cutsim_py -j"$(nproc)"
+PYTHONPATH="$B/python" /usr/bin/python3 scripts/bench_python.py --cutsim "$B/cutsim" --rounds 21 > "$D/python_step.txt"
+
 # cut latency, time-step estimators, contact (Google Benchmark)
 "$B/tests/cutsim_bench" --benchmark_filter='Cut|Timestep|Contact' --benchmark_repetitions=5 \
   --benchmark_report_aggregates_only=true > "$D/cutsim_bench.txt"
