@@ -184,6 +184,13 @@ void addCutAccuracyConfigs();
 
 // `bench mi-bar` (cmd_bench_mibar.cpp): Table 6.1, MI against subdivision and remeshing.
 void addMiBarBench();
+void addStabilityBench();  // cmd_bench_stability.cpp
+void addStepCostBench();   // cmd_bench_step.cpp
+
+// Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
+int benchGuarded(const std::function<int()>& f);
+// A measured value for JSON: null when it is not a finite non-negative number (a run that gave none).
+nlohmann::json jsonNumber(double v);
 
 // Registers the `bench` command with its built-in and registered subcommands.
 void addBenchCommand(CLI::App& app);
