@@ -4,20 +4,28 @@
 #   scripts/fuzz.sh                 10 minutes per target
 #   scripts/fuzz.sh SECONDS         SECONDS per target
 #   scripts/fuzz.sh --build-only    build, run nothing
-# Findings (crash-*, timeout-*, oom-* inputs) land in build-fuzz/tests/fuzz/long_TARGET/; a
+#   scripts/fuzz.sh --release ...   the same without sanitizers, optimised (-O2, NDEBUG), in
+#                                   build-fuzz-release: the code as Release runs it, faster
+# Findings (crash-*, timeout-*, oom-* inputs) land in BUILD/tests/fuzz/long_TARGET/; a
 # summary line per target gives executions, corpus size and the result.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 B=build-fuzz
+config=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUTSIM_FUZZ_SANITIZE=ON)
+if [ "${1:-}" = --release ]; then
+  B=build-fuzz-release
+  config=(-DCMAKE_BUILD_TYPE=Release -DCUTSIM_FUZZ_SANITIZE=OFF)
+  shift
+fi
 budget=600
 build_only=0
 case "${1:-}" in
   --build-only) build_only=1 ;;
   "") ;;
-  *[!0-9]*) echo "usage: scripts/fuzz.sh [SECONDS | --build-only]" >&2; exit 2 ;;
+  *[!0-9]*) echo "usage: scripts/fuzz.sh [--release] [SECONDS | --build-only]" >&2; exit 2 ;;
   *) budget=$1 ;;
 esac
-cmake -S . -B "$B" -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUTSIM_FUZZ=ON >/dev/null
+cmake -S . -B "$B" -DCMAKE_CXX_COMPILER=clang++ "${config[@]}" -DCUTSIM_FUZZ=ON >/dev/null
 cmake --build "$B" -j"$(nproc)"
 [ "$build_only" = 1 ] && exit 0
 data=$(sed -n 's/^CUTSIM_DATA_DIR:PATH=//p' "$B/CMakeCache.txt")

@@ -25,6 +25,9 @@ namespace {
 
 std::atomic<int> gLiveWorlds{0};
 
+// Steps of motion a moved leaf is grown by along its velocity (at most 4 fat).
+constexpr double kLookahead = 16;
+
 btVector3 bt(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 Eigen::Vector3d eig(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 btTransform bt(const Pose& p) {
@@ -241,7 +244,55 @@ struct Collect : btDbvt::ICollide {
     void Process(const btDbvtNode* leaf) override { out->push_back(leaf->dataAsInt); }
 };
 
+// Signed distance of the world point x to a sphere, capsule or box part whose frame is `frame`,
+// in closed form (the same as btGjkEpaSolver2::SignedDistance up to rounding, without its
+// iterations); n is the way out of the part. False for a hull, which goes to GJK/EPA.
+bool closedFormDistance(const ToolPart& part, const btTransform& frame, const btVector3& x, double& d,
+                        Eigen::Vector3d& n) {
+    if (part.hull) return false;
+    const btVector3 l = frame.invXform(x);
+    const Eigen::Vector3d q = eig(l);
+    Eigen::Vector3d nl;
+    if (part.shape == ToolShape::Kind::Sphere || part.shape == ToolShape::Kind::Capsule) {
+        // the core is a point or the segment z in [-size.y, size.y]; the radius is size.x
+        Eigen::Vector3d c = Eigen::Vector3d::Zero();
+        if (part.shape == ToolShape::Kind::Capsule) c.z() = std::clamp(q.z(), -part.size.y(), part.size.y());
+        const Eigen::Vector3d r = q - c;
+        const double len = r.norm();
+        d = len - part.size.x();
+        nl = len > 0 ? Eigen::Vector3d(r / len) : Eigen::Vector3d::UnitZ();
+    } else {
+        const Eigen::Vector3d h = part.size;  // half extents
+        const Eigen::Vector3d e = q.cwiseAbs() - h;
+        const Eigen::Vector3d sgn = q.unaryExpr([](double v) { return v < 0 ? -1.0 : 1.0; });
+        if ((e.array() > 0).any()) {
+            const Eigen::Vector3d o = e.cwiseMax(0.0);
+            d = o.norm();
+            nl = sgn.cwiseProduct(o) / d;
+        } else {
+            Eigen::Index k = 0;
+            d = e.maxCoeff(&k);  // nearest face
+            nl = Eigen::Vector3d::Zero();
+            nl(k) = sgn(k);
+        }
+    }
+    n = eig(frame.getBasis() * bt(nl));
+    return true;
+}
+
 }  // namespace
+
+double partSignedDistance(const ToolPart& part, const ToolDef& tool, const Pose& frame, const Eigen::Vector3d& x,
+                          Eigen::Vector3d& n, bool closedForm) {
+    const btTransform tr = bt(frame);
+    double d = 0;
+    if (closedForm && closedFormDistance(part, tr, bt(x), d, n)) return d;
+    const std::unique_ptr<btConvexShape> shape = makeShape(part, tool);
+    btGjkEpaSolver2::sResults res;
+    d = btGjkEpaSolver2::SignedDistance(bt(x), 0, shape.get(), tr, res);
+    n = eig(res.normal);
+    return d;
+}
 
 struct ContactWorld::Impl {
     std::vector<ToolDef> tools;
@@ -255,14 +306,26 @@ struct ContactWorld::Impl {
     std::vector<int> partTool;       // tool of each part
     std::vector<int> partIndex;      // index of the part within its tool
     std::vector<double> partRadius;  // radius of a sphere about the part origin holding the part [m]
+    std::vector<ToolPart> parts;     // each part's shape (for the closed-form distances)
 
     ContactPoints pts;
     std::vector<int> ignoredCut;      // per tool: the cut whose faces it does not touch, or -1
-    btDbvt tree;                      // triangle boxes, fattened by `fat`
+    btDbvt tree;                      // triangle boxes, each holding its triangle grown by `margin` at the last refit
     std::vector<btDbvtNode*> leaves;  // (nTris)
-    double fat = 1e-3;                // [m]
-    Eigen::Matrix3Xd xp;              // point positions (3 x nPoints) [m]; vertices every step, others on demand
-    std::vector<int> stamp;           // last query that visited each point (nPoints)
+    double fat = 1e-3;                // a leaf moved is grown by this [m]
+    double margin = 5e-4;             // and kept while its triangle stays `margin` inside it (fat / 2) [m]
+    std::vector<int> surfNodes;       // nodes the surface's vertices follow
+    Eigen::Matrix3Xd xRef;            // their positions when their triangles were last refitted (3 x surfNodes) [m]
+    std::vector<double> moved;        // how far each moved from there, per axis (surfNodes) [m]
+    std::vector<int> nodeTriStart;    // CSR: triangles following surface node k (surfNodes + 1)
+    std::vector<int> nodeTris;
+    double wSum = 1;             // largest sum_i |w_i| of a vertex: it moves at most this x its nodes
+    std::vector<int> dirty;      // triangles to refit this step
+    std::vector<int> triStamp;   // last refit that queued each triangle (nTris)
+    std::vector<int> vertStamp;  // last refit that placed each vertex (nPoints)
+    int refits = 0;
+    Eigen::Matrix3Xd xp;     // point positions (3 x nPoints) [m], computed for candidates only
+    std::vector<int> stamp;  // last query that visited each point (nPoints)
     int query = 0;
     std::vector<int> candidates;  // triangles, then points
     btNodeStack stack;
@@ -302,11 +365,13 @@ ContactWorld::ContactWorld(std::vector<ToolDef> tools) : impl_(std::make_unique<
                 for (int k = 0; k < m.tools[t].hull.cols(); ++k) rad = std::max(rad, m.tools[t].hull.col(k).norm());
             }
             m.partRadius.push_back(rad * (1 + 1e-9));
+            m.parts.push_back(parts[i]);
             smallest = std::min(smallest, parts[i].size.minCoeff() > 0 ? parts[i].size.minCoeff() : parts[i].size.x());
         }
     }
     // leaves move only when a point leaves a box this much bigger than itself
-    m.fat = std::clamp(0.25 * smallest, 1e-5, 5e-3);
+    m.fat = std::clamp(0.5 * smallest, 1e-5, 1e-2);
+    m.margin = 0.5 * m.fat;
     m.last.reaction.assign(m.tools.size(), Eigen::Vector3d::Zero());
 }
 
@@ -336,29 +401,88 @@ void ContactWorld::setSurface(ContactPoints pts) {
     m.xp.resize(3, m.pts.points());
     m.stamp.assign(static_cast<size_t>(m.pts.points()), -1);
     m.query = 0;
+    // the nodes each triangle's box depends on: those of its three vertices (edge and face
+    // points are combinations of the vertices, inside the triangle)
+    const auto nt = static_cast<size_t>(m.pts.triangles.cols());
+    std::vector<int> slot;  // node -> index in surfNodes, or -1
+    m.surfNodes.clear();
+    m.wSum = 0;
+    std::vector<std::pair<int, int>> pairs;  // (surface node, triangle)
+    for (size_t t = 0; t < nt; ++t) {
+        int seen[3 * ContactPoints::kMaxNodes];
+        int ns = 0;
+        for (int c = 0; c < 3; ++c) {
+            const int p = m.pts.triangles(c, static_cast<Eigen::Index>(t));
+            double w = 0;
+            for (int i = 0; i < m.pts.count[static_cast<size_t>(p)]; ++i) {
+                const int node = m.pts.nodes(i, p);
+                w += std::abs(m.pts.weights(i, p));
+                if (static_cast<size_t>(node) >= slot.size()) slot.resize(static_cast<size_t>(node) + 1, -1);
+                int& k = slot[static_cast<size_t>(node)];
+                if (k < 0) {
+                    k = static_cast<int>(m.surfNodes.size());
+                    m.surfNodes.push_back(node);
+                }
+                if (std::find(seen, seen + ns, k) == seen + ns) seen[ns++] = k;
+            }
+            m.wSum = std::max(m.wSum, w);
+        }
+        for (int i = 0; i < ns; ++i) pairs.emplace_back(seen[i], static_cast<int>(t));
+    }
+    // surface nodes in index order, so the per-step drift pass reads the positions in order
+    std::vector<int> order(m.surfNodes.size());
+    for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
+    std::sort(order.begin(), order.end(),
+              [&](int a, int b) { return m.surfNodes[static_cast<size_t>(a)] < m.surfNodes[static_cast<size_t>(b)]; });
+    std::vector<int> rank(order.size());
+    for (size_t k = 0; k < order.size(); ++k) rank[static_cast<size_t>(order[k])] = static_cast<int>(k);
+    std::sort(m.surfNodes.begin(), m.surfNodes.end());
+    for (auto& pr : pairs) pr.first = rank[static_cast<size_t>(pr.first)];
+    std::sort(pairs.begin(), pairs.end());
+    m.nodeTriStart.assign(m.surfNodes.size() + 1, 0);
+    m.nodeTris.resize(pairs.size());
+    for (size_t i = 0; i < pairs.size(); ++i) {
+        ++m.nodeTriStart[static_cast<size_t>(pairs[i].first) + 1];
+        m.nodeTris[i] = pairs[i].second;
+    }
+    for (size_t k = 0; k < m.surfNodes.size(); ++k) m.nodeTriStart[k + 1] += m.nodeTriStart[k];
+    m.xRef.resize(3, static_cast<Eigen::Index>(m.surfNodes.size()));
+    m.moved.assign(m.surfNodes.size(), 0);
+    m.triStamp.assign(nt, -1);
+    m.vertStamp.assign(static_cast<size_t>(m.pts.points()), -1);
+    m.refits = 0;
 }
 
 void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double time, double dt,
                              Eigen::Matrix3Xd& f) {
     Impl& m = *impl_;
     const ContactPoints& P = m.pts;
-    const int nv = P.triangles.size() ? P.triangles.maxCoeff() + 1 : 0;
     const int nt = static_cast<int>(P.triangles.cols());
+    ContactStep& st = m.last;
+    st.reaction.assign(m.tools.size(), Eigen::Vector3d::Zero());
+    st.contacts = 0;
+    st.maxDepth = 0;
+    st.tested = 0;
+    st.refit = false;
     auto interpolate = [&](int p) {
         Eigen::Vector3d xs = Eigen::Vector3d::Zero();
         for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) xs += P.weights(i, p) * x.col(P.nodes(i, p));
         m.xp.col(p) = xs;
     };
-    // 1. vertex positions by interpolation; edge and face points lie in their triangle's box
-    for (int p = 0; p < nv; ++p) interpolate(p);
-    // 2. refit the triangle tree: a leaf moves only when its triangle left the fattened box
     auto triBox = [&](int t) {
         const Eigen::Vector3d a = m.xp.col(P.triangles(0, t)), b = m.xp.col(P.triangles(1, t)),
                               c = m.xp.col(P.triangles(2, t));
         return btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))),
                                     bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
     };
-    if (static_cast<int>(m.leaves.size()) != nt) {
+    // Leaves hold their triangle grown by `margin` when refitted, and a triangle is refitted as
+    // soon as one of its nodes moved more than margin / (2 wSum) from where it was at its last
+    // refit (then each vertex moved at most `margin` since, the reference of a node being reset
+    // when all its triangles are refitted). So the tree is exact where it is used.
+    const double trigger = m.margin / (2 * std::max(m.wSum, 1e-300));
+    auto build = [&]() {
+        const int nv = P.triangles.maxCoeff() + 1;
+        for (int p = 0; p < nv; ++p) interpolate(p);
         m.clearTree();
         m.leaves.resize(static_cast<size_t>(nt));
         for (int t = 0; t < nt; ++t) {
@@ -367,15 +491,77 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
             m.leaves[static_cast<size_t>(t)] = m.tree.insert(vol, nullptr);
             m.leaves[static_cast<size_t>(t)]->dataAsInt = t;
         }
-    } else {
-        for (int t = 0; t < nt; ++t) {
+        for (size_t k = 0; k < m.surfNodes.size(); ++k)
+            m.xRef.col(static_cast<Eigen::Index>(k)) = x.col(m.surfNodes[k]);
+        std::fill(m.moved.begin(), m.moved.end(), 0.0);
+        st.refit = true;
+    };
+    auto refitMoved = [&]() {
+        const int stamp = ++m.refits;
+        m.dirty.clear();
+        for (size_t k = 0; k < m.surfNodes.size(); ++k) {
+            if (!(m.moved[k] > trigger)) continue;
+            for (int i = m.nodeTriStart[k]; i < m.nodeTriStart[k + 1]; ++i) {
+                const int t = m.nodeTris[static_cast<size_t>(i)];
+                if (m.triStamp[static_cast<size_t>(t)] == stamp) continue;
+                m.triStamp[static_cast<size_t>(t)] = stamp;
+                m.dirty.push_back(t);
+            }
+            m.xRef.col(static_cast<Eigen::Index>(k)) = x.col(m.surfNodes[k]);
+            m.moved[k] = 0;
+        }
+        const btVector3 grow(m.margin, m.margin, m.margin);
+        for (int t : m.dirty) {
+            for (int c = 0; c < 3; ++c) {
+                const int p = P.triangles(c, t);
+                if (m.vertStamp[static_cast<size_t>(p)] == stamp) continue;
+                m.vertStamp[static_cast<size_t>(p)] = stamp;
+                interpolate(p);
+            }
             btDbvtNode* leaf = m.leaves[static_cast<size_t>(t)];
             btDbvtVolume vol = triBox(t);
-            if (leaf->volume.Contain(vol)) continue;  // inside its fattened box
-            m.tree.update(leaf, vol, m.fat);
+            vol.Expand(grow);
+            if (leaf->volume.Contain(vol)) continue;
+            vol.Expand(grow);  // margin + margin = fat
+            // grown along the triangle's velocity too, so a piece in steady motion (falling,
+            // dragged) leaves its boxes less often (as Bullet's broad phase predicts its proxies)
+            Eigen::Vector3d vt = Eigen::Vector3d::Zero();
+            for (int c = 0; c < 3; ++c) {
+                const int p = P.triangles(c, t);
+                for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) vt += P.weights(i, p) * v.col(P.nodes(i, p));
+            }
+            Eigen::Vector3d ahead = vt * (kLookahead * dt / 3);
+            if (const double len = ahead.norm(); len > 4 * m.fat) ahead *= 4 * m.fat / len;
+            if (ahead.allFinite()) vol.SignedExpand(bt(ahead));
+            // in place, the ancestors' boxes refitted up to the first that still holds it: the
+            // surface moves continuously, so neighbours stay neighbours and the tree keeps its
+            // shape without Bullet's remove and insert per moved leaf
+            leaf->volume = vol;
+            for (btDbvtNode* n = leaf->parent; n; n = n->parent) {
+                const btDbvtVolume before = n->volume;
+                Merge(n->childs[0]->volume, n->childs[1]->volume, n->volume);
+                if (before.Mins() == n->volume.Mins() && before.Maxs() == n->volume.Maxs()) break;
+            }
         }
+        st.refit = st.refit || !m.dirty.empty();
+    };
+    if (nt == 0) return;
+    // 1. how far each surface node moved since its triangles were refitted; the whole surface lies
+    // in the tree's root box grown by wSum times the farthest (one pass over the surface's nodes)
+    double drift = 0;
+    bool fresh = false;
+    if (static_cast<int>(m.leaves.size()) != nt) {
+        build();
+        fresh = true;
+    } else {
+        double far = 0;
+        for (size_t k = 0; k < m.surfNodes.size(); ++k) {
+            m.moved[k] = (x.col(m.surfNodes[k]) - m.xRef.col(static_cast<Eigen::Index>(k))).cwiseAbs().maxCoeff();
+            far = std::max(far, m.moved[k]);
+        }
+        drift = m.wSum * far;
     }
-    // 3. tool parts at t and t + dt into the collision world; its broad phase updates their boxes
+    // 2. tool parts at t and t + dt into the collision world; its broad phase updates their boxes
     std::vector<btTransform>& now = m.now;
     std::vector<btTransform>& next = m.next;
     now.resize(m.objects.size());
@@ -391,20 +577,23 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
         }
     }
     m.world.updateAabbs();
-    // 4. narrow phase per part: candidates from the tree, signed distance by GJK/EPA
-    ContactStep& st = m.last;
-    st.reaction.assign(m.tools.size(), Eigen::Vector3d::Zero());
-    st.contacts = 0;
-    st.maxDepth = 0;
+    // 3. per part: the bound-volume test, then candidates from the tree, then signed distances
     Collect collect;
     collect.out = &m.candidates;
     for (size_t o = 0; o < m.objects.size(); ++o) {
         const ToolDef& tool = m.tools[static_cast<size_t>(m.partTool[o])];
         const btBroadphaseProxy* proxy = m.objects[o]->getBroadphaseHandle();
         const btDbvtVolume box = btDbvtVolume::FromMM(proxy->m_aabbMin, proxy->m_aabbMax);
+        if (!m.tree.m_root) continue;
+        btDbvtVolume around = m.tree.m_root->volume;  // a tool away from the whole surface costs no more than this
+        around.Expand(btVector3(drift, drift, drift));
+        if (!Intersect(around, box)) continue;
+        if (!fresh) {
+            refitMoved();
+            fresh = true;
+        }
         m.candidates.clear();
-        if (m.tree.m_root) m.tree.collideTVNoStackAlloc(m.tree.m_root, box, m.stack, collect);
-        // the candidate triangles' points, each once; edge and face points interpolated now
+        m.tree.collideTVNoStackAlloc(m.tree.m_root, box, m.stack, collect);
         // faces of a cut this tool does not touch: dropped here, their points reached through
         // other candidate faces only
         const int ignored =
@@ -413,6 +602,7 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
             m.candidates.erase(std::remove_if(m.candidates.begin(), m.candidates.end(),
                                               [&](int t) { return P.triCut[static_cast<size_t>(t)] == ignored; }),
                                m.candidates.end());
+        // the candidate triangles' points, each once, interpolated now
         const size_t ntri = m.candidates.size();
         if (++m.query == std::numeric_limits<int>::max()) {
             std::fill(m.stamp.begin(), m.stamp.end(), -1);
@@ -424,23 +614,29 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
                 const int p = P.triPoints[static_cast<size_t>(k)];
                 if (m.stamp[static_cast<size_t>(p)] == m.query) continue;
                 m.stamp[static_cast<size_t>(p)] = m.query;
-                if (p >= nv) interpolate(p);
                 m.candidates.push_back(p);
             }
         }
         m.candidates.erase(m.candidates.begin(), m.candidates.begin() + static_cast<std::ptrdiff_t>(ntri));
         const btConvexShape* shape = m.shapes[o].get();
+        const ToolPart& part = m.parts[o];
         const btTransform toolNext = next[o] * now[o].inverse();
-        // bounding sphere of the part about its origin: points outside it need no GJK
+        // bounding sphere of the part about its origin: points outside it need no distance
         const btVector3 bc = now[o].getOrigin();
         const double br = m.partRadius[o];
         for (int p : m.candidates) {
+            interpolate(p);
             const btVector3 xp = bt(Eigen::Vector3d(m.xp.col(p)));
             if (xp.distance2(bc) > br * br) continue;
-            btGjkEpaSolver2::sResults res;
-            const btScalar d = btGjkEpaSolver2::SignedDistance(xp, 0, shape, now[o], res);
+            ++st.tested;
+            double d = 0;
+            Eigen::Vector3d n;  // the way out of the tool
+            if (!closedFormDistance(part, now[o], xp, d, n)) {
+                btGjkEpaSolver2::sResults res;
+                d = btGjkEpaSolver2::SignedDistance(xp, 0, shape, now[o], res);
+                n = eig(res.normal);
+            }
             if (!(d < 0) || !std::isfinite(d)) continue;
-            const Eigen::Vector3d n = eig(res.normal);  // the way out of the tool
             if (!n.allFinite() || std::abs(n.norm() - 1) > 1e-6) continue;
             // velocity of the point, and of the tool's material point at xp over this step
             Eigen::Vector3d vp = Eigen::Vector3d::Zero();

@@ -2,11 +2,15 @@
 // without a tool.
 //
 // Representation: the surface is a cloud of contact points (its vertices plus points on its edges
-// and faces, at most `spacing` apart). A btDbvt over triangle boxes, refitted every step with a fat
-// margin, is queried with each tool part's box (from the btCollisionWorld's broad phase); the
-// candidate triangles' points get their signed distance to the tool's convex core from Bullet's
-// GJK/EPA (btGjkEpaSolver2::SignedDistance, as Bullet's soft-body nodes do against rigid bodies).
-// Only vertices are interpolated every step, other points when their triangle is a candidate.
+// and faces, at most `spacing` apart). A btDbvt over triangle boxes is queried with each tool
+// part's box (from the btCollisionWorld's broad phase); the candidate triangles' points get their
+// signed distance to the tool, in closed form for spheres, capsules and boxes and from Bullet's
+// GJK/EPA for hulls (btGjkEpaSolver2::SignedDistance, as Bullet's soft-body nodes do).
+// The cost follows what touches: each step bounds how far any point moved since the tree was last
+// refitted (the farthest surface node times the largest weight sum, one pass over the surface's
+// nodes, not its points); a tool whose box misses the tree's root grown by that bound costs
+// nothing more, and the tree is refitted only when the bound exceeds the margin its leaves keep.
+// Points are interpolated only when their triangle is a candidate.
 // This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.
 //
@@ -88,7 +92,15 @@ struct ContactStep {
     std::vector<Eigen::Vector3d> reaction;  // force of the tissue on each tool (nTools) [N]
     int contacts = 0;                       // points inside a tool [-]
     double maxDepth = 0;                    // deepest point inside a tool [m]
+    int tested = 0;                         // points whose distance to a tool was computed [-]
+    bool refit = false;                     // the triangle tree was refitted in this step
 };
+
+// Signed distance of the world point x to one part of `tool` whose frame is `frame` [m]
+// (negative inside), n the unit way out: in closed form for spheres, capsules and boxes, by
+// Bullet's GJK/EPA for hulls or when closedForm is false.
+double partSignedDistance(const ToolPart& part, const ToolDef& tool, const Pose& frame, const Eigen::Vector3d& x,
+                          Eigen::Vector3d& n, bool closedForm = true);
 
 class ContactWorld {
 public:

@@ -17,7 +17,8 @@ namespace detail {
 
 std::string readFile(const std::string& path) {
     std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) throw InputError(path, 0, "file not found");
+    if (!std::filesystem::exists(path, ec))
+        throw InputError(path, 0, ec ? "cannot read: " + ec.message() : std::string("file not found"));
     if (std::filesystem::is_directory(path, ec)) throw InputError(path, 0, "is a folder, not a file");
     // a pipe or a device would block or never end
     if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path, 0, "is not a regular file");

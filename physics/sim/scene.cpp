@@ -32,6 +32,14 @@ double Profile::at(double t) const {
 
 namespace {
 
+// Why the file at p cannot be read, or "" when it exists (a name too long, a loop of links or a
+// folder without access are refused here, not thrown by std::filesystem later).
+std::string missingFile(const fs::path& p) {
+    std::error_code ec;
+    if (fs::exists(p, ec)) return "";
+    return (ec ? "cannot read " + p.string() + ": " + ec.message() : "file not found: " + p.string());
+}
+
 Region readRegion(ObjectReader& r) {
     Region g;
     g.path = r.path();
@@ -109,7 +117,7 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     if (t.kind == ToolDef::Kind::Hull) {
         fs::path p(r.requiredString("obj"));
         if (p.is_relative()) p = fs::path(dir) / p;
-        if (!fs::exists(p)) r.fail("obj", "file not found: " + p.string());
+        if (const std::string why = missingFile(p); !why.empty()) r.fail("obj", why);
         const double scale = r.number("scale", 1, 0, 1e300, true);
         t.hull = readSurfaceMesh(p.lexically_normal().string(), scale).V;
         if (t.hull.cols() < 4) r.fail("obj", "needs at least 4 vertices for a convex hull");
@@ -318,14 +326,14 @@ SceneDef parseScene(const json& j, const std::string& file) {
         } else if (o.has("mesh")) {
             fs::path p(o.requiredString("mesh"));
             if (p.is_relative()) p = fs::path(s.dir) / p;
-            if (!fs::exists(p)) o.fail("mesh", "file not found: " + p.string());
+            if (const std::string why = missingFile(p); !why.empty()) o.fail("mesh", why);
             s.mesh = p.lexically_normal().string();
         } else if (o.has("surface")) {
             // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.
             ObjectReader su = o.object("surface");
             fs::path p(su.requiredString("path"));
             if (p.is_relative()) p = fs::path(s.dir) / p;
-            if (!fs::exists(p)) su.fail("path", "file not found: " + p.string());
+            if (const std::string why = missingFile(p); !why.empty()) su.fail("path", why);
             s.surface = p.lexically_normal().string();
             if (su.has("cells") == su.has("h")) su.fail("cells", "give exactly one of cells and h");
             s.surfaceCells = su.has("cells") ? su.integer("cells", 16, 1, 1000) : 0;

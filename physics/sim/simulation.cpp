@@ -696,6 +696,7 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
         // an MI object keeps its own surface, split by the cuts, with cut faces only inside it
         auto cutSurface = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
                                                                       : cutter_->surface(model_));
+        sw.lap();  // the surface is the cut's work (stage cuts); its contact points are contact's
         if (contact_) {
             ContactPoints pts = contactPoints(*cutSurface, model_.tets, model_.X, contactSettings_.spacing);
             scaleByMass(pts, model_.invMass, contactSettings_.massRef);

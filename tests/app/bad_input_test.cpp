@@ -142,6 +142,18 @@ TEST(BadInput, FoldersAndPipesAreNotFiles) {
     expectBadInput("dt " + fifo, "is not a regular file");
 }
 
+// Found by fuzzing the Release build: a path with a component longer than the system allows made
+// std::filesystem throw from the scene loader instead of an error naming the key.
+TEST(BadInput, FileNamesTooLongNameTheKey) {
+    const std::string dir = workDir();
+    const std::string longName = std::string(300, 'e') + ".msh";
+    json j = barSag();
+    j["object"] = {{"mesh", longName}};
+    expectBadInput("run " + writeScene(dir + "/long.json", j) + " --out " + dir + "/o --no-render --quiet",
+                   "object.mesh: cannot read");
+    expectBadInput("mesh " + dir + "/" + longName, "cannot read");
+}
+
 TEST(BadInput, UsageErrorsExitTwo) {
     std::string err;
     EXPECT_EQ(test::runCutsim("dt --no-such-flag x.msh", nullptr, &err), 2) << err;

@@ -158,6 +158,74 @@ TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
     EXPECT_NEAR(st.reaction[0].z(), k * d, 1e-9);
 }
 
+// The closed-form distances of spheres, capsules and boxes agree with Bullet's GJK/EPA on the same
+// shape, inside and outside, in a turned frame.
+TEST(Contact, ClosedFormDistancesMatchGjkEpa) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    ToolDef tool;
+    Pose frame;
+    frame.position << 0.01, -0.02, 0.03;
+    frame.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()));
+    ToolPart parts[3];
+    parts[0].shape = ToolShape::Kind::Sphere;
+    parts[0].size << 0.01, 0, 0;
+    parts[1].shape = ToolShape::Kind::Capsule;
+    parts[1].size << 0.004, 0.01, 0;
+    parts[2].shape = ToolShape::Kind::Box;
+    parts[2].size << 0.02, 0.01, 0.002;
+    int inside = 0;
+    const Eigen::Vector3d reach[3] = {{0.015, 0.015, 0.015}, {0.006, 0.006, 0.021}, {0.03, 0.015, 0.004}};
+    for (int k = 0; k < 3; ++k)
+        for (int i = 0; i < 400; ++i) {
+            const ToolPart& part = parts[k];
+            const Eigen::Vector3d x = frame.apply(reach[k].cwiseProduct(Eigen::Vector3d(u(rng), u(rng), u(rng))));
+            Eigen::Vector3d n1, n2;
+            const double d1 = partSignedDistance(part, tool, frame, x, n1, true);
+            const double d2 = partSignedDistance(part, tool, frame, x, n2, false);
+            inside += d1 < 0;
+            ASSERT_NEAR(d1, d2, 1e-7) << static_cast<int>(part.shape) << " at " << x.transpose();
+            ASSERT_NEAR(n1.norm(), 1, 1e-12);
+            if (std::abs(d1) > 1e-4) EXPECT_GT(n1.dot(n2), 0.999) << static_cast<int>(part.shape);
+            // the point moved along n by -d lies on the surface
+            Eigen::Vector3d n3;
+            EXPECT_NEAR(partSignedDistance(part, tool, frame, x - d1 * n1, n3), 0, 1e-12);
+        }
+    EXPECT_GT(inside, 150);  // both sides were sampled
+    EXPECT_LT(inside, 900);
+}
+
+// A tool away from the surface computes no distance; the tree follows a surface moved far beyond
+// its boxes' margin (a translation of 5 cm in small steps and in one jump), so the contact found
+// equals a fresh world's.
+TEST(Contact, FarToolTestsNothingAndMovedSurfaceIsFollowed) {
+    Slab s;
+    const double k = 1000, r = 0.005;
+    ContactWorld far({sphereAt({0.05, 0.05, 0.2}, r, k)});
+    far.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0.002));
+    far.addForces(s.mesh.X, s.v, 0, 1e-4, s.f);
+    EXPECT_EQ(far.last().tested, 0);
+    EXPECT_EQ(far.last().contacts, 0);
+    for (const int stepsToMove : {50, 1}) {
+        ContactWorld w({sphereAt({0.05 + 0.05, 0.05, 0.02 + r - 1e-3}, r, k)});
+        w.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0.002));
+        Eigen::Matrix3Xd x = s.mesh.X;
+        for (int i = 0; i <= stepsToMove; ++i) {
+            x = s.mesh.X;
+            x.row(0).array() += 0.05 * i / stepsToMove;
+            s.f.setZero();
+            w.addForces(x, s.v, 0, 1e-4, s.f);
+        }
+        ContactWorld fresh({sphereAt({0.05 + 0.05, 0.05, 0.02 + r - 1e-3}, r, k)});
+        fresh.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0.002));
+        Eigen::Matrix3Xd f2 = Eigen::Matrix3Xd::Zero(3, x.cols());
+        fresh.addForces(x, s.v, 0, 1e-4, f2);
+        EXPECT_GT(w.last().contacts, 1) << stepsToMove;
+        EXPECT_EQ(w.last().contacts, fresh.last().contacts) << stepsToMove;
+        EXPECT_NEAR((w.last().reaction[0] - fresh.last().reaction[0]).norm(), 0, 1e-9) << stepsToMove;
+    }
+}
+
 TEST(Contact, HullFromObjActsLikeItsShape) {
     // an 8 x 8 x 4 mm cube written as OBJ (in mm, scale 0.001): the same depth as the box blade
     std::string obj;
