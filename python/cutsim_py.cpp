@@ -1,6 +1,7 @@
 // The Python module `cutsim`: the library's Simulation driven from Python (docs/python.md).
 // Arrays of the state are read-only numpy views of the Simulation's own memory (no copy); they
-// follow the state step by step and are stale after a cut adds nodes or elements.
+// follow the state step by step. Before a cut reallocates that memory, the arrays that views still
+// read are retired (kept, frozen at the state before the cut) and the Simulation goes on in a copy.
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
 #include "snapshot/scene_snapshot.hpp"
@@ -14,6 +15,8 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <array>
+#include <cmath>
 #include <memory>
 #include <optional>
 #include <string>
@@ -53,13 +56,62 @@ class SimulationError : public std::runtime_error {
     using std::runtime_error::runtime_error;
 };
 
-// A Simulation with what Python adds: the renderer, created on the first frame.
+// The arrays the module lends to numpy views.
+enum Lent : std::uint8_t { Positions, Velocities, RestPositions, ElementSteps, kLent };
+
+// The views of one array's storage share a Loan. While the Simulation holds the storage, the Loan
+// is empty; before a topology change the storage moves into it (the views keep reading it, frozen
+// there) and the Simulation goes on in a copy. The last view gone frees the Loan and the storage.
+struct Loan {
+    Eigen::Matrix3Xd matrix;  // Positions, Velocities, RestPositions
+    Eigen::VectorXd vector;   // ElementSteps
+};
+// A view's numpy base: the Python Simulation (owner of the arrays it still holds) and the Loan.
+struct Lease {
+    py::object sim;
+    std::shared_ptr<Loan> loan;
+};
+
+// A Simulation with what Python adds: the views' loans, the renderer, created on the first frame.
 class PySimulation {
 public:
     PySimulation(const SceneDef& sc, int threads, bool renderSurface)
-        : sc_(sc), sim_(sc_, Simulation::Options{threads, renderSurface}) {}
+        : sc_(sc), sim_(sc_, Simulation::Options{threads, renderSurface}) {
+        sim_.setBeforeTopologyChange([this] { retireLent(); });
+    }
+    PySimulation(const PySimulation&) = delete;  // the hook holds this
+    PySimulation& operator=(const PySimulation&) = delete;
 
     Simulation& sim() { return sim_; }
+
+    // The loan of array a's current storage, shared by all its views until a topology change.
+    std::shared_ptr<Loan> loan(Lent a) {
+        std::shared_ptr<Loan> l = loans_[a].lock();
+        if (!l) loans_[a] = l = std::make_shared<Loan>();
+        return l;
+    }
+    // The hook before a topology change (also inside step(), without the GIL: no Python here).
+    // Arrays no view reads stay where they are; the others move into their loan, and the
+    // Simulation gets an equal copy (so nothing it computes changes). The Simulation's members
+    // are not const objects: writing them through the const accessors is defined.
+    void retireLent() {
+        for (int a = 0; a < kLent; ++a) {
+            const std::shared_ptr<Loan> l = loans_[a].lock();
+            if (!l) continue;
+            if (a == ElementSteps) {
+                auto& v = const_cast<Eigen::VectorXd&>(sim_.analyzer().estimates().r1r);
+                l->vector = std::move(v);
+                v = l->vector;
+            } else {
+                auto& m = const_cast<Eigen::Matrix3Xd&>(a == Positions    ? sim_.state().x
+                                                        : a == Velocities ? sim_.state().v
+                                                                          : sim_.model().X);
+                l->matrix = std::move(m);
+                m = l->matrix;
+            }
+            loans_[a].reset();
+        }
+    }
 
     // Steps n times (stops early at the scene's end); a diverged or refused step raises.
     long step(long n) {
@@ -139,6 +191,7 @@ public:
 private:
     SceneDef sc_;
     Simulation sim_;
+    std::array<std::weak_ptr<Loan>, kLent> loans_;  // of the current storage, while views read it
 #ifdef CUTSIM_HAVE_RENDER
     std::unique_ptr<render::Renderer> renderer_;
     std::unique_ptr<SceneSnapshot> snapshot_;
@@ -147,24 +200,46 @@ private:
 #endif
 };
 
-// A read-only (rows x cols) numpy view of column-major Eigen data of `owner`, kept alive by it.
-py::array view(const double* data, py::ssize_t rows, py::ssize_t cols, const py::object& owner) {
-    py::array a(py::dtype::of<double>(), {cols, rows},
-                {static_cast<py::ssize_t>(sizeof(double)) * rows, static_cast<py::ssize_t>(sizeof(double))}, data,
-                owner);
-    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-    return a;
+// The base of a view of array a of the Python Simulation `self`: a capsule holding its Lease.
+py::capsule leaseOf(const py::object& self, Lent a) {
+    auto* lease = new Lease{self, self.cast<PySimulation&>().loan(a)};
+    return py::capsule(lease, [](void* p) { delete static_cast<Lease*>(p); });
 }
-py::array vectorView(const Eigen::VectorXd& v, const py::object& owner) {
-    py::array a(py::dtype::of<double>(), {v.size()}, {static_cast<py::ssize_t>(sizeof(double))}, v.data(), owner);
-    py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-    return a;
+// A read-only numpy view of the Simulation's (3 x N) array a, as (N x 3): no copy.
+py::array view(const py::object& self, Lent a) {
+    Simulation& sim = self.cast<PySimulation&>().sim();
+    const Eigen::Matrix3Xd& m = a == Positions ? sim.state().x : a == Velocities ? sim.state().v : sim.model().X;
+    constexpr auto d = static_cast<py::ssize_t>(sizeof(double));
+    py::array v(py::dtype::of<double>(), {static_cast<py::ssize_t>(m.cols()), py::ssize_t(3)}, {3 * d, d}, m.data(),
+                leaseOf(self, a));
+    py::detail::array_proxy(v.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return v;
+}
+py::array elementStepsView(const py::object& self) {
+    const Eigen::VectorXd& r = self.cast<PySimulation&>().sim().analyzer().estimates().r1r;
+    py::array v(py::dtype::of<double>(), {static_cast<py::ssize_t>(r.size())},
+                {static_cast<py::ssize_t>(sizeof(double))}, r.data(), leaseOf(self, ElementSteps));
+    py::detail::array_proxy(v.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
+    return v;
 }
 
 Eigen::Vector3d vec3(const py::handle& o, const char* what) {
     const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
     if (!a || a.size() != 3) throw InputError(std::string(what) + ": must be 3 numbers");
-    return {a.at(0), a.at(1), a.at(2)};
+    const Eigen::Vector3d v(a.at(0), a.at(1), a.at(2));
+    if (!v.allFinite()) throw InputError(std::string(what) + ": must be finite");
+    return v;
+}
+
+// A rotation as a unit quaternion (w, x, y, z), normalised; finite and not zero.
+Eigen::Quaterniond quaternion(const py::handle& o) {
+    const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
+    if (!a || a.ndim() != 1 || a.size() != 4)
+        throw InputError("orientation: must be a quaternion of 4 numbers (w, x, y, z)");
+    Eigen::Quaterniond q(a.at(0), a.at(1), a.at(2), a.at(3));
+    if (!q.coeffs().allFinite()) throw InputError("orientation: must be finite");
+    if (q.norm() < 1e-12) throw InputError("orientation: must not be zero");
+    return q.normalized();
 }
 
 std::unique_ptr<PySimulation> fromScene(const py::object& scene, const std::vector<std::string>& sets, int threads,
@@ -213,7 +288,12 @@ py::dict limitsDict(const StepLimits& l) {
 
 PYBIND11_MODULE(cutsim, m) {
     using namespace cutsim;
-    m.doc() = "cutsim: explicit FEM soft-tissue cutting (docs/python.md)";
+    m.doc() = "cutsim: explicit FEM soft-tissue cutting (docs/python.md).\n\n"
+              "Simulation.positions, velocities, rest_positions and element_steps are read-only numpy views of "
+              "the simulation's memory (no copy) that follow the steps. A cut (cut_plane, cut_polygon, "
+              "cut_next_scripted, or a scripted cut or blade sweep inside step) keeps the memory of views taken "
+              "before it alive, frozen at the values of just before the cut; take the property again for the "
+              "new state (its new node and element count).";
     // the CLI's messages: what it prints after "error: "
     static py::exception<InputError> inputError(m, "InputError", PyExc_ValueError);
     static py::exception<SimulationError> simError(m, "SimulationError", PyExc_RuntimeError);
@@ -260,11 +340,16 @@ PYBIND11_MODULE(cutsim, m) {
         .def("finish", [](PySimulation& s) { s.sim().finish(); })
         .def(
             "set_tool",
-            [](PySimulation& s, int i, const py::object& pos) {
+            [](PySimulation& s, int i, const py::object& pos, const py::object& orientation) {
                 checkTool(s.sim(), i);
-                s.sim().holdTool(i, vec3(pos, "position"));
+                const Eigen::Vector3d p = vec3(pos, "position");
+                std::optional<Eigen::Quaterniond> q;
+                if (!orientation.is_none()) q = quaternion(orientation);
+                s.sim().holdTool(i, p, q);
             },
-            py::arg("tool"), py::arg("position"), "Holds tool i at position [m] from now on (keyframes dropped)")
+            py::arg("tool"), py::arg("position"), py::arg("orientation") = py::none(),
+            "Holds tool i at position [m] from now on (keyframes dropped); orientation: a quaternion "
+            "(w, x, y, z), normalised, local -> world; None keeps the tool's orientation now")
         .def(
             "tool_force",
             [](PySimulation& s, int i) {
@@ -282,6 +367,15 @@ PYBIND11_MODULE(cutsim, m) {
                 return py::array_t<double>(3, p.data());
             },
             py::arg("tool") = 0)
+        .def(
+            "tool_orientation",
+            [](PySimulation& s, int i) {
+                const Eigen::Quaterniond q =
+                    toolPose(checkTool(s.sim(), i).tools()[static_cast<size_t>(i)], s.sim().state().time).orientation;
+                const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
+                return py::array_t<double>(4, wxyz);
+            },
+            py::arg("tool") = 0, "Tool i's orientation now, a unit quaternion (w, x, y, z)")
         .def(
             "cut_plane",
             [](PySimulation& s, const py::object& point, const py::object& normal, const std::string& key) {
@@ -320,24 +414,15 @@ PYBIND11_MODULE(cutsim, m) {
             "cut_next_scripted", [](PySimulation& s) { return s.sim().cutNextScripted(); },
             "The scene's next scripted cut now; False when none is left")
         .def_property_readonly(
-            "positions",
-            [](py::object self) {
-                const auto& x = self.cast<PySimulation&>().sim().state().x;
-                return view(x.data(), 3, x.cols(), self);
-            },
-            "Node positions (N x 3) [m]: a read-only view, stale after a cut")
+            "positions", [](const py::object& self) { return view(self, Positions); },
+            "Node positions (N x 3) [m]: a read-only view (no copy) that follows the steps; a view taken "
+            "before a cut keeps the values of just before it (take the property again for the new nodes)")
         .def_property_readonly(
-            "velocities",
-            [](py::object self) {
-                const auto& v = self.cast<PySimulation&>().sim().state().v;
-                return view(v.data(), 3, v.cols(), self);
-            },
-            "Node velocities (N x 3) [m/s]: a read-only view, stale after a cut")
-        .def_property_readonly("rest_positions",
-                               [](py::object self) {
-                                   const auto& x = self.cast<PySimulation&>().sim().model().X;
-                                   return view(x.data(), 3, x.cols(), self);
-                               })
+            "velocities", [](const py::object& self) { return view(self, Velocities); },
+            "Node velocities (N x 3) [m/s]: a read-only view as positions (frozen at a cut)")
+        .def_property_readonly(
+            "rest_positions", [](const py::object& self) { return view(self, RestPositions); },
+            "Rest positions (N x 3) [m]: a read-only view as positions (frozen at a cut)")
         .def_property_readonly("tets",
                                [](PySimulation& s) {
                                    const auto& t = s.sim().model().tets;
@@ -346,11 +431,9 @@ PYBIND11_MODULE(cutsim, m) {
                                    return a;
                                })
         .def_property_readonly(
-            "element_steps",
-            [](py::object self) {
-                return vectorView(self.cast<PySimulation&>().sim().analyzer().estimates().r1r, self);
-            },
-            "Each element's stable step estimate (reduced one ring) [s]: a read-only view")
+            "element_steps", [](const py::object& self) { return elementStepsView(self); },
+            "Each element's stable step estimate (reduced one ring) [s]: a read-only view as positions "
+            "(frozen at a cut)")
         .def_property_readonly(
             "critical_elements",
             [](PySimulation& s) {

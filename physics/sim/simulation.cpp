@@ -597,6 +597,7 @@ void Simulation::sampleEnergy() {
 bool Simulation::applyDueCuts() {
     while (nextCut_ < sc_.cutting.cuts.size() && sc_.cutting.cuts[nextCut_].time <= state_.time + 1e-12) {
         const CutDef& cd = sc_.cutting.cuts[nextCut_++];
+        beforeTopologyChange();
         const CutResult r = cutter_->cut(model_, state_, cutSurfaceOf(cd));
         applyTopologyChange(r, cd.path);
         if (status_ != RunStatus::Running) return false;
@@ -633,6 +634,7 @@ bool Simulation::applyBlades() {
             if (stroke_ >= 0) cutter_->endStroke();
             stroke_ = i;
         }
+        beforeTopologyChange();  // a sweep may split elements (r.changed() tells after it)
         const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
         if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
         if (!r.changed()) continue;
@@ -648,6 +650,7 @@ CutResult Simulation::cut(const CutSurface& surface, const std::string& key) {
     Stopwatch sw;
     if (!cutter_) ensureCutter();
     const double inner = rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact];
+    beforeTopologyChange();
     const CutResult r = cutter_->cut(model_, state_, surface);
     applyTopologyChange(r, key);
     rec_.stages[Stage::Cuts] += sw.seconds() - (rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact] - inner);
@@ -741,7 +744,8 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
 
 // ---- interactive control ----
 
-void Simulation::holdTool(int i, const Eigen::Vector3d& position) {
+void Simulation::holdTool(int i, const Eigen::Vector3d& position,
+                          const std::optional<Eigen::Quaterniond>& orientation) {
     if (!contact_ || i < 0 || i >= static_cast<int>(contact_->tools().size())) return;
     ToolDef& t = contact_->tools()[static_cast<size_t>(i)];
     // The pose now stays what the last step saw; the new one starts one tick of time later. The
@@ -750,6 +754,7 @@ void Simulation::holdTool(int i, const Eigen::Vector3d& position) {
     ToolKey held = now;
     held.time = std::nextafter(state_.time, std::numeric_limits<double>::infinity());
     held.pose.position = position;
+    if (orientation) held.pose.orientation = orientation->normalized();
     std::erase_if(t.keys, [&](const ToolKey& k) { return k.time >= now.time; });
     t.keys.push_back(now);
     t.keys.push_back(held);

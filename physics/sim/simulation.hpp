@@ -23,7 +23,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -111,10 +113,19 @@ public:
     // Interactive control: hold tool i at `position` from just after now on. Its keys become the
     // pose now (toolKeyAt) and the held pose one tick of time later, so the step that ends now
     // and the next one see the tool as a recording of these keys replays it.
-    void holdTool(int i, const Eigen::Vector3d& position);
+    // With an orientation (local -> world, normalised) the held pose turns too; without, it keeps
+    // the orientation the tool has now.
+    void holdTool(int i, const Eigen::Vector3d& position,
+                  const std::optional<Eigen::Quaterniond>& orientation = std::nullopt);
     // A new scheme or policy; returns an empty string when accepted, else why it was refused
     // (nothing changes then).
     std::string setPolicy(Integrator integrator, const StepPolicy& policy);
+
+    // Called just before anything may change the topology (a scripted cut, a blade sweep, a
+    // driver's cut): after it, the model's and state's arrays and the analyzer's estimates may be
+    // reallocated. A driver that lends out their memory (the Python views) takes it back here;
+    // the hook may replace those arrays' storage by an equal copy. Empty: none.
+    void setBeforeTopologyChange(std::function<void()> hook) { beforeTopologyChange_ = std::move(hook); }
 
     // ---- what the drivers read ----
     const SceneDef& scene() const { return sc_; }
@@ -158,6 +169,9 @@ private:
     void sampleEnergy();
     void fail(RunStatus s, const std::string& why);
     void recordTool(double t);
+    void beforeTopologyChange() {
+        if (beforeTopologyChange_) beforeTopologyChange_();
+    }
 
     SceneDef sc_;
     Options opt_;
@@ -176,6 +190,7 @@ private:
     TetMesh rest_;                               // the uncut rest mesh, for cutting.compare
     std::unique_ptr<EmbeddedSurface> surface_;   // drawn surface after cuts (see surface())
     int topologyVersion_ = 0;
+    std::function<void()> beforeTopologyChange_;
 
     std::unique_ptr<ContactWorld> contact_;
     ContactSettings contactSettings_;

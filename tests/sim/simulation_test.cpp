@@ -142,6 +142,35 @@ json probedBar() {
     return j;
 }
 
+// The hook before a topology change runs before every cut (a scripted one in a step, one ahead of
+// its time, a driver's), with the arrays still of their size before it, and never in plain steps.
+TEST(Simulation, HookBeforeEveryTopologyChange) {
+    json j = barScene();
+    j["cutting"] = json::parse(R"({ "cuts": [ { "time": 0.004, "point": [0.03, 0.01, 0.01], "normal": [1, 0, 0] },
+                                              { "time": 0.015, "point": [0.07, 0.01, 0.01], "normal": [1, 0, 0] } ] })");
+    Simulation sim = makeSim(j);
+    std::vector<long> seen;  // node count at each call
+    sim.setBeforeTopologyChange([&] { seen.push_back(static_cast<long>(sim.state().x.cols())); });
+    const long n0 = sim.model().nodes();
+    sim.advance(0.003);
+    EXPECT_TRUE(seen.empty());
+    sim.advance(0.006);  // the scripted cut at 0.004 s, in a step's cut stage
+    ASSERT_EQ(seen.size(), 1u);
+    EXPECT_EQ(seen[0], n0);
+    const long n1 = sim.model().nodes();
+    EXPECT_GT(n1, n0);
+    EXPECT_TRUE(sim.cutNextScripted());  // the one at 0.015 s, now
+    ASSERT_EQ(seen.size(), 2u);
+    EXPECT_EQ(seen[1], n1);
+    CutDef cd;
+    cd.point = Eigen::Vector3d(0.05, 0.01, 0.01);
+    cd.normal = Eigen::Vector3d::UnitX();
+    sim.cut(cutSurfaceOf(cd), "driver");
+    EXPECT_EQ(seen.size(), 3u);
+    sim.advance(0.02);
+    EXPECT_EQ(seen.size(), 3u);
+}
+
 TEST(Take, HeldToolsAndADueCutReplayBitwise) {
     SimulationOptions o;
     o.threads = 1;
