@@ -971,6 +971,7 @@ void registerBenchExtensions() {
     addStabilityBench();      // cmd_bench_stability.cpp: dt sweeps, random cuts, energy drift
     addStepCostBench();       // cmd_bench_step.cpp: step throughput, per-scene cost
     addMiBarBench();          // cmd_bench_mibar.cpp: Table 6.1
+    addContactBench();        // cmd_bench_contact.cpp: contact cost and penetration
     addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 

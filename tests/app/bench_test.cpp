@@ -378,6 +378,29 @@ TEST(BenchStability, AfterCutsAndRandomCuts) {
     }
 }
 
+// `bench contact --tiny`: the probe away from the slab touches nothing; pressed 2 mm it touches
+// points, sinks less than its radius and is pushed back up; a stiffer penalty lets it sink less.
+TEST(BenchContact, TinyRunContract) {
+    const json j = runJson("bench contact --tiny --json");
+    ASSERT_EQ(j["runs"].size(), 6u);  // away and pressing, then four stiffness fractions
+    for (const auto& r : j["runs"]) {
+        EXPECT_EQ(r["status"], "ok");
+        EXPECT_GT(r["points"].get<int>(), 1000);
+        EXPECT_GT(r["steps"].get<long>(), 10);
+        EXPECT_GE(r["contact_seconds_per_step"].get<double>(), 0);
+        if (r["tool"] == "away") {
+            EXPECT_EQ(r["max_depth"].get<double>(), 0);
+            EXPECT_EQ(r["final_contacts"].get<int>(), 0);
+        } else {
+            EXPECT_GT(r["final_contacts"].get<int>(), 0);
+            EXPECT_GT(r["max_depth"].get<double>(), 0);
+            EXPECT_LT(r["max_depth"].get<double>(), 0.01);
+            EXPECT_GT(r["final_force"].get<double>(), 0);
+        }
+    }
+    EXPECT_GT(j["runs"][2]["max_depth"].get<double>(), j["runs"][5]["max_depth"].get<double>());  // k 0.1 vs 1.0
+}
+
 TEST(BenchStep, TinyRunContract) {
     const json j = runJson("bench step --tiny --json --seconds 0.02");
     ASSERT_EQ(j["runs"].size(), 4u);  // 1 and 2 threads, each in double and single precision

@@ -1,0 +1,178 @@
+// `cutsim bench contact`: what the contact stage costs against the number of contact points, with
+// the tool pressing or away from the tissue, and how deep the tool sinks against its stiffness.
+// The object is a soft slab (10 x 10 x 2 cm, E 30 kPa) fixed at its bottom, pressed 2 mm at the
+// middle of its top by a 1 cm sphere; contact.spacing sets the number of points.
+#include "bench.hpp"
+#include "commands.hpp"
+#include "sim/scene.hpp"
+#include "sim/simulation.hpp"
+#include "util/json_text.hpp"
+#include "util/stopwatch.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace cutsim::app {
+
+namespace {
+
+using nlohmann::json;
+
+struct ContactArgs {
+    bool json = false;
+    bool tiny = false;
+    int threads = 1;
+};
+
+constexpr double kRadius = 0.01;  // probe [m]
+constexpr double kDepth = 0.002;  // pressed into the top [m]
+
+json slabScene(int cells, double spacing, bool near, double stiffness, double duration) {
+    const double top = 0.02;
+    const double z = near ? top + kRadius - kDepth : top + 0.1;
+    json probe = {{"name", "probe"},
+                  {"kind", "sphere"},
+                  {"radius", kRadius},
+                  {"keyframes", json::array({{{"time", 0.0}, {"position", {0.05, 0.05, near ? top + kRadius : z}}},
+                                             {{"time", 0.3 * duration}, {"position", {0.05, 0.05, z}}}})}};
+    if (stiffness > 0) probe["stiffness"] = stiffness;
+    return {{"name", "contact-bench"},
+            {"object", {{"box", {{"size", {0.1, 0.1, top}}, {"cells", {cells, cells, std::max(1, cells / 5)}}}}}},
+            {"material", {{"E", 30000}, {"nu", 0.3}, {"rho", 1000}, {"damping", 20.0}}},
+            {"fixed", json::array({{{"plane", {{"point", {0, 0, 0}}, {"normal", {0, 0, 1}}, {"distance", 1e-4}}}}})},
+            {"loads", {{"gravity", {0, 0, 0}}}},
+            {"integrator",
+             {{"scheme", "symplectic_euler"}, {"dt", {{"mode", "fraction"}, {"of", "exact"}, {"fraction", 0.8}}}}},
+            {"tools", json::array({probe})},
+            {"contact", {{"spacing", spacing}}},
+            {"duration", duration},
+            {"capture", {{"enabled", false}}},
+            {"output", {{"vtu", false}}}};
+}
+
+struct Row {
+    double spacing = 0;
+    bool near = false;
+    double stiffnessFraction = 0;  // of the stable limit; 0: the default
+    int points = 0, tets = 0;
+    long steps = 0;
+    double contactPerStep = 0, elasticPerStep = 0;  // [s]
+    double stiffness = 0, limit = 0;                // [N/m]
+    double maxDepth = 0, force = 0;                 // [m], final |reaction| [N]
+    int contacts = 0;
+    std::string status;  // the report's: "ok", or why the run stopped
+};
+
+Row runRow(int cells, double spacing, bool near, double fraction, double duration, int threads) {
+    Row r;
+    r.spacing = spacing;
+    r.near = near;
+    r.stiffnessFraction = fraction;
+    Simulation::Options so;
+    so.threads = threads;
+    double stiffness = 0;
+    if (fraction > 0) {  // the limit of this surface first, then the tool at that share of it
+        Simulation probe(parseScene(slabScene(cells, spacing, near, 0, duration), "contact-bench"), so);
+        stiffness = fraction * probe.contactSettings().stiffnessLimit;
+    }
+    Simulation sim(parseScene(slabScene(cells, spacing, near, stiffness, duration), "contact-bench"), so);
+    while (sim.status() == RunStatus::Running && !sim.finished()) sim.step();
+    sim.finish();
+    r.status = sim.report()["status"].get<std::string>();
+    const RunRecord& rec = sim.record();
+    r.steps = sim.state().steps;
+    const double n = std::max<double>(1, static_cast<double>(r.steps));
+    r.contactPerStep = rec.stages[Stage::Contact] / n;
+    r.elasticPerStep = (rec.stages[Stage::Forces] + rec.stages[Stage::Integrate]) / n;
+    r.points = sim.contact()->points().points();
+    r.tets = static_cast<int>(sim.model().tets.cols());
+    r.stiffness = sim.contact()->tools()[0].stiffness;
+    r.limit = sim.contactSettings().stiffnessLimit;
+    r.maxDepth = rec.tool.maxDepth;
+    r.force = sim.contact()->last().reaction[0].norm();
+    r.contacts = sim.contact()->last().contacts;
+    return r;
+}
+
+int runContact(const ContactArgs& a) {
+    const int cells = a.tiny ? 10 : 20;
+    const double duration = a.tiny ? 0.02 : 0.1;
+    const std::vector<double> spacings =
+        a.tiny ? std::vector<double>{0.004} : std::vector<double>{0.005, 0.0028, 0.0016, 0.0009, 0.0005};
+    std::vector<Row> rows;
+    for (double s : spacings)
+        for (bool near : {false, true}) {
+            rows.push_back(runRow(cells, s, near, 0, duration, a.threads));
+            if (!a.json)
+                std::fprintf(stderr, "  spacing %.4g m, %s: %d points\n", s, near ? "pressing" : "away",
+                             rows.back().points);
+        }
+    const double sweepSpacing = a.tiny ? 0.004 : 0.0028;
+    for (double f : {0.1, 0.25, 0.5, 1.0}) rows.push_back(runRow(cells, sweepSpacing, true, f, duration, a.threads));
+    json j = json::array();
+    for (const Row& r : rows)
+        j.push_back({{"spacing", r.spacing},
+                     {"tool", r.near ? "pressing" : "away"},
+                     {"stiffness_fraction", r.stiffnessFraction},
+                     {"points", r.points},
+                     {"tets", r.tets},
+                     {"steps", r.steps},
+                     {"contact_seconds_per_step", r.contactPerStep},
+                     {"elastic_seconds_per_step", r.elasticPerStep},
+                     {"stiffness", jsonNumber(r.stiffness)},
+                     {"stiffness_limit", jsonNumber(r.limit)},
+                     {"max_depth", r.maxDepth},
+                     {"final_force", r.force},
+                     {"final_contacts", r.contacts},
+                     {"status", r.status}});
+    if (a.json) {
+        std::cout << jsonText(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}});
+        for (const Row& r : rows)
+            if (r.status != "ok") return 1;
+        return 0;
+    }
+    std::printf("slab 10 x 10 x 2 cm, E 30 kPa, probe radius %.0f mm pressed %.0f mm, 1 thread per run\n",
+                kRadius * 1e3, kDepth * 1e3);
+    std::printf("%9s %9s %7s %7s %12s %12s %8s %10s %10s %10s %8s\n", "spacing", "tool", "k/kmax", "points",
+                "contact[us]", "elastic[us]", "ratio", "k [N/m]", "depth[mm]", "force [N]", "touching");
+    int failed = 0;
+    for (const Row& r : rows)
+        std::printf("%9.4g %9s %7.2f %7d %12.2f %12.2f %8.3f %10.4g %10.3f %10.4f %8d\n", r.spacing,
+                    r.near ? "pressing" : "away", r.stiffness / r.limit, r.points, r.contactPerStep * 1e6,
+                    r.elasticPerStep * 1e6, r.contactPerStep / r.elasticPerStep, r.stiffness, r.maxDepth * 1e3, r.force,
+                    r.contacts);
+    for (const Row& r : rows)
+        if (r.status != "ok") {
+            std::printf("spacing %.4g m, %s, k/kmax %.2f: %s\n", r.spacing, r.near ? "pressing" : "away",
+                        r.stiffness / r.limit, r.status.c_str());
+            ++failed;
+        }
+    std::printf("(contact and elastic: stage seconds per step, elastic = forces + integrate; ratio = contact / "
+                "elastic; depth: deepest point over the run)\n");
+    return failed ? 1 : 0;
+}
+
+}  // namespace
+
+void addContactBench() {
+    addBenchSubcommand([](CLI::App& bench) {
+        auto a = std::make_shared<ContactArgs>();
+        auto* c =
+            bench.add_subcommand("contact", "Contact cost per step against contact points (tool pressing or away), and "
+                                            "penetration and force against the penalty stiffness");
+        c->add_flag("--json", a->json, "Print {probe_radius, pressed, runs: [...]}");
+        c->add_flag("--tiny", a->tiny, "Test size: one small slab");
+        c->add_option("--threads", a->threads, "Worker threads per run")
+            ->check(CLI::Range(1, 1024))
+            ->capture_default_str();
+        c->callback([a] { setExitCode(benchGuarded([&] { return runContact(*a); })); });
+    });
+}
+
+}  // namespace cutsim::app
