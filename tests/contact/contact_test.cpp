@@ -186,7 +186,9 @@ TEST(Contact, ClosedFormDistancesMatchGjkEpa) {
             inside += d1 < 0;
             ASSERT_NEAR(d1, d2, 1e-7) << static_cast<int>(part.shape) << " at " << x.transpose();
             ASSERT_NEAR(n1.norm(), 1, 1e-12);
-            if (std::abs(d1) > 1e-4) EXPECT_GT(n1.dot(n2), 0.999) << static_cast<int>(part.shape);
+            if (std::abs(d1) > 1e-4) {
+                EXPECT_GT(n1.dot(n2), 0.999) << static_cast<int>(part.shape);
+            }
             // the point moved along n by -d lies on the surface
             Eigen::Vector3d n3;
             EXPECT_NEAR(partSignedDistance(part, tool, frame, x - d1 * n1, n3), 0, 1e-12);
