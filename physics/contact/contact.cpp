@@ -463,7 +463,6 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
     st.contacts = 0;
     st.maxDepth = 0;
     st.tested = 0;
-    st.refit = false;
     auto interpolate = [&](int p) {
         Eigen::Vector3d xs = Eigen::Vector3d::Zero();
         for (int i = 0; i < P.count[static_cast<size_t>(p)]; ++i) xs += P.weights(i, p) * x.col(P.nodes(i, p));
@@ -494,7 +493,6 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
         for (size_t k = 0; k < m.surfNodes.size(); ++k)
             m.xRef.col(static_cast<Eigen::Index>(k)) = x.col(m.surfNodes[k]);
         std::fill(m.moved.begin(), m.moved.end(), 0.0);
-        st.refit = true;
     };
     auto refitMoved = [&]() {
         const int stamp = ++m.refits;
@@ -543,7 +541,6 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
                 if (before.Mins() == n->volume.Mins() && before.Maxs() == n->volume.Maxs()) break;
             }
         }
-        st.refit = st.refit || !m.dirty.empty();
     };
     if (nt == 0) return;
     // 1. how far each surface node moved since its triangles were refitted; the whole surface lies

@@ -9,7 +9,8 @@
 // The cost follows what touches: each step bounds how far any point moved since the tree was last
 // refitted (the farthest surface node times the largest weight sum, one pass over the surface's
 // nodes, not its points); a tool whose box misses the tree's root grown by that bound costs
-// nothing more, and the tree is refitted only when the bound exceeds the margin its leaves keep.
+// nothing more; with a tool near, only the triangles one of whose nodes moved more than
+// margin / (2 x weight sum) are refitted, in place.
 // Points are interpolated only when their triangle is a candidate.
 // This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.
@@ -93,7 +94,6 @@ struct ContactStep {
     int contacts = 0;                       // points inside a tool [-]
     double maxDepth = 0;                    // deepest point inside a tool [m]
     int tested = 0;                         // points whose distance to a tool was computed [-]
-    bool refit = false;                     // the triangle tree was refitted in this step
 };
 
 // Signed distance of the world point x to one part of `tool` whose frame is `frame` [m]
