@@ -33,7 +33,8 @@ struct ContactArgs {
 constexpr double kRadius = 0.01;  // probe [m]
 constexpr double kDepth = 0.002;  // pressed into the top [m]
 
-json slabScene(int cells, double spacing, bool near, double stiffness, double duration) {
+// penalty: contact.model "penalty" (the stiffness sweep); else the default, projection
+json slabScene(int cells, double spacing, bool near, double stiffness, double duration, bool penalty) {
     const double top = 0.02;
     const double z = near ? top + kRadius - kDepth : top + 0.1;
     json probe = {{"name", "probe"},
@@ -50,7 +51,7 @@ json slabScene(int cells, double spacing, bool near, double stiffness, double du
             {"integrator",
              {{"scheme", "symplectic_euler"}, {"dt", {{"mode", "fraction"}, {"of", "exact"}, {"fraction", 0.8}}}}},
             {"tools", json::array({probe})},
-            {"contact", {{"spacing", spacing}}},
+            {"contact", {{"spacing", spacing}, {"model", penalty ? "penalty" : "projection"}}},
             {"duration", duration},
             {"capture", {{"enabled", false}}},
             {"output", {{"vtu", false}}}};
@@ -78,10 +79,10 @@ Row runRow(int cells, double spacing, bool near, double fraction, double duratio
     so.threads = threads;
     double stiffness = 0;
     if (fraction > 0) {  // the limit of this surface first, then the tool at that share of it
-        Simulation probe(parseScene(slabScene(cells, spacing, near, 0, duration), "contact-bench"), so);
+        Simulation probe(parseScene(slabScene(cells, spacing, near, 0, duration, true), "contact-bench"), so);
         stiffness = fraction * probe.contactSettings().stiffnessLimit;
     }
-    Simulation sim(parseScene(slabScene(cells, spacing, near, stiffness, duration), "contact-bench"), so);
+    Simulation sim(parseScene(slabScene(cells, spacing, near, stiffness, duration, fraction > 0), "contact-bench"), so);
     while (sim.status() == RunStatus::Running && !sim.finished()) sim.step();
     sim.finish();
     r.status = sim.report()["status"].get<std::string>();

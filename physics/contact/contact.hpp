@@ -15,13 +15,22 @@
 // This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.
 //
-// Forces: penalty f = s_p max(0, k d - c v_n) n per point inside a tool (s_p its mass scale,
-// scaleByMass; d depth, n the way out, v_n the separating speed relative to the tool), spread to
-// the mesh nodes by the transpose of the interpolation x_p = sum_i w_i x_i, so it works the same
-// for cut faces and embedded (MI) surfaces.
-// The reaction on each tool is minus the sum of its point forces.
+// Two contact models act through the same points (contact.model in a scene):
+// - projection (project, after the step's integration): kinematic contact as explicit codes use it
+//   for rigid walls; each point inside a tool or collider gets the impulse that stops its approach,
+//   with Coulomb friction, and is moved back onto the surface. No stiffness, so nothing to keep
+//   below a stable limit, and no penetration beyond one step's motion.
+// - penalty (addForces, before the forces): f = s_p max(0, k d - c v_n) n per point inside a tool
+//   (s_p its mass scale, scaleByMass; d depth, n the way out, v_n the separating speed relative to
+//   the tool).
+// Both act on the mesh nodes through the transpose of the interpolation x_p = sum_i w_i x_i, so they
+// work the same for cut faces and embedded (MI) surfaces. The reaction on each tool is minus what
+// its points received (force, or momentum over the step).
+// Static colliders (contact/collider.hpp) are shapes that do not move: a plane is a half-space
+// tested against the triangle tree directly; boxes, spheres and convex meshes are Bullet objects.
 #pragma once
 
+#include "contact/collider.hpp"
 #include "contact/tool.hpp"
 #include "fem/model.hpp"
 #include "mesh/embedding.hpp"
@@ -88,12 +97,19 @@ double stableStiffness(const ContactPoints& pts, const Model& model, double dt, 
 // tool on alternate steps gains energy near the limit (tests/contact/contact_test.cpp).
 inline constexpr double kDefaultStiffnessFraction = 0.5;
 
+// Gauss-Seidel sweeps of the projection over its contacts (velocities, then positions).
+inline constexpr int kProjectionIterations = 8;
+
 // What contact did in the last step.
 struct ContactStep {
     std::vector<Eigen::Vector3d> reaction;  // force of the tissue on each tool (nTools) [N]
     int contacts = 0;                       // points inside a tool [-]
-    double maxDepth = 0;                    // deepest point inside a tool [m]
-    int tested = 0;                         // points whose distance to a tool was computed [-]
+    int colliderContacts = 0;               // points inside a collider [-]
+    int pieceContacts = 0;                  // points of one piece inside another (projection only) [-]
+    double maxDepth = 0;                    // deepest point inside a tool, before projection [m]
+    double colliderDepth = 0;               // deepest point inside a collider, before projection [m]
+    double residualDepth = 0;               // deepest left after the projection [m]
+    int tested = 0;                         // points whose distance to a shape was computed [-]
 };
 
 // Signed distance of the world point x to one part of `tool` whose frame is `frame` [m]
@@ -104,13 +120,14 @@ double partSignedDistance(const ToolPart& part, const ToolDef& tool, const Pose&
 
 class ContactWorld {
 public:
-    explicit ContactWorld(std::vector<ToolDef> tools);
+    explicit ContactWorld(std::vector<ToolDef> tools, std::vector<ColliderDef> colliders = {});
     ~ContactWorld();
     ContactWorld(const ContactWorld&) = delete;
     ContactWorld& operator=(const ContactWorld&) = delete;
 
-    // (Re)builds the contact points, e.g. after a cut changed the surface.
-    void setSurface(ContactPoints pts);
+    // (Re)builds the contact points, e.g. after a cut changed the surface. `rest`: the mesh's rest
+    // positions (3 x nNodes) [m], needed for contact between pieces (null: none).
+    void setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest = nullptr);
     // Tool `tool` no longer touches the faces cut `cut` made (-1: touches all). A blade slides in
     // its own cut: those faces lie within its thickness, and pressing them apart puts force
     // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still
@@ -121,10 +138,22 @@ public:
     // Contact forces at node positions x and velocities v (3 x nNodes) at time t, added into f
     // (3 x nNodes) [N]; dt is the step, for the tool's velocity over it. Fills last().
     void addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double t, double dt, Eigen::Matrix3Xd& f);
+    // Kinematic contact after the step that ended at `time` (of length dt): positions x and
+    // velocities v (3 x nNodes) of the points inside a tool or collider are corrected in place
+    // (invMass: nNodes [1/kg], 0 for fixed nodes). Fills last(); the reaction is the momentum
+    // given over dt.
+    void project(const Eigen::VectorXd& invMass, double time, double dt, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
     const ContactStep& last() const;
+    // Separated pieces of the surface (joined by no node) touch each other, with Coulomb friction
+    // (project only; off by default). Pieces: connected parts of the current surface.
+    void setPieceContact(bool on, double friction);
+    int pieces() const;
+    // Penalty stiffness and damping of every collider (addForces only) [N/m], [N s/m].
+    void setColliderPenalty(double stiffness, double damping);
 
     std::vector<ToolDef>& tools();
     const std::vector<ToolDef>& tools() const;
+    const std::vector<ColliderDef>& colliders() const;
 
     // Bullet worlds alive in this process (a scene without tools must leave it at 0).
     static int live();

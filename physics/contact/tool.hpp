@@ -38,6 +38,7 @@ struct ToolDef {
     std::vector<ToolKey> keys;               // in time order; the pose is held before the first and after the last
     double stiffness = 0;  // penalty stiffness per contact point [N/m]; 0 = automatic (0.8 of the stable limit)
     double damping = -1;   // penalty damping per contact point [N s/m]; < 0 = automatic
+    double friction = 0;   // Coulomb coefficient with the tissue [-] (projection contact)
 };
 
 // One convex piece of a tool in the tool's frame (a grasper has two).

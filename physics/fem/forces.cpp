@@ -259,6 +259,15 @@ inline void keepRotations(State& s, int e0, int count, const L X[9], const L& de
         }
 }
 
+// The elements of a block whose stretch bound is under the watch, for limitStretch (no other
+// thread writes these elements' bytes).
+template <class L>
+inline void markNearFlat(State& s, int e0, int count, double watch, const L& det, const L& f2) {
+    if (!(watch > 0)) return;
+    for (int l = 0; l < count; ++l)
+        s.nearFlat[static_cast<size_t>(e0 + l)] = 2 * double(det[l]) < watch * double(f2[l]);
+}
+
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes) in double.
 inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, int count, double lam, double mu,
                         bool corot, double watch, int* nearFlat, const ForceOut& out) {
@@ -270,6 +279,7 @@ inline int elementBlock(const Model& m, State& s, const double* alpha, int e0, i
 #endif
         copyLanes(m, s, alpha, e0, count, Ds, Dm, scale);
     const int inv = blockForces(s, e0, count, Ds, Dm, scale, lam, mu, corot, watch, nearFlat, P, X, det, f2);
+    markNearFlat(s, e0, count, watch, det, f2);
 #ifdef CUTSIM_LANE_TRANSPOSE
     if (count == kLanes)
         writeFullBlock(m, s, e0, P, out);
@@ -300,6 +310,7 @@ inline int elementBlockF(const Model& m, State& s, const double* alpha, int e0, 
 #endif
         copyLanes(m, s, alpha, e0, count, Ds, Dm, scale);
     const int inv = blockForces(s, e0, count, Ds, Dm, scale, lam, mu, corot, watch, nearFlat, P, X, det, f2);
+    markNearFlat(s, e0, count, watch, det, f2);
 #ifdef CUTSIM_LANE_TRANSPOSE
     if (full) {
         Lane lo[12], hi[12];
@@ -467,6 +478,7 @@ void computeForces(const Model& m, State& s, const double* alpha, double watch, 
                    ForceStageSeconds* times, NodeUpdate* update) {
     int inverted = 0, nearFlat = 0;
     const int ne = m.elements();
+    if (watch > 0) s.nearFlat.resize(static_cast<size_t>(ne));
     if (ne < kFusedElements)
         forcesViaSlots(m, s, alpha, watch, allRotations, times, update, inverted, nearFlat);
     else

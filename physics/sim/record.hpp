@@ -39,11 +39,15 @@ struct ToolRecord {
     double maxDepth = 0;                                // deepest surface point inside a tool at any step [m]
     long contactSteps = 0;                              // steps with at least one point in contact
     Eigen::Vector3d force = Eigen::Vector3d::Zero();    // reaction of the last step [N]
-    std::vector<double> time, fx, fy, fz, blockMaxima;  // the series [s], [N]
+    std::vector<double> time, fx, fy, fz, blockMaxima;  // the series: mean force over each sample's window [s], [N]
     std::vector<float> history;                         // |F| at the series rate, last 200 samples (HUD plot) [N]
     double nextSample = 0, blockMax = 0, sampleDt = 1e-3;
-    // After a step from time t with reaction `f`, deepest point `depth`, `contacts` points touching.
-    void add(double t, const Eigen::Vector3d& f, double depth, int contacts);
+    Eigen::Vector3d impulse = Eigen::Vector3d::Zero();  // sum of f dt since the last sample [N s]
+    double window = 0;                                  // its duration [s]
+    // After a step [t, t + dt] with reaction `f`, deepest point `depth`, `contacts` points touching.
+    // A sample is the mean force since the previous one (impulse over time, as a force sensor
+    // reads it): the projection contact's reaction comes in impulses, one step at a time.
+    void add(double t, double dt, const Eigen::Vector3d& f, double depth, int contacts);
 };
 
 struct RunRecord {

@@ -60,22 +60,27 @@ void Simulation::compareCutMethods() {
         rec_.compare = cutsim::compareCutMethods(sc_, rest_);
 }
 
-void ToolRecord::add(double t, const Eigen::Vector3d& f, double depth, int contacts) {
+void ToolRecord::add(double t, double dt, const Eigen::Vector3d& f, double depth, int contacts) {
     force = f;
     const double mag = f.norm();
     maxForce = std::max(maxForce, mag);
     maxDepth = std::max(maxDepth, depth);
     contactSteps += contacts > 0;
     blockMax = std::max(blockMax, mag);
+    impulse += f * dt;
+    window += dt;
     if (t >= nextSample - 1e-12) {
+        const Eigen::Vector3d mean = window > 0 ? Eigen::Vector3d(impulse / window) : f;
+        impulse.setZero();
+        window = 0;
         time.push_back(t);
-        fx.push_back(f.x());
-        fy.push_back(f.y());
-        fz.push_back(f.z());
+        fx.push_back(mean.x());
+        fy.push_back(mean.y());
+        fz.push_back(mean.z());
         blockMaxima.push_back(blockMax);
         blockMax = 0;
         nextSample += sampleDt;
-        history.push_back(static_cast<float>(mag));
+        history.push_back(static_cast<float>(mean.norm()));
         if (history.size() > 200) history.erase(history.begin());
     }
 }
@@ -180,8 +185,12 @@ json Simulation::report(const json& extra) const {
         }
         const ToolRecord& tr = rec_.tool;
         const ContactSettings& cs = contactSettings_;
+        json colliders = json::array();
+        for (const auto& cd : contact_->colliders()) colliders.push_back(cd.name);
         report["tool"] = {
             {"names", names},
+            {"model", sc.contactModel == ContactModel::Projection ? "projection" : "penalty"},
+            {"colliders", colliders},
             {"max_force", tr.maxForce},
             {"contact_steps", tr.contactSteps},
             {"max_depth", tr.maxDepth},

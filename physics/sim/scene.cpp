@@ -126,6 +126,7 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     }
     t.stiffness = r.number("stiffness", 0, 0, 1e300);
     t.damping = r.number("damping", -1, 0, 1e300);  // absent: -1, automatic
+    t.friction = r.number("friction", t.friction, 0, 10);
     const double d2r = std::numbers::pi / 180.0;
     for (auto& k : r.array("keyframes")) {
         ToolKey key;
@@ -160,6 +161,51 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     }
     if (t.keys.empty()) r.fail("keyframes", "is required (at least one keyframe)");
     return t;
+}
+
+// A static collider: a plane (point, normal), a box (center, size, rotation_deg), a sphere (center,
+// radius) or a convex mesh (obj, scale, center) (docs/scene-format.md, "colliders").
+ColliderDef readCollider(ObjectReader& r, const std::string& dir, int index) {
+    ColliderDef c;
+    c.name = r.string("name", "collider" + std::to_string(index));
+    const std::string kind = r.requiredString("kind");
+    if (kind != "plane" && kind != "box" && kind != "sphere" && kind != "mesh")
+        r.fail("kind", "must be one of plane, box, sphere, mesh; got \"" + kind + "\"");
+    c.friction = r.number("friction", c.friction, 0, 10);
+    const double d2r = std::numbers::pi / 180.0;
+    if (kind == "plane") {
+        c.kind = ColliderDef::Kind::Plane;
+        c.pose.position = r.requiredVec3("point");
+        c.pose.orientation = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), r.requiredUnitVec3("normal"));
+        return c;
+    }
+    c.pose.position = r.vec3("center", Eigen::Vector3d::Zero());
+    const Eigen::Vector3d a = r.vec3("rotation_deg", Eigen::Vector3d::Zero()) * d2r;  // XYZ, as tools
+    c.pose.orientation = Eigen::AngleAxisd(a.z(), Eigen::Vector3d::UnitZ()) *
+                         Eigen::AngleAxisd(a.y(), Eigen::Vector3d::UnitY()) *
+                         Eigen::AngleAxisd(a.x(), Eigen::Vector3d::UnitX());
+    if (kind == "box") {
+        c.kind = ColliderDef::Kind::Box;
+        c.size = 0.5 * r.requiredVec3("size");
+        if ((c.size.array() <= 0).any()) r.fail("size", "must be positive in every axis");
+    } else if (kind == "sphere") {
+        c.kind = ColliderDef::Kind::Sphere;
+        c.size.x() = r.requiredNumber("radius", 0, 1e3);
+        if (!(c.size.x() > 0)) r.fail("radius", "must be > 0");
+    } else {
+        c.kind = ColliderDef::Kind::Mesh;
+        fs::path p(r.requiredString("obj"));
+        if (p.is_relative()) p = fs::path(dir) / p;
+        if (const std::string why = missingFile(p); !why.empty()) r.fail("obj", why);
+        const double scale = r.number("scale", 1, 0, 1e300, true);
+        const SurfaceMesh sm = readSurfaceMesh(p.lexically_normal().string(), scale);
+        c.vertices = sm.V;
+        c.triangles = sm.F;
+        if (c.vertices.cols() < 4) r.fail("obj", "needs at least 4 vertices (a mesh collider is its convex hull)");
+        const Eigen::Vector3d ext = c.vertices.rowwise().maxCoeff() - c.vertices.rowwise().minCoeff();
+        if ((ext.array() <= 0).any()) r.fail("obj", "is flat: a collider needs volume");
+    }
+    return c;
 }
 
 // Deeper nesting than any scene needs is refused while parsing: copies and comparisons of a
@@ -494,8 +540,20 @@ SceneDef parseScene(const json& j, const std::string& file) {
             t.finish();
         }
     }
+    {
+        int i = 0;
+        for (auto& c : root.array("colliders")) {
+            s.colliders.push_back(readCollider(c, s.dir, i++));
+            c.finish();
+        }
+    }
     if (root.has("contact")) {
         ObjectReader c = root.object("contact");
+        s.contactModel = c.string("model", "projection", {"projection", "penalty"}) == "penalty"
+                             ? ContactModel::Penalty
+                             : ContactModel::Projection;
+        s.pieceContact = c.boolean("pieces", false);
+        s.pieceFriction = c.number("piece_friction", s.pieceFriction, 0, 10);
         s.contactSpacing = c.number("spacing", 0, 0, 1e3);
         s.forceRate = c.number("force_rate", 1000, 0, 1e9, true);
         c.finish();

@@ -1,6 +1,7 @@
 // The scene: one JSON format drives runs, tests, benchmarks and recordings (docs/scene-format.md).
 #pragma once
 
+#include "contact/collider.hpp"
 #include "contact/tool.hpp"
 #include "cut/xfem.hpp"
 #include "fem/integrate.hpp"
@@ -150,7 +151,11 @@ struct SceneDef {
     Checks checks;
 
     Cutting cutting;
-    std::vector<ToolDef> tools;  // rigid tools in contact with the object; empty: no Bullet world
+    std::vector<ToolDef> tools;          // rigid tools in contact with the object; empty: no Bullet world
+    std::vector<ColliderDef> colliders;  // static shapes the object touches; with tools, the Bullet world
+    ContactModel contactModel = ContactModel::Projection;  // contact.model
+    bool pieceContact = false;   // contact.pieces: separated pieces of the object touch each other
+    double pieceFriction = 0.3;  // contact.piece_friction: Coulomb coefficient between pieces [-]
     double contactSpacing = 0;   // largest gap between surface contact points [m]; 0 = automatic
     double forceRate = 1000;     // samples per second of the tool force series in report.json [1/s]
 

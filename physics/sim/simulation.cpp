@@ -357,22 +357,30 @@ void Simulation::chooseAndApply(bool initial) {
 }
 
 void Simulation::setupContact() {
-    // Contact: a Bullet world only when the scene has tools. Penalty stiffness stays below the
-    // limit that keeps this step stable (contact/contact.hpp stableStiffness).
-    if (sc_.tools.empty()) return;
+    // Contact: a Bullet world only when the scene has tools or colliders. The projection model has
+    // no stiffness; the penalty model's stays below the limit that keeps this step stable
+    // (contact/contact.hpp stableStiffness).
+    if (sc_.tools.empty() && sc_.colliders.empty()) return;
     const double dt = choice_.dt;
     const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
-    contact_ = std::make_unique<ContactWorld>(sc_.tools);
+    const bool penalty = sc_.contactModel == ContactModel::Penalty;
+    contact_ = std::make_unique<ContactWorld>(sc_.tools, sc_.colliders);
+    contact_->setPieceContact(sc_.pieceContact && !penalty, sc_.pieceFriction);
     ContactSettings& c = contactSettings_;
     double spacing = sc_.contactSpacing;
     if (spacing <= 0) {
-        // half the smallest tool feature, so a tool cannot slip between points
+        // half the smallest tool or collider feature, so it cannot slip between points; a plane
+        // alone needs the vertices only
         spacing = 1e300;
         for (const auto& t : sc_.tools)
             for (const auto& p : toolParts(t, 0))
                 spacing = std::min(spacing, 0.5 * (p.hull || p.shape == ToolShape::Kind::Box
                                                        ? std::max({p.size.x(), p.size.y(), p.size.z()})
                                                        : p.size.x()));
+        for (const auto& k : sc_.colliders)
+            if (k.kind == ColliderDef::Kind::Sphere || k.kind == ColliderDef::Kind::Box)
+                spacing = std::min(spacing, k.size.maxCoeff());
+        if (spacing == 1e300) spacing = 0;
     }
     c.spacing = spacing;
     // an embedded (MI) object is touched on its own fine surface, through the embedding weights;
@@ -387,7 +395,11 @@ void Simulation::setupContact() {
     ContactPoints pts = contactPoints(touched, model_.tets, model_.X, spacing);
     c.massRef = referenceMass(pts, model_.invMass);
     scaleByMass(pts, model_.invMass, c.massRef);
-    contact_->setSurface(std::move(pts));
+    contact_->setSurface(std::move(pts), &model_.X);
+    if (!penalty) {
+        c.stiffnessLimit = std::numeric_limits<double>::quiet_NaN();  // none: no stiffness
+        return;
+    }
     // with on_limit = damp the step is above the limit already; give the penalty the headroom of 0.9
     c.stiffnessLimit =
         explicitScheme ? stableStiffness(contact_->points(), model_, std::min(dt, 0.9 * limits_.exact), limits_.exact)
@@ -409,6 +421,12 @@ void Simulation::setupContact() {
         // c dt / m stays below the explicit limit 2
         if (t.damping < 0) t.damping = 0.6 * std::sqrt(t.stiffness * c.massRef);
     }
+    if (!sc_.colliders.empty()) {
+        if (!std::isfinite(c.stiffnessLimit))
+            throw InputError(sc_.file + ": colliders: contact.model \"penalty\" needs an explicit scheme here");
+        const double k = kDefaultStiffnessFraction * c.stiffnessLimit;
+        contact_->setColliderPenalty(k, 0.6 * std::sqrt(k * c.massRef));
+    }
 }
 
 void Simulation::ensureCutter() {
@@ -426,7 +444,7 @@ RunStatus Simulation::step() {
     if (finished()) return status_ = RunStatus::Finished;
     Stopwatch sw, whole;
     // 1. loads: the scene's applied forces into fExt (zeroed first when loads or tools add to it)
-    if (!sc_.forces.empty() || !sc_.tools.empty()) {
+    if (!sc_.forces.empty() || contact_) {
         state_.fExt.setZero();
         for (size_t l = 0; l < sc_.forces.size(); ++l) {
             const Eigen::Vector3d f =
@@ -435,9 +453,10 @@ RunStatus Simulation::step() {
         }
     }
     rec_.stages[Stage::Loads] += sw.lap();
-    // 2. contact: tool forces at the state of the step's start
+    // 2. contact: penalty forces at the state of the step's start (projection acts after step 5)
     const double tStep = state_.time;
-    if (contact_) {
+    const bool projection = contact_ && sc_.contactModel == ContactModel::Projection;
+    if (contact_ && !projection) {
         contact_->addForces(state_.x, state_.v, state_.time, choice_.dt, state_.fExt);
         rec_.stages[Stage::Contact] += sw.lap();
     }
@@ -454,12 +473,17 @@ RunStatus Simulation::step() {
     const double stepSeconds = sw.lap();
     rec_.stages[Stage::Forces] += stepper_.lastForceSeconds();
     rec_.stages[Stage::Integrate] += stepSeconds - stepper_.lastForceSeconds();
+    // 5b. projection contact: the points inside a tool or collider back onto its surface
+    if (projection) {
+        contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v);
+        rec_.stages[Stage::Contact] += sw.lap();
+    }
     // 6. checks
     if (contact_) {
         const ContactStep& st = contact_->last();
         Eigen::Vector3d f = Eigen::Vector3d::Zero();
         for (const auto& r : st.reaction) f += r;
-        rec_.tool.add(tStep, f, st.maxDepth, st.contacts);
+        rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
     }
     check();
     if (status_ == RunStatus::Running) sampleEnergy();
@@ -703,7 +727,7 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
         if (contact_) {
             ContactPoints pts = contactPoints(*cutSurface, model_.tets, model_.X, contactSettings_.spacing);
             scaleByMass(pts, model_.invMass, contactSettings_.massRef);
-            contact_->setSurface(std::move(pts));
+            contact_->setSurface(std::move(pts), &model_.X);
         }
         if (opt_.renderSurface) surface_ = std::move(cutSurface);
         rec_.stages[Stage::Contact] += sw.lap();

@@ -3,11 +3,14 @@
 //
 // Simulation::step() runs the stages of one step in this order, each timed into RunRecord::stages:
 //   1. loads      the scene's applied forces into State::fExt
-//   2. contact    tool forces through Bullet (contact/contact.hpp), added into fExt
+//   2. contact    contact.model penalty: tool and collider forces through Bullet
+//                 (contact/contact.hpp), added into fExt
 //   3. cuts       scripted cuts due now and blade sweeps over [t, t + dt] (cut/xfem.hpp); each
 //                 topology change goes through applyTopologyChange
 //   4. forces     internal forces (fem/forces.hpp)
 //   5. integrate  the scheme's velocity and position update (fem/integrate.hpp)
+//   5b. contact   contact.model projection (the default): the surface points inside a tool or
+//                 collider stopped and moved back onto it (ContactWorld::project), timed as contact
 //   6. checks     non-finite values, divergence bounds, inverted elements, energy samples
 #pragma once
 

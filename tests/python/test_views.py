@@ -186,7 +186,8 @@ CAPSULE_PROBE = {
 
 
 def rod_force(orientation):
-    sim = cutsim.Simulation(PROBE, set=["duration=0.2", "tools=[%s]" % str(CAPSULE_PROBE).replace("'", '"')], threads=1)
+    # penalty contact: the force of a rod teleported into the tissue is its depth times k
+    sim = cutsim.Simulation(PROBE, set=["duration=0.2", "contact.model=penalty", "tools=[%s]" % str(CAPSULE_PROBE).replace("'", '"')], threads=1)
     sim.set_tool(0, [0.0, 0.128, 0.008], orientation)
     sim.step(int(0.02 / sim.dt) + 1)
     return sim, np.linalg.norm(sim.tool_force(0))
