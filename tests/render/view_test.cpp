@@ -177,6 +177,7 @@ TEST(View, PanelHidesWithHAndKeepsToACorner) {
     }
     const render::Image shown = render::readPng(dir + "/shown.png"), hidden = render::readPng(dir + "/hidden.png");
     const PixelBox panel = differingBox(shown, hidden);
+    std::printf("panel: %d x %d px of 960 x 540\n", panel.x1 - panel.x0 + 1, panel.y1 - panel.y0 + 1);
     EXPECT_GT(panel.area(), 0) << "the panel must show without h";
     EXPECT_LT(panel.area(), 960L * 540L / 6)
         << "panel " << panel.x0 << "," << panel.y0 << " to " << panel.x1 << "," << panel.y1;
