@@ -235,6 +235,35 @@ TEST(RenderGolden, BoxWithField) {
     test::expectGolden("box_field", r.render(snapshotFromTetMesh(m, so).snap), {8, 0.01});
 }
 
+// Critical elements in x-ray with their legend: the swatch under the colour bar is exactly the
+// critical colour (nothing else on screen uses it), and the frame matches its golden at the
+// renderdiff tolerance.
+TEST(RenderGolden, CriticalElementsAndTheirLegend) {
+    const TetMesh m = scenebox();
+    const Eigen::VectorXd f = bumpField(m);
+    MeshSnapshotOptions so;
+    so.elementValues = &f;
+    so.name = "bump";
+    so.critical = someCritical(m);
+    MeshSnapshot ms = snapshotFromTetMesh(m, so);
+    ms.snap.hud.criticalStep = 1.25e-5;
+    RenderOptions o = goldenOptions();
+    o.lighting = false;
+    Renderer r(o);
+    const Image img = r.render(ms.snap);
+    const render::PixelRect bar = r.legendRect();
+    int swatch = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const auto p = img.pixel(x, y);
+            const bool exact =
+                p[0] == o.criticalColour[0] && p[1] == o.criticalColour[1] && p[2] == o.criticalColour[2];
+            if (y > bar.y1 + 4) swatch += exact;  // below the bar: the swatch only
+        }
+    EXPECT_GE(swatch, 50) << "the swatch under the colour bar";
+    test::expectGolden("critical", img, {5, 0.001});
+}
+
 TEST(RenderGolden, BoxSagging) {
     const TetMesh m = scenebox();
     // Cantilever-like sag: fixed at x = 0, tip down by 1.2 thicknesses.
