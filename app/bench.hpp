@@ -187,6 +187,7 @@ void addMiBarBench();
 void addStabilityBench();  // cmd_bench_stability.cpp
 void addStepCostBench();   // cmd_bench_step.cpp
 void addContactBench();    // cmd_bench_contact.cpp
+void addCaptureBench();    // cmd_bench_capture.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);

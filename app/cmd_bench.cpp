@@ -972,6 +972,7 @@ void registerBenchExtensions() {
     addStepCostBench();       // cmd_bench_step.cpp: step throughput, per-scene cost
     addMiBarBench();          // cmd_bench_mibar.cpp: Table 6.1
     addContactBench();        // cmd_bench_contact.cpp: contact cost and penetration
+    addCaptureBench();        // cmd_bench_capture.cpp: capture frames per second
     addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 

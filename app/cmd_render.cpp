@@ -56,6 +56,7 @@ int runRender(const RenderArgs& a) {
             so.unit = "m^3";
         }
         MeshSnapshot ms = snapshotFromTetMesh(m, so);
+        ms.snap.hud.simulated = false;
         ms.snap.hud.lines = {std::filesystem::path(a.mesh).filename().string(),
                              std::to_string(m.nodes()) + " nodes, " + std::to_string(m.elements()) + " tets, " +
                                  std::to_string(ms.snap.faces()) + " surface triangles"};

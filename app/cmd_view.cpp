@@ -51,6 +51,7 @@ struct ViewArgs {
     std::string report;                // report.json of the session, written at exit
     std::string record;                // the take written as a scene at exit
     bool recordCamera = false;         // the take's camera moves as camera keyframes
+    bool sceneCamera = false;          // follow the scene's camera keyframes until a drag takes over
     std::vector<std::string> drags;    // "F,DX,DY": a shift-drag of the first tool at frame F [px]
     std::vector<std::string> presses;  // "F,KEY": a key pressed at frame F
     std::vector<std::string> orbits;   // "F,DX,DY": a drag of the camera at frame F [px]
@@ -181,6 +182,7 @@ int runView(const ViewArgs& a) {
     ro.width = win.framebufferWidth();
     ro.height = win.framebufferHeight();
     ro.xray = sc.capture.xray;
+    ro.floor = sc.capture.floor;
     ro.wireframe = true;  // the snapshot has edges only when wireframe is on
     ro.hud = false;       // the panel shows the HUD values
     render::Renderer renderer(ro, render::RenderTarget::CurrentContext);
@@ -190,7 +192,13 @@ int runView(const ViewArgs& a) {
     Orbit orbit(scene.defaultCamera(sim->model(), 0));
     const double frameDt = 1.0 / sc.capture.fps;
 
-    bool paused = false, stepOnce = false, shot = false;
+    bool paused = false, stepOnce = false, shot = false, panel = true;
+    bool follow = a.sceneCamera;  // the scene's camera keyframes, until the mouse moves the camera
+    // The orbit takes over from wherever the followed camera is now.
+    auto takeCamera = [&] {
+        if (follow) orbit = Orbit(scene.defaultCamera(sim->model(), sim->state().time));
+        follow = false;
+    };
     std::string message;
     // Rates over the last half second of wall time.
     double rateSteps = 0, rateSim = 0, rateWall = 0, stepsPerSecond = 0, realTime = 0;
@@ -249,7 +257,7 @@ int runView(const ViewArgs& a) {
     // The take's camera: a key whenever the orbit moves (record-camera).
     std::vector<CameraKey> cameraKeys;
     auto cameraKey = [&] {
-        const Camera c = orbit.camera();
+        const Camera c = follow ? scene.defaultCamera(sim->model(), sim->state().time) : orbit.camera();
         CameraKey k;
         k.time = sim->state().time;
         k.eye = c.eye;
@@ -290,6 +298,13 @@ int runView(const ViewArgs& a) {
             case GLFW_KEY_C: renderer.options().xray = !renderer.options().xray; break;
             case GLFW_KEY_W: scene.setWireframe(!scene.wireframe()); break;
             case GLFW_KEY_P: shot = true; break;
+            case GLFW_KEY_H: panel = !panel; break;
+            case GLFW_KEY_K:
+                if (follow)
+                    takeCamera();
+                else
+                    follow = true;
+                break;
             case GLFW_KEY_X: cutNext(); break;
             case GLFW_KEY_Q:
             case GLFW_KEY_ESCAPE: win.close(); break;
@@ -301,6 +316,10 @@ int runView(const ViewArgs& a) {
             const bool down = ImGui::IsMouseDown(ImGuiMouseButton_Left);
             dragTool(down ? io.MouseDelta.x : 0.0, down ? io.MouseDelta.y : 0.0, io.MouseWheel);
         } else if (!io.WantCaptureMouse) {
+            const bool moved = io.MouseDelta.x != 0 || io.MouseDelta.y != 0;
+            if ((moved && (ImGui::IsMouseDown(ImGuiMouseButton_Left) || ImGui::IsMouseDown(ImGuiMouseButton_Right))) ||
+                io.MouseWheel != 0)
+                takeCamera();
             if (ImGui::IsMouseDown(ImGuiMouseButton_Left)) orbit.rotate(io.MouseDelta.x, io.MouseDelta.y);
             if (ImGui::IsMouseDown(ImGuiMouseButton_Right))
                 orbit.pan(io.MouseDelta.x, io.MouseDelta.y, renderer.height());
@@ -314,7 +333,10 @@ int runView(const ViewArgs& a) {
             for (const auto& [f, dx, dy] : dragMoves)
                 if (f == frame) dragTool(dx, dy, 0);
         for (const auto& [f, dx, dy] : orbitMoves)
-            if (f == frame) orbit.rotate(dx, dy);
+            if (f == frame) {
+                takeCamera();
+                orbit.rotate(dx, dy);
+            }
         const double wallFrame = std::min(secondsSince(last), 0.1);
         last = WallClock::now();
         const auto simStart = WallClock::now();
@@ -359,62 +381,67 @@ int runView(const ViewArgs& a) {
 
         // Panel: HUD values and controls.
         const Model& model = sim->model();
-        ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
-        ImGui::SetNextWindowBgAlpha(0.75f);
-        ImGui::Begin("cutsim", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
-        ImGui::Text("%s: %d tets, %d nodes", sc.name.c_str(), model.elements(), model.nodes());
-        ImGui::Text("%s%s", statusLine().c_str(), paused && sim->status() == RunStatus::Running ? " (paused)" : "");
-        ImGui::Separator();
-        ImGui::Text("t          %.4f s", sim->state().time);
-        ImGui::Text("dt used    %.3e s", sim->dt());
-        ImGui::Text("dt cert    %.3e s", sim->limits().certified);
-        ImGui::Text("dt exact   %.3e s", sim->limits().exact);
-        // Until the first half second is over, the rates so far.
-        const bool early = stepsPerSecond == 0 && rateWall > 0;
-        ImGui::Text("steps/s    %.0f", early ? rateSteps / rateWall : stepsPerSecond);
-        ImGui::Text("real time  %.3f x", early ? rateSim / rateWall : realTime);
-        ImGui::Text("critical   %d elements", sim->criticalElements());
-        if (sim->contact()) {
-            forceHistory.push_back(static_cast<float>(toolForce.norm()));
-            if (forceHistory.size() > 200) forceHistory.erase(forceHistory.begin());
-            ImGui::Text("tool F     %.3f N (max %.3f N)", toolForce.norm(), maxToolForce);
-            ImGui::PlotLines("##force", forceHistory.data(), static_cast<int>(forceHistory.size()), 0, nullptr, 0.0f,
-                             FLT_MAX, ImVec2(0, 40));
-        }
-        if (!sc.cutting.cuts.empty()) {
-            ImGui::Text("cuts       %d of %d", static_cast<int>(sim->scriptedCutsDone()),
-                        static_cast<int>(sc.cutting.cuts.size()));
+        // h hides it; narrow widgets keep it to a corner of a 960x540 window.
+        if (panel) {
+            ImGui::SetNextWindowPos(ImVec2(8, 8), ImGuiCond_FirstUseEver);
+            ImGui::SetNextWindowBgAlpha(0.75f);
+            ImGui::Begin("cutsim", nullptr, ImGuiWindowFlags_AlwaysAutoResize);
+            ImGui::PushItemWidth(110);
+            ImGui::Text("%s: %d tets, %d nodes", sc.name.c_str(), model.elements(), model.nodes());
+            ImGui::Text("%s%s", statusLine().c_str(), paused && sim->status() == RunStatus::Running ? " (paused)" : "");
+            ImGui::Separator();
+            ImGui::Text("t          %.4f s", sim->state().time);
+            ImGui::Text("dt used    %.3e s", sim->dt());
+            ImGui::Text("dt cert    %.3e s", sim->limits().certified);
+            ImGui::Text("dt exact   %.3e s", sim->limits().exact);
+            // Until the first half second is over, the rates so far.
+            const bool early = stepsPerSecond == 0 && rateWall > 0;
+            ImGui::Text("steps/s    %.0f", early ? rateSteps / rateWall : stepsPerSecond);
+            ImGui::Text("real time  %.3f x", early ? rateSim / rateWall : realTime);
+            ImGui::Text("critical   %d elements", sim->criticalElements());
+            if (sim->contact()) {
+                forceHistory.push_back(static_cast<float>(toolForce.norm()));
+                if (forceHistory.size() > 200) forceHistory.erase(forceHistory.begin());
+                ImGui::Text("tool F     %.3f N (max %.3f N)", toolForce.norm(), maxToolForce);
+                ImGui::PlotLines("##force", forceHistory.data(), static_cast<int>(forceHistory.size()), 0, nullptr,
+                                 0.0f, FLT_MAX, ImVec2(0, 40));
+            }
+            if (!sc.cutting.cuts.empty()) {
+                ImGui::Text("cuts       %d of %d", static_cast<int>(sim->scriptedCutsDone()),
+                            static_cast<int>(sc.cutting.cuts.size()));
+                ImGui::SameLine();
+                if (ImGui::Button("cut next (x)")) cutNext();
+            }
+            if (sim->record().bladeCutSteps > 0 || sim->cutter())
+                ImGui::Text("cuts made  %d (a blade stroke counts once)", sim->record().cutsMade);
+            ImGui::Separator();
+            const char* integNames[] = {integratorName(kIntegrators[0]), integratorName(kIntegrators[1]),
+                                        integratorName(kIntegrators[2]), integratorName(kIntegrators[3])};
+            const bool integChanged = ImGui::Combo("integrator", &integrator, integNames, 4);
+            ImGui::SliderFloat("dt fraction", &fraction, 0.05f, 1.2f, "%.2f");
+            if (integChanged || ImGui::IsItemDeactivatedAfterEdit())  // the slider applies on release
+                applyPolicy(kIntegrators[integrator], fraction);
             ImGui::SameLine();
-            if (ImGui::Button("cut next (x)")) cutNext();
+            ImGui::TextDisabled("of %s", limitOfName(sc.dt.of));
+            if (ImGui::Combo("colour map", &colormap, kColormaps, 4)) scene.setColormap(kColormaps[colormap]);
+            if (!message.empty()) ImGui::TextWrapped("%s", message.c_str());
+            if (ImGui::CollapsingHeader("keys and mouse")) {
+                ImGui::TextUnformatted("space pause/resume   s single step   r reset\n"
+                                       "c critical elements  w wireframe     p screenshot\n"
+                                       "x next scripted cut  h hide panel     k scene camera\n"
+                                       "q, Esc quit\n"
+                                       "drag rotate   scroll zoom   right-drag pan\n"
+                                       "shift-drag move tool   shift-scroll tool depth");
+            }
+            ImGui::PopItemWidth();
+            ImGui::End();
         }
-        if (sim->record().bladeCutSteps > 0 || sim->cutter())
-            ImGui::Text("cuts made  %d (a blade stroke counts once)", sim->record().cutsMade);
-        ImGui::Separator();
-        const char* integNames[] = {integratorName(kIntegrators[0]), integratorName(kIntegrators[1]),
-                                    integratorName(kIntegrators[2]), integratorName(kIntegrators[3])};
-        const bool integChanged = ImGui::Combo("integrator", &integrator, integNames, 4);
-        ImGui::SliderFloat("dt fraction", &fraction, 0.05f, 1.2f, "%.2f");
-        if (integChanged || ImGui::IsItemDeactivatedAfterEdit())  // the slider applies on release
-            applyPolicy(kIntegrators[integrator], fraction);
-        ImGui::SameLine();
-        ImGui::TextDisabled("of %s", limitOfName(sc.dt.of));
-        if (ImGui::Combo("colour map", &colormap, kColormaps, 4)) scene.setColormap(kColormaps[colormap]);
-        if (!message.empty()) ImGui::TextWrapped("%s", message.c_str());
-        if (ImGui::CollapsingHeader("keys and mouse")) {
-            ImGui::TextUnformatted("space pause/resume   s single step   r reset\n"
-                                   "c critical elements  w wireframe     p screenshot\n"
-                                   "x next scripted cut\n"
-                                   "q, Esc quit\n"
-                                   "drag rotate   scroll zoom   right-drag pan\n"
-                                   "shift-drag move tool   shift-scroll tool depth");
-        }
-        ImGui::End();
 
         // Scene, then the panel over it.
         renderer.resize(win.framebufferWidth(), win.framebufferHeight());
         const FrameInfo fi = frameInfoOf(*sim, secondsSince(start));
         RenderSnapshot& snap = scene.update(model, sim->state(), fi);
-        snap.camera = orbit.camera();
+        snap.camera = follow ? scene.defaultCamera(model, sim->state().time) : orbit.camera();
         if (a.recordCamera) {
             const CameraKey now = cameraKey();
             addCameraKey(cameraKeys, lastCamera, now);
@@ -463,10 +490,11 @@ int runView(const ViewArgs& a) {
 void addViewCommand(CLI::App& app) {
     auto args = std::make_shared<ViewArgs>();
     CLI::App* cmd = app.add_subcommand(
-        "view",
-        "Run a scene live in a window: drag rotates, scroll zooms, right-drag pans; keys: space pause/resume, "
-        "s single step, r reset, c critical elements, w wireframe, p screenshot, x next scripted cut, q or Esc quit. "
-        "Exit codes: 2 bad scene, 3 diverged, 4 refused step, 5 no display");
+        "view", "Run a scene live in a window: drag rotates, scroll zooms, right-drag pans; keys: space pause/resume, "
+                "s single step, r reset, c critical elements, w wireframe, p screenshot, x next scripted cut, h hide "
+                "the panel, "
+                "k follow the scene's camera keyframes (on/off), q or Esc quit. "
+                "Exit codes: 2 bad scene, 3 diverged, 4 refused step, 5 no display");
     cmd->add_option("scene", args->scene, "Scene file (JSON, see docs/scene-format.md)")->required();
     cmd->add_option("--set", args->sets, "Override a scene value: key.path=value (JSON value)");
     cmd->add_option("--width", args->width, "Window width [px] (default: the scene's capture width)")
@@ -489,6 +517,9 @@ void addViewCommand(CLI::App& app) {
                     "Write the take as a scene here at exit: the tools' paths as keyframes, the cuts made with x as "
                     "scripted cuts, so `cutsim run` replays it offscreen");
     cmd->add_flag("--record-camera", args->recordCamera, "With --record: the camera's moves as camera keyframes");
+    cmd->add_flag("--scene-camera", args->sceneCamera,
+                  "Follow the scene's camera keyframes (as `cutsim run` frames them) until a drag or scroll takes "
+                  "over; k toggles");
     cmd->add_option("--drag", args->drags,
                     "F,DX,DY: at frame F, shift-drag the first tool by DX, DY pixels (scripted input, repeatable)");
     cmd->add_option("--orbit", args->orbits,

@@ -27,6 +27,7 @@ public:
         ro.height = sc.capture.height;
         ro.wireframe = sc.capture.wireframe;
         ro.xray = sc.capture.xray;
+        ro.floor = sc.capture.floor;
         ro.hud = sc.capture.hud;
         renderer_ = std::make_unique<render::Renderer>(ro);
         std::filesystem::create_directories(dir_);
@@ -39,7 +40,8 @@ public:
             } else {
                 videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
                 video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc.capture.width, sc.capture.height,
-                                                                sc.capture.fps);
+                                                                sc.capture.playbackFps > 0 ? sc.capture.playbackFps
+                                                                                           : sc.capture.fps);
             }
         }
     }

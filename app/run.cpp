@@ -59,8 +59,9 @@ private:
     int lastDecile_ = -1;
 };
 
-// The final mesh with per-element fields for ParaView.
-void writeFinalVtu(const Simulation& sim, const std::string& path) {
+// The deformed mesh with its fields for ParaView: per element the R1R step estimate [s], whether
+// it is critical, von Mises stress [Pa]; per node the displacement vector [m].
+void writeStateVtu(const Simulation& sim, const std::string& path) {
     const Model& model = sim.model();
     TetMesh deformed;
     deformed.X = sim.state().x;
@@ -69,10 +70,35 @@ void writeFinalVtu(const Simulation& sim, const std::string& path) {
     std::vector<double> r1r(est.r1r.data(), est.r1r.data() + est.r1r.size()), crit(r1r.size());
     for (size_t e = 0; e < r1r.size(); ++e)
         crit[e] = r1r[e] < sim.scene().capture.criticalFactor * sim.dt() ? 1.0 : 0.0;
-    std::vector<double> disp(static_cast<size_t>(model.nodes()));
-    for (int i = 0; i < model.nodes(); ++i)
-        disp[static_cast<size_t>(i)] = (sim.state().x.col(i) - model.X.col(i)).norm();
-    writeVtu(path, deformed, {{"dt_r1r", r1r}, {"critical", crit}}, {{"displacement", disp}});
+    const Eigen::VectorXd vm = vonMisesStress(model, sim.state());
+    const Eigen::Matrix3Xd u = sim.state().x - model.X;
+    writeVtu(
+        path, deformed,
+        {{"dt_r1r", r1r}, {"critical", crit}, {"von_mises", std::vector<double>(vm.data(), vm.data() + vm.size())}},
+        {{"displacement", std::vector<double>(u.data(), u.data() + u.size()), 3}});
+}
+
+// The drawn surface now (boundary, or after cuts the cut surface) as OBJ, cut faces in group "cut".
+void writeSurfaceObj(const Simulation& sim, const std::string& path) {
+    const EmbeddedSurface s = sim.surface() ? *sim.surface() : boundarySurface(sim.model().tets, sim.model().X);
+    Eigen::Matrix3Xd p;
+    embeddedPositions(s, sim.model().tets, sim.state().x, p);
+    std::string out = "# cutsim: surface at t = " + std::to_string(sim.state().time) + " s [m]\n";
+    char line[96];
+    for (int v = 0; v < p.cols(); ++v) {
+        std::snprintf(line, sizeof line, "v %.9g %.9g %.9g\n", p(0, v), p(1, v), p(2, v));
+        out += line;
+    }
+    for (bool cut : {false, true}) {
+        out += cut ? "g cut\n" : "g outside\n";
+        for (int t = 0; t < s.faces(); ++t) {
+            if (s.cutFace(t) != cut) continue;
+            std::snprintf(line, sizeof line, "f %d %d %d\n", s.triangles(0, t) + 1, s.triangles(1, t) + 1,
+                          s.triangles(2, t) + 1);
+            out += line;
+        }
+    }
+    writeFileAtomic(path, out);
 }
 
 }  // namespace
@@ -82,7 +108,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     const bool capturing = opt.render && sc.capture.enabled;
     Simulation::Options so;
     so.threads = opt.threads;
-    so.renderSurface = capturing;
+    so.renderSurface = capturing || sc.capture.cutObj;
     Simulation sim(sc, so);
 
     // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
@@ -93,7 +119,21 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         sink = makeFrameSink(sc, out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
 
     // A frame of the state now; its render and encode time go to the run's stages.
+    // With capture.vtu, a .vtu per captured frame and a .pvd series naming them with their times.
+    std::string pvd;
+    int vtuFrames = 0;
+    const bool vtu = sc.capture.enabled && sc.capture.vtu;
+    if (vtu) fs::create_directories(out / "vtu");
     auto frame = [&] {
+        if (vtu) {
+            char name[40];
+            std::snprintf(name, sizeof name, "vtu/frame_%06d.vtu", vtuFrames++);
+            writeStateVtu(sim, (out / name).string());
+            char entry[128];
+            std::snprintf(entry, sizeof entry, "    <DataSet timestep=\"%.9g\" part=\"0\" file=\"%s\"/>\n",
+                          sim.state().time, name);
+            pvd += entry;
+        }
         if (!sink) return;
         // no wall-clock rates in captured frames: they would make every run's frames differ (report.json has them)
         const FrameInfo fi = frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN());
@@ -148,7 +188,12 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     progress.update(sim.state().time, sim.state().steps, true);
 
     // Outputs: the final mesh with per-element fields, then the report; then the folder moves into place.
-    if (sc.writeVtu && ok) writeFinalVtu(sim, (out / "final.vtu").string());
+    if (sc.writeVtu && ok) writeStateVtu(sim, (out / "final.vtu").string());
+    if (vtu)
+        writeFileAtomic((out / "series.pvd").string(),
+                        "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n  <Collection>\n" +
+                            pvd + "  </Collection>\n</VTKFile>\n");
+    if (sc.capture.cutObj && ok) writeSurfaceObj(sim, (out / "cut_surface.obj").string());
     const bool video = sink && !sink->videoPath().empty();
     json report = sim.report({{"wall_time", wall.seconds()},
                               {"frames", sink ? sink->frames() : 0},

@@ -160,6 +160,7 @@ public:
             ro.height = height;
             ro.wireframe = cap.wireframe;
             ro.xray = cap.xray;
+            ro.floor = cap.floor;
             ro.hud = cap.hud;
             renderer_ = std::make_unique<render::Renderer>(ro);
         }

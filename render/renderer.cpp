@@ -207,8 +207,10 @@ void toolTriangles(const ToolShape& t, std::vector<MeshVertex>& out) {
         for (int i = 0; i < nu; ++i) {
             Vec3d a = world(point(i, j, s0)), b = world(point(i + 1, j, s0));
             Vec3d c = world(point(i + 1, j + 1, s1)), d = world(point(i, j + 1, s1));
-            if (j > 0) pushTriangle(out, a, d, c);
-            if (j + 1 < nv) pushTriangle(out, a, c, b);
+            // Each quad of the top row has a, b at the pole, of the bottom row c, d: keep the
+            // triangle of three distinct points there, so the poles are closed.
+            if (j + 1 < nv) pushTriangle(out, a, d, c);
+            if (j > 0) pushTriangle(out, a, c, b);
         }
         if (j + 1 == nv / 2 && half > 0) {
             for (int i = 0; i < nu; ++i) {
@@ -219,13 +221,6 @@ void toolTriangles(const ToolShape& t, std::vector<MeshVertex>& out) {
             }
         }
     }
-}
-
-// Largest of 1, 2, 5 times a power of ten not above x.
-double niceStep(double x) {
-    const double p = std::pow(10.0, std::floor(std::log10(x)));
-    const double m = x / p;
-    return (m >= 5 ? 5 : m >= 2 ? 2 : 1) * p;
 }
 
 }  // namespace
@@ -494,7 +489,13 @@ Renderer::View Renderer::viewOf(const RenderSnapshot& snap) const {
     v.radius = std::max(0.5 * box.diagonal().norm(), 1e-6);
     v.up = snap.camera.up.normalized();
     const double dist = (snap.camera.eye - v.centre).norm();
-    const double zFar = dist + 3.0 * v.radius;
+    double zFar = dist + 3.0 * v.radius;
+    if (snap.floor.fixed) {
+        // A fixed floor may reach beyond this frame's scene: keep its corners in front of the far plane.
+        const Floor& fl = snap.floor;
+        const double reach = std::sqrt(2.0) * fl.halfSize + std::abs(fl.height - fl.centre.dot(fl.normal.normalized()));
+        zFar = std::max(zFar, (snap.camera.eye - fl.centre).norm() + reach);
+    }
     const double zNear = std::max(dist - 3.0 * v.radius, zFar * 1e-3);
     v.view = lookAt(snap.camera.eye, snap.camera.target, v.up);
     v.proj = perspective(snap.camera.fovY, double(opts_.width) / opts_.height, zNear, zFar);
@@ -563,13 +564,25 @@ void Renderer::drawLines(const RenderSnapshot& snap, const View& v) {
         glUniform4f(g.lColour, 0.08f, 0.08f, 0.1f, 1.0f);
         g.drawLines(g.lines);
     }
-    if (opts_.floor && n > 0) {
-        // Grid in the plane normal to up, just under the lowest surface point.
-        double low = snap.positions.col(0).dot(up);
-        for (int i = 1; i < n; ++i) low = std::min(low, snap.positions.col(i).dot(up));
-        const Vec3d e1 = up.unitOrthogonal(), e2 = up.cross(e1);
-        const Vec3d origin = v.centre + (low - 0.02 * v.radius - v.centre.dot(up)) * up;
-        const double step = niceStep(v.radius / 4), half = std::ceil(2.0 * v.radius / step) * step;
+    if (opts_.floor && (snap.floor.fixed || n > 0)) {
+        // Grid in a plane normal to up: where the scene puts it, or just under this frame's
+        // lowest surface point.
+        const Floor& fl = snap.floor;
+        const Vec3d nrm = fl.fixed ? Vec3d(fl.normal.normalized()) : up;
+        const Vec3d e1 = nrm.unitOrthogonal(), e2 = nrm.cross(e1);
+        double step = 0, half = 0;
+        Vec3d origin;
+        if (fl.fixed) {
+            step = fl.spacing;
+            half = fl.halfSize;
+            origin = fl.centre + (fl.height - fl.centre.dot(nrm)) * nrm;
+        } else {
+            double low = snap.positions.col(0).dot(up);
+            for (int i = 1; i < n; ++i) low = std::min(low, snap.positions.col(i).dot(up));
+            origin = v.centre + (low - 0.02 * v.radius - v.centre.dot(up)) * up;
+            step = niceGridStep(v.radius / 4);
+            half = std::ceil(2.0 * v.radius / step) * step;
+        }
         g.lines.clear();
         for (double s = -half; s <= half + 0.5 * step; s += step)
             for (int axis = 0; axis < 2; ++axis) {
@@ -653,7 +666,9 @@ void Renderer::draw(const RenderSnapshot& snap) {
 void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
     Gl& g = *gl_;
     const bool legend = opts_.legend && snap.scalar.size() == snap.vertices() && snap.vertices() > 0;
-    if (!legend && !opts_.hud) return;
+    const int critical = opts_.xray ? static_cast<int>(snap.criticalTets.cols() / 4) : 0;
+    const bool critLegend = opts_.legend && critical > 0;
+    if (!legend && !critLegend && !opts_.hud) return;
     ImGui::SetCurrentContext(g.imgui);
     ImGuiIO& io = ImGui::GetIO();
     io.DisplaySize = ImVec2(static_cast<float>(opts_.width), static_cast<float>(opts_.height));
@@ -667,19 +682,22 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
                                        ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoFocusOnAppearing |
                                        ImGuiWindowFlags_NoNav | ImGuiWindowFlags_NoInputs;
         ImGui::Begin("hud", nullptr, flags);
-        ImGui::Text("t        %.4f s", h.simTime);
-        ImGui::Text("dt used  %.3e s", h.dtUsed);
-        ImGui::Text("dt cert  %.3e s", h.dtCertified);
-        if (std::isnan(h.dtExact))
-            ImGui::Text("dt exact n/a");
-        else
-            ImGui::Text("dt exact %.3e s", h.dtExact);
-        if (!std::isnan(h.stepsPerSecond)) {  // NaN: not shown (wall-clock rates differ run to run)
-            ImGui::Text("steps/s  %.0f", h.stepsPerSecond);
-            ImGui::Text("RT x     %.3f", h.realTimeFactor);
+        // A still mesh (cutsim render) has no time, step or counts to show.
+        if (h.simulated) {
+            ImGui::Text("t        %.4f s", h.simTime);
+            ImGui::Text("dt used  %.3e s", h.dtUsed);
+            ImGui::Text("dt cert  %.3e s", h.dtCertified);
+            if (std::isnan(h.dtExact))
+                ImGui::Text("dt exact n/a");
+            else
+                ImGui::Text("dt exact %.3e s", h.dtExact);
+            if (!std::isnan(h.stepsPerSecond)) {  // NaN: not shown (wall-clock rates differ run to run)
+                ImGui::Text("steps/s  %.0f", h.stepsPerSecond);
+                ImGui::Text("RT x     %.3f", h.realTimeFactor);
+            }
+            ImGui::Text("critical %d", h.criticalElements);
+            ImGui::Text("cuts     %d", h.cuts);
         }
-        ImGui::Text("critical %d", h.criticalElements);
-        ImGui::Text("cuts     %d", h.cuts);
         for (const auto& line : h.lines) ImGui::TextUnformatted(line.c_str());
         if (!h.forcePlot.empty()) {
             float top = 0;
@@ -737,6 +755,26 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
             const float x = std::max(4.0f, std::min(r.x0, static_cast<float>(opts_.width) - tw - 6.0f));
             dl->AddText(ImVec2(x, r.y0 - lineH - 6), text, title.c_str());
         }
+    }
+    if (critLegend) {
+        // The critical elements' swatch under the colour bar: how many, and the step they would allow.
+        ImDrawList* dl = ImGui::GetBackgroundDrawList();
+        const PixelRect r = legendRect();
+        const float lineH = ImGui::GetTextLineHeight();
+        const ImU32 text = IM_COL32(235, 235, 235, 255);
+        const auto& cc = opts_.criticalColour;
+        char line1[48], line2[48];
+        std::snprintf(line1, sizeof line1, "critical %d", critical);
+        if (std::isnan(snap.hud.criticalStep))
+            line2[0] = 0;
+        else
+            std::snprintf(line2, sizeof line2, "dt<=%.2e s", snap.hud.criticalStep);
+        const float w = std::max(ImGui::CalcTextSize(line1).x, ImGui::CalcTextSize(line2).x) + lineH + 4;
+        const float x = std::max(4.0f, std::min(r.x0, static_cast<float>(opts_.width) - w - 4.0f));
+        const float y = r.y1 + lineH + 2;
+        dl->AddRectFilled(ImVec2(x, y + 2), ImVec2(x + lineH - 4, y + lineH - 2), IM_COL32(cc[0], cc[1], cc[2], 255));
+        dl->AddText(ImVec2(x + lineH, y), text, line1);
+        if (line2[0]) dl->AddText(ImVec2(x, y + lineH), text, line2);
     }
     ImGui::Render();
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());

@@ -28,7 +28,8 @@ struct RenderOptions {
     std::array<std::uint8_t, 3> background{38, 41, 46};        // clear colour
     std::array<std::uint8_t, 3> surfaceColour{222, 184, 166};  // surface without a scalar
     std::array<std::uint8_t, 3> cutColour{196, 60, 84};        // faces made by a cut
-    std::array<std::uint8_t, 3> criticalColour{255, 30, 30};   // critical elements
+    std::array<std::uint8_t, 3> criticalColour{0, 230, 255};   // critical elements: cyan, a colour no map, cut
+                                                               // face, tool or surface uses
     std::array<std::uint8_t, 3> toolColour{176, 184, 200};
 };
 

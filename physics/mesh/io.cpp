@@ -277,6 +277,7 @@ void checkWritable(const std::string& path, const TetMesh& mesh) {
 void checkField(const std::string& path, const Field& f, long expected, const char* kind) {
     if (f.name.empty() || f.name.find_first_of("\"<>&") != std::string::npos)
         throw InputError(path, 0, std::string(kind) + " field name '" + f.name + "' is empty or not XML-safe");
+    expected *= f.components;
     if (static_cast<long>(f.values.size()) != expected)
         throw InputError(path, 0,
                          std::string(kind) + " field '" + f.name + "' has " + std::to_string(f.values.size()) +
@@ -285,7 +286,9 @@ void checkField(const std::string& path, const Field& f, long expected, const ch
 
 void appendFields(std::string& out, const std::vector<Field>& fields) {
     for (const Field& f : fields) {
-        out += "        <DataArray type=\"Float64\" Name=\"" + f.name + "\" format=\"ascii\">\n";
+        out += "        <DataArray type=\"Float64\" Name=\"" + f.name + "\"";
+        if (f.components > 1) out += " NumberOfComponents=\"" + std::to_string(f.components) + "\"";
+        out += " format=\"ascii\">\n";
         for (size_t i = 0; i < f.values.size(); ++i) {
             out += (i % 8 == 0) ? "          " : " ";
             appendNumber(out, f.values[i]);

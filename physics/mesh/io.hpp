@@ -31,7 +31,8 @@ SurfaceMesh readSurfaceMesh(const std::string& path, double scale = 1.0);
 // A per-element or per-node scalar field for ParaView.
 struct Field {
     std::string name;
-    std::vector<double> values;  // one per element (cell field) or per node (point field)
+    std::vector<double> values;  // components values per element (cell field) or per node (point field)
+    int components = 1;          // 3: a vector, x y z per element or node
 };
 
 // VTK XML unstructured grid, ASCII. Written to a temporary file and renamed.

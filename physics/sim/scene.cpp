@@ -578,6 +578,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         ObjectReader c = root.object("capture");
         s.capture.enabled = c.boolean("enabled", true);
         s.capture.fps = c.number("fps", 30, 0, 1e5, true);
+        s.capture.playbackFps = c.number("playback_fps", 0, 0, 1000);
         s.capture.width = c.integer("width", 1280, 16, 8192);
         s.capture.height = c.integer("height", 720, 16, 8192);
         s.capture.colormap = c.string("colormap", "timestep", {"timestep", "displacement", "stress", "none"});
@@ -587,6 +588,20 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.capture.wireframe = c.boolean("wireframe", false);
         s.capture.xray = c.boolean("xray", true);
         s.capture.criticalFactor = c.number("critical_factor", 1.1, 0, 100, true);
+        if (c.has("range")) {
+            const json& r = c.raw("range");
+            if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+                !(r[0].get<double>() < r[1].get<double>()) || !std::isfinite(r[0].get<double>()) ||
+                !std::isfinite(r[1].get<double>()))
+                c.fail("range", "must be [min, max] with min < max, in the colour map's unit, got " + r.dump());
+            s.capture.rangeMin = r[0].get<double>();
+            s.capture.rangeMax = r[1].get<double>();
+            c.touch("range");
+        }
+        s.capture.floor = c.boolean("floor", true);
+        s.capture.vtu = c.boolean("vtu", false);
+        s.capture.cutObj = c.boolean("cut_obj", false);
+        if (c.has("floor_height")) s.capture.floorHeight = c.number("floor_height", 0, -1e6, 1e6);
         if (c.has("check")) {
             ObjectReader k = c.object("check");
             CheckSettings& ch = s.capture.check;

@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -74,16 +75,24 @@ struct CheckSettings {
 
 struct Capture {
     bool enabled = true;
-    double fps = 30;  // frames per simulated second
+    double fps = 30;         // frames per simulated second
+    double playbackFps = 0;  // frames per second of the video [1/s]; 0: fps (real time)
     int width = 1280, height = 720;
     std::string colormap = "timestep";  // timestep | displacement | stress | none
     bool video = true;                  // MP4 through ffmpeg when it is installed
     int pngEvery = 1;                   // a PNG file for every n-th frame (0: none, the video has them all)
     bool hud = true;
     bool wireframe = false;
-    bool xray = true;             // critical elements drawn through the surface
-    double criticalFactor = 1.1;  // critical: element estimate < factor * dt
-    CheckSettings check;          // capture.check
+    bool xray = true;                                            // critical elements drawn through the surface
+    double criticalFactor = 1.1;                                 // critical: element estimate < factor * dt
+    double rangeMin = std::numeric_limits<double>::quiet_NaN();  // colour map range [map unit]; NaN: the map's
+    double rangeMax = std::numeric_limits<double>::quiet_NaN();  // default (fixed for the whole run)
+    bool floor = true;                                           // floor grid, for depth cues
+    bool vtu = false;     // a .vtu per captured frame and a .pvd series (ParaView)
+    bool cutObj = false;  // the surface with its cut faces as OBJ at the end
+    double floorHeight = std::numeric_limits<double>::quiet_NaN();  // floor height along -gravity (z without
+                                                                    // gravity) [m]; NaN: the rest shape's lowest point
+    CheckSettings check;                                            // capture.check
 };
 
 // A scripted cut at a given time: the plane through point with normal, in world coordinates of

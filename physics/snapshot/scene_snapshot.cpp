@@ -40,6 +40,19 @@ SceneSnapshot::SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen
     mesh_.X = model.X;
     mesh_.tets = model.tets;
     up_ = model.gravity.norm() > 0 ? Eigen::Vector3d(-model.gravity.normalized()) : Eigen::Vector3d::UnitZ();
+    // The floor, once from the rest shape: it must not follow falling pieces.
+    floor_.fixed = sc.capture.floor;
+    floor_.normal = up_;
+    const Eigen::Vector3d lo = model.X.rowwise().minCoeff(), hi = model.X.rowwise().maxCoeff();
+    floor_.height =
+        std::isnan(sc.capture.floorHeight) ? (up_.transpose() * model.X).minCoeff() : sc.capture.floorHeight;
+    floor_.centre = 0.5 * (lo + hi);
+    const double radius = std::max(0.5 * (hi - lo).norm(), 1e-6);
+    floor_.spacing = niceGridStep(radius / 4);
+    floor_.halfSize = std::ceil(2.0 * radius / floor_.spacing) * floor_.spacing;
+    // Colour map ranges, fixed for the run so noise and falling pieces do not rescale the map.
+    restDiagonal_ = 2 * radius;
+    youngs_ = sc.material.E;
     setStep(dt, sc.capture.criticalFactor);
 }
 
@@ -58,6 +71,20 @@ void SceneSnapshot::topologyChanged(const Model& model, EmbeddedSurface surface,
     elementDt_ = elementDt;
     surface_ = std::make_unique<EmbeddedSurface>(std::move(surface));
     setStep(dt, sc_.capture.criticalFactor);  // also drops the snapshot: rebuilt from the new surface
+}
+
+std::pair<double, double> SceneSnapshot::mapRange() const {
+    if (!std::isnan(sc_.capture.rangeMin)) return {sc_.capture.rangeMin, sc_.capture.rangeMax};
+    // The smallest of 1, 2, 5 times a power of ten at or above x: legend ticks that read well.
+    auto niceAbove = [](double x) {
+        const double p = std::pow(10.0, std::floor(std::log10(x)));
+        for (double m : {1.0, 2.0, 5.0})
+            if (m * p >= x * (1 - 1e-12)) return m * p;
+        return 10 * p;
+    };
+    if (colormap_ == "timestep") return {1, 2.5};  // 1: as fast as the step itself; critical below criticalFactor
+    if (colormap_ == "displacement") return {0, niceAbove(0.05 * restDiagonal_)};  // 5 % of the object's size
+    return {0, niceAbove(0.05 * youngs_)};                                         // stress: that of 5 % strain
 }
 
 void SceneSnapshot::setColormap(const std::string& name) {
@@ -106,20 +133,20 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
     }
     MeshSnapshot& ms = *ms_;
     RenderSnapshot& snap = ms.snap;
-    if (cmap == "timestep") {
-        // 1 = as fast as the step itself; critical elements sit below criticalFactor
-        snap.scalarMin = 1;
-        snap.scalarMax = 2.5;
-    } else if (cmap == "displacement") {
+    if (cmap == "displacement") {
         Eigen::Matrix3Xd rest;
         embeddedPositions(ms.surface, mesh_.tets, model.X, rest);
         snap.scalar = (snap.positions - rest).colwise().norm().transpose();
         snap.scalarName = "displacement";
         snap.scalarUnit = "m";
-        snap.scalarMin = 0;
-        snap.scalarMax = std::max(1e-9, snap.scalar.size() ? snap.scalar.maxCoeff() : 0.0);
+    }
+    if (cmap != "none") {
+        const auto [lo, hi] = mapRange();
+        snap.scalarMin = lo;
+        snap.scalarMax = hi;
     }
     snap.camera = defaultCamera(model, info.time);
+    snap.floor = floor_;
     HudValues& h = snap.hud;
     h = HudValues{};
     h.simTime = info.time;
@@ -129,6 +156,9 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
     h.stepsPerSecond = std::isnan(info.wall) ? info.wall : info.wall > 0 ? state.steps / info.wall : 0;
     h.realTimeFactor = std::isnan(info.wall) ? info.wall : info.wall > 0 ? info.time / info.wall : 0;
     h.criticalElements = info.criticalElements;
+    for (int e : critical_)
+        if (e < elementDt_.size())
+            h.criticalStep = std::isnan(h.criticalStep) ? elementDt_(e) : std::min(h.criticalStep, elementDt_(e));
     h.cuts = info.cuts;
     h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) +
                       " nodes");

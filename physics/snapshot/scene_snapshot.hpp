@@ -10,6 +10,7 @@
 
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cutsim {
@@ -47,6 +48,9 @@ public:
     const std::string& colormap() const { return colormap_; }
     bool wireframe() const { return wireframe_; }
     Camera defaultCamera(const Model& model, double time);  // the scene's camera at time, or framing the object
+    std::pair<double, double> mapRange() const;             // the colour map's fixed range [map unit]
+    const Floor& floor() const { return floor_; }           // where the scene puts the floor
+    void setFloor(const Floor& f) { floor_ = f; }           // e.g. from a plane collider
 
 private:
     const SceneDef& sc_;
@@ -60,6 +64,9 @@ private:
     std::unique_ptr<EmbeddedSurface> surface_;  // null: the mesh's boundary faces
     std::unique_ptr<MeshSnapshot> ms_;
     std::unique_ptr<Camera> camera_;
+    Floor floor_;
+    double restDiagonal_ = 1;  // rest shape's bounding-box diagonal [m]
+    double youngs_ = 1;        // Young's modulus [Pa]
 };
 
 class Simulation;

@@ -150,4 +150,10 @@ Camera frameBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, const Eige
     return c;
 }
 
+double niceGridStep(double x) {
+    const double p = std::pow(10.0, std::floor(std::log10(x)));
+    const double m = x / p;
+    return (m >= 5 ? 5 : m >= 2 ? 2 : 1) * p;
+}
+
 }  // namespace cutsim

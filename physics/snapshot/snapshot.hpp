@@ -34,8 +34,21 @@ struct Camera {
     double fovY = 40;                 // vertical field of view [deg]
 };
 
+// The floor grid: the plane of points p with p . normal = height, drawn as a square grid.
+// Set once from the scene so it stays put while pieces fall (a plane collider can set it too).
+struct Floor {
+    bool fixed = false;                                // false: just under each frame's lowest surface point,
+                                                       // sized to the frame, normal = camera.up
+    Eigen::Vector3d normal{0, 0, 1};                   // unit normal, pointing up
+    double height = 0;                                 // offset along normal [m]
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // grid centre, projected onto the plane [m]
+    double spacing = 0.01;                             // grid line spacing [m]
+    double halfSize = 0.05;                            // half the grid's side [m]
+};
+
 // Values the HUD shows; every time in seconds.
 struct HudValues {
+    bool simulated = true;                                      // false: a still mesh, no time, step or count lines
     double simTime = 0;                                         // simulated time [s]
     double dtUsed = 0;                                          // time step used [s]
     double dtCertified = 0;                                     // certified stable time step [s]
@@ -43,8 +56,10 @@ struct HudValues {
     double stepsPerSecond = 0;                                  // wall-clock steps per second [1/s]
     double realTimeFactor = 0;                                  // simulated seconds per wall-clock second [-]
     int criticalElements = 0;                                   // elements that limit the time step [-]
-    int cuts = 0;                                               // cuts applied so far [-]
-    std::vector<std::string> lines;                             // free text, one entry per line
+    double criticalStep = std::numeric_limits<double>::quiet_NaN();  // the step the drawn critical elements
+                                                                     // would allow (their smallest estimate) [s]
+    int cuts = 0;                                                    // cuts applied so far [-]
+    std::vector<std::string> lines;                                  // free text, one entry per line
     std::vector<float> forcePlot;  // recent tool force magnitudes, oldest first [N]; plotted when not empty
 };
 
@@ -72,6 +87,7 @@ struct RenderSnapshot {
     std::vector<ToolShape> tools;
 
     Camera camera;
+    Floor floor;
     HudValues hud;
 
     int vertices() const { return static_cast<int>(positions.cols()); }
@@ -111,6 +127,9 @@ void setElementValues(MeshSnapshot& ms, const TetMesh& mesh, const MeshSnapshotO
 // Moves the surface (and wireframe, critical tets) of a snapshot to new node positions.
 void updateSnapshotPositions(MeshSnapshot& ms, const TetMesh& mesh, const Eigen::Matrix3Xd& x,
                              const MeshSnapshotOptions& opts = {});
+
+// Largest of 1, 2, 5 times a power of ten not above x (grid and tick spacing).
+double niceGridStep(double x);
 
 // A camera looking at the box [lo, hi] from the front-right and above, the whole box in view
 // for an aspect ratio (width / height) of at least 1.

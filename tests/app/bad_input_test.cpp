@@ -84,6 +84,25 @@ TEST(BadInput, MaterialOutsideItsRangeNamesTheKey) {
     EXPECT_FALSE(fs::exists(dir + "/o"));
 }
 
+TEST(BadInput, CaptureRangeFloorAndPlaybackNameTheKey) {
+    const std::string dir = workDir();
+    for (const json& range : {json::array({1.0, 1.0}), json::array({2.0}), json("x"), json::array({0, "a"})}) {
+        json j = barSag();
+        j["capture"]["range"] = range;
+        expectBadInput("run " + writeScene(dir + "/r.json", j) + " --out " + dir + "/o --no-render --quiet",
+                       "capture.range");
+    }
+    json j = barSag();
+    j["capture"]["floor_height"] = 1e9;
+    expectBadInput("run " + writeScene(dir + "/f.json", j) + " --out " + dir + "/o --no-render --quiet",
+                   "capture.floor_height");
+    j = barSag();
+    j["capture"]["playback_fps"] = -1;
+    expectBadInput("run " + writeScene(dir + "/p.json", j) + " --out " + dir + "/o --no-render --quiet",
+                   "capture.playback_fps");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
 TEST(BadInput, NonUtf8NamesGiveValidJson) {
     const std::string dir = workDir();
     const std::string mesh = dir + "/liver\xff.msh";

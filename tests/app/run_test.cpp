@@ -195,6 +195,38 @@ TEST(Run, OutputVtuFalseWritesNoVtu) {
     EXPECT_FALSE(fs::exists(out + "/final.vtu"));
 }
 
+// capture.vtu: a .vtu per capture frame (every 1/fps of simulated time and the end), a .pvd
+// naming them with their times; displacement a vector of 3 components per node, stress and step per
+// element. capture.cut_obj: the surface at the end, cut faces in their own group.
+TEST(Run, VtuSeriesAndCutSurfaceObj) {
+    const std::string out = workDir() + "/out";
+    std::string err;
+    const int code = test::runCutsim("run " + test::source("assets/scenes/liver_cuts.json") + " --out " + out +
+                                         " --no-render --quiet --set duration=0.25 --set capture.fps=10"
+                                         " --set capture.vtu=true --set capture.cut_obj=true"
+                                         " --set 'cutting.compare=[]'",
+                                     nullptr, &err);
+    ASSERT_EQ(code, 0) << err;
+    const std::string pvd = test::readText(out + "/series.pvd");
+    int sets = 0;
+    for (size_t at = pvd.find("<DataSet"); at != std::string::npos; at = pvd.find("<DataSet", at + 1)) ++sets;
+    EXPECT_EQ(sets, 4) << pvd;  // t = 0, 0.1, 0.2 and the end
+    EXPECT_NE(pvd.find("timestep=\"0.1"), std::string::npos) << pvd;
+    for (int f = 0; f < 4; ++f) {
+        char name[40];
+        std::snprintf(name, sizeof name, "/vtu/frame_%06d.vtu", f);
+        const std::string v = test::readText(out + name);
+        EXPECT_NE(v.find("Name=\"displacement\" NumberOfComponents=\"3\""), std::string::npos) << name;
+        EXPECT_NE(v.find("Name=\"von_mises\""), std::string::npos) << name;
+        EXPECT_NE(v.find("Name=\"dt_r1r\""), std::string::npos) << name;
+        EXPECT_NE(v.find("Name=\"critical\""), std::string::npos) << name;
+    }
+    const std::string obj = test::readText(out + "/cut_surface.obj");
+    const size_t cut = obj.find("g cut\n");
+    ASSERT_NE(cut, std::string::npos);
+    EXPECT_NE(obj.find("\nf ", cut), std::string::npos) << "the cut at t = 0.2 s made faces";
+}
+
 TEST(Run, RefusesUnknownKey) {
     json j = barSag();
     j["material"]["Young"] = 1e6;

@@ -27,6 +27,6 @@ def run_cli(args, out):
 def vtu_points(path):
     """The node positions of a final.vtu (ascii, shortest round-trip numbers): exact floats."""
     text = Path(path).read_text()
-    start = text.index(">", text.index('NumberOfComponents="3"')) + 1
+    start = text.index(">", text.index('NumberOfComponents="3"', text.index("<Points>"))) + 1
     values = [float(v) for v in text[start : text.index("</DataArray>", start)].split()]
     return [values[i : i + 3] for i in range(0, len(values), 3)]

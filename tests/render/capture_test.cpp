@@ -1,10 +1,12 @@
 // `cutsim run` captures: PNG frames can be decimated or left to the video alone.
 #include "png_writer.hpp"
+#include "video.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -64,6 +66,30 @@ TEST(Capture, PngEveryZeroWritesNoPng) {
         << err;
     EXPECT_GE(framesOf(out), 7);
     EXPECT_EQ(fs::exists(out + "/frames") ? pngsIn(out + "/frames") : 0, 0);
+}
+
+// capture.playback_fps: the video plays at that rate, slower than the 30 frames per simulated
+// second it captures (ffprobe reads the stream's frame rate).
+TEST(Capture, PlaybackFpsSetsTheVideoRate) {
+    if (render::findOnPath("ffmpeg").empty() || render::findOnPath("ffprobe").empty())
+        GTEST_SKIP() << "ffmpeg not installed";
+    const std::string out = outDir("playback");
+    std::string err;
+    ASSERT_EQ(test::runCutsim("run " + test::source("assets/scenes/bar_sag.json") + " --out " + out +
+                                  " --quiet --set duration=0.2 --set capture.width=64 --set capture.height=48"
+                                  " --set capture.png_every=0 --set capture.playback_fps=10",
+                              nullptr, &err),
+              0)
+        << err;
+    const std::string rate = out + "/rate.txt";
+    ASSERT_EQ(std::system(("ffprobe -v error -select_streams v:0 -show_entries stream=r_frame_rate -of csv=p=0 " + out +
+                           "/video.mp4 > " + rate)
+                              .c_str()),
+              0);
+    std::ifstream in(rate);
+    std::string r;
+    in >> r;
+    EXPECT_EQ(r, "10/1");
 }
 
 }  // namespace

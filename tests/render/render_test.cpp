@@ -3,7 +3,9 @@
 #include "egl_context.hpp"
 #include "golden.hpp"
 #include "renderer.hpp"
+#include "snapshot/scene_snapshot.hpp"
 #include "snapshot/snapshot.hpp"
+#include "sim/simulation.hpp"
 #include "bench/random_cuts.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/io.hpp"
@@ -169,18 +171,97 @@ TEST(Render, SnapshotOfBoxSurface) {
     EXPECT_TRUE(ms.snap.camera.target.isApprox(Eigen::Vector3d(0.5, 0.5, 0.5)));
 }
 
+// A scene's frames keep one colour map range and one floor: 19 um of noise is near the bottom of
+// the displacement map, not full yellow, and a piece falling 5 cm moves neither the range nor the floor.
+TEST(Render, SceneFramesKeepTheirRangeAndFloor) {
+    SceneDef sc = loadScene(test::source("assets/scenes/bar_sag.json"));  // 1 x 0.1 x 0.1 m, displacement map
+    const Simulation sim(sc);
+    SceneSnapshot scene(sc, sim.model(), sim.analyzer().estimates().r1r, sim.dt());
+    State s = sim.state();
+    s.x = sim.model().X + 19e-6 * Eigen::Matrix3Xd::Random(3, sim.model().nodes());
+    const RenderSnapshot noisy = scene.update(sim.model(), s, FrameInfo{});
+    // 5 % of the 1.01 m diagonal, rounded up to 0.1 m
+    EXPECT_DOUBLE_EQ(noisy.scalarMin, 0);
+    EXPECT_DOUBLE_EQ(noisy.scalarMax, 0.1);
+    EXPECT_LT(noisy.scalar.maxCoeff() / noisy.scalarMax, 0.001);
+    EXPECT_TRUE(noisy.floor.fixed);
+    EXPECT_DOUBLE_EQ(noisy.floor.height, sim.model().X.row(2).minCoeff());  // lowest rest point along +z (gravity -z)
+    const Floor before = noisy.floor;
+    s.x.row(2).array() -= 0.05;
+    const RenderSnapshot fallen = scene.update(sim.model(), s, FrameInfo{});
+    EXPECT_DOUBLE_EQ(fallen.scalarMax, 0.1);
+    EXPECT_DOUBLE_EQ(fallen.floor.height, before.height);
+    EXPECT_TRUE(fallen.floor.centre.isApprox(before.centre));
+    // A range the scene sets, and a floor height it sets.
+    sc = loadScene(test::source("assets/scenes/bar_sag.json"),
+                   {"capture.range=[0, 0.02]", "capture.floor_height=-0.2", "capture.colormap=\"stress\""});
+    SceneSnapshot set(sc, sim.model(), sim.analyzer().estimates().r1r, sim.dt());
+    const RenderSnapshot a = set.update(sim.model(), s, FrameInfo{});
+    EXPECT_DOUBLE_EQ(a.scalarMin, 0);
+    EXPECT_DOUBLE_EQ(a.scalarMax, 0.02);
+    EXPECT_DOUBLE_EQ(a.floor.height, -0.2);
+}
+
+// Critical elements are drawn in a colour far from every other feature's: both colour maps, the
+// cut faces, the plain surface and the tools.
+TEST(Render, CriticalColourIsUsedByNothingElse) {
+    const RenderOptions o;
+    auto dist = [](std::array<int, 3> a, std::array<int, 3> b) {
+        return std::sqrt(
+            double((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])));
+    };
+    auto arr = [](std::array<std::uint8_t, 3> c) { return std::array<int, 3>{c[0], c[1], c[2]}; };
+    const auto crit = arr(o.criticalColour);
+    for (auto other : {o.cutColour, o.surfaceColour, o.toolColour, o.background})
+        EXPECT_GT(dist(crit, arr(other)), 120);
+    for (ColorMapKind k : {ColorMapKind::Sequential, ColorMapKind::Diverging})
+        for (int i = 0; i <= 100; ++i) {
+            const auto c = render::colorMapLookup(k, i / 100.0);
+            EXPECT_GT(dist(crit, {int(c[0] * 255), int(c[1] * 255), int(c[2] * 255)}), 90) << i;
+        }
+}
+
 // ---- golden scenes ----
 
-TEST(RenderGolden, BoxWithField) {
+// The box with its bump field and a few critical elements.
+MeshSnapshot boxWithCritical() {
     const TetMesh m = scenebox();
     const Eigen::VectorXd f = bumpField(m);
     MeshSnapshotOptions so;
     so.elementValues = &f;
     so.name = "bump";
     so.critical = someCritical(m);
-    ASSERT_FALSE(so.critical.empty());
+    return snapshotFromTetMesh(m, so);
+}
+
+TEST(RenderGolden, BoxWithField) {
+    const MeshSnapshot ms = boxWithCritical();
+    ASSERT_GT(ms.snap.criticalTets.cols(), 0);
     Renderer r(goldenOptions());
-    test::expectGolden("box_field", r.render(snapshotFromTetMesh(m, so).snap), {8, 0.01});
+    test::expectGolden("box_field", r.render(ms.snap), {8, 0.01});
+}
+
+// Critical elements in x-ray with their legend: the swatch under the colour bar is exactly the
+// critical colour (nothing else on screen uses it), and the frame matches its golden at the
+// renderdiff tolerance.
+TEST(RenderGolden, CriticalElementsAndTheirLegend) {
+    MeshSnapshot ms = boxWithCritical();
+    ms.snap.hud.criticalStep = 1.25e-5;
+    RenderOptions o = goldenOptions();
+    o.lighting = false;
+    Renderer r(o);
+    const Image img = r.render(ms.snap);
+    const render::PixelRect bar = r.legendRect();
+    int swatch = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const auto p = img.pixel(x, y);
+            const bool exact =
+                p[0] == o.criticalColour[0] && p[1] == o.criticalColour[1] && p[2] == o.criticalColour[2];
+            if (y > bar.y1 + 4) swatch += exact;  // below the bar: the swatch only
+        }
+    EXPECT_GE(swatch, 50) << "the swatch under the colour bar";
+    test::expectGolden("critical", img, {5, 0.001});
 }
 
 TEST(RenderGolden, BoxSagging) {
@@ -206,6 +287,107 @@ TEST(RenderGolden, BoxSagging) {
     ms.snap.tools.push_back(tool);
     Renderer r(goldenOptions());
     test::expectGolden("box_sag", r.render(ms.snap), {8, 0.01});
+}
+
+// A sphere tool seen along its axis, pole first, over a quad of tissue: unlit, the pixel
+// through the pole must be the tool's colour (a hole there shows the tissue), for both poles.
+TEST(RenderGolden, SphereToolHasNoHoleAtItsPoles) {
+    RenderOptions o = goldenOptions();
+    o.lighting = false;
+    o.floor = false;
+    o.legend = false;
+    Renderer r(o);
+    for (double flip : {0.0, M_PI}) {  // the upper pole towards the camera, then the lower one
+        RenderSnapshot s = screenQuad(0, 0, 1, false);
+        s.scalar.resize(0);
+        s.positions.row(2).setConstant(-0.05);  // tissue behind the tool
+        ToolShape t;
+        t.kind = ToolShape::Kind::Sphere;
+        t.size = Eigen::Vector3d::Constant(0.02);
+        t.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(flip, Eigen::Vector3d::UnitX()));
+        s.tools = {t};
+        s.camera.eye = {0, 0, 0.2};
+        const Image img = r.render(s);
+        const auto p = img.pixel(kGoldenW / 2, kGoldenH / 2);
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(p[c], o.toolColour[c]) << "pole " << flip << " channel " << c;
+        if (flip == 0) test::expectGolden("sphere_pole", img, {5, 0.001});
+    }
+}
+
+// The box of scenebox() moved down by drop [m], with a floor fixed at its rest height.
+RenderSnapshot fallingBox(double drop, bool fixedFloor) {
+    const TetMesh m = scenebox();
+    Eigen::Matrix3Xd x = m.X;
+    x.row(2).array() -= drop;
+    RenderSnapshot s = snapshotFromTetMesh(m, x).snap;
+    s.camera = snapshotFromTetMesh(m).snap.camera;  // the camera does not follow the fall
+    s.floor.fixed = fixedFloor;
+    s.floor.normal = s.camera.up;
+    s.floor.height = 0;
+    s.floor.centre = {0.02, 0.01, 0};
+    s.floor.spacing = 0.01;
+    s.floor.halfSize = 0.05;
+    return s;
+}
+
+// Pixels that differ from the background by more than the grid's contrast: the object's.
+std::vector<bool> objectMask(const Image& img, const RenderOptions& o) {
+    std::vector<bool> m(size_t(img.width) * size_t(img.height));
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const auto p = img.pixel(x, y);
+            int d = 0;
+            for (int c = 0; c < 3; ++c) d = std::max(d, std::abs(int(p[c]) - int(o.background[c])));
+            m[size_t(y) * size_t(img.width) + size_t(x)] = d > 0;
+        }
+    return m;
+}
+
+// Pixels, at least 2 px away from the object in both frames, that differ between frames a and b.
+int gridChanges(const Image& a, const Image& b, const std::vector<bool>& ma, const std::vector<bool>& mb) {
+    int changed = 0;
+    for (int y = 2; y < a.height - 2; ++y)
+        for (int x = 2; x < a.width - 2; ++x) {
+            bool near = false;
+            for (int dy = -2; dy <= 2; ++dy)
+                for (int dx = -2; dx <= 2; ++dx) {
+                    const size_t i = size_t(y + dy) * size_t(a.width) + size_t(x + dx);
+                    near = near || ma[i] || mb[i];
+                }
+            if (near) continue;
+            const auto p = a.pixel(x, y), q = b.pixel(x, y);
+            changed += p[0] != q[0] || p[1] != q[1] || p[2] != q[2];
+        }
+    return changed;
+}
+
+// A falling piece must not move the floor: away from the object the frames before and after the
+// fall are the same pixels; the per-frame floor (not fixed) moves with the lowest point.
+TEST(RenderGolden, FloorStaysWhereTheScenePutsIt) {
+    RenderOptions o = goldenOptions();
+    o.legend = false;
+    Renderer r(o);
+    RenderOptions noFloor = o;
+    noFloor.floor = false;
+    Renderer bare(noFloor);
+    const std::vector<bool> m0 = objectMask(bare.render(fallingBox(0, true)), o),
+                            m1 = objectMask(bare.render(fallingBox(0.015, true)), o);
+    const Image before = r.render(fallingBox(0, true)), after = r.render(fallingBox(0.015, true));
+    EXPECT_EQ(gridChanges(before, after, m0, m1), 0);
+    EXPECT_GT(gridChanges(r.render(fallingBox(0, false)), r.render(fallingBox(0.015, false)), m0, m1), 100)
+        << "the test must see a floor that drops";
+    test::expectGolden("floor_fixed", after, {5, 0.001});
+}
+
+// `cutsim render --hud` draws a still mesh: no time, step or count lines ("dt used 0").
+TEST(RenderGolden, HudOfAStillMesh) {
+    MeshSnapshot ms = snapshotFromTetMesh(scenebox());
+    ms.snap.hud.simulated = false;
+    ms.snap.hud.lines = {"box.msh", "45 nodes, 192 tets"};
+    RenderOptions o = goldenOptions();
+    o.hud = true;
+    Renderer r(o);
+    test::expectGolden("hud_still", r.render(ms.snap), {5, 0.001});
 }
 
 TEST(RenderGolden, HudFrame) {

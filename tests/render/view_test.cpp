@@ -1,5 +1,6 @@
 // `cutsim view`: a headless run under a virtual X server draws the scene and saves a screenshot;
 // without a display it stops with a clear message.
+#include "image_diff.hpp"
 #include "png_writer.hpp"
 #include "renderer.hpp"
 #include "test_support.hpp"
@@ -8,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -141,6 +143,81 @@ TEST(View, ToolPressesAndHoldsWhereTheMouseLeavesIt) {
     EXPECT_EQ(maxForce(20, "--tool-at 0 0.5 0"), 0.0);  // held above: no contact at all
     EXPECT_EQ(maxForce(3, ""), 0.0);                    // t = 0.1 s: keyframed probe still above
     EXPECT_GT(maxForce(3, "--tool-at 0 0.125 0.008"), 0.1);
+}
+
+// Box around the pixels that differ between two frames of the same size; empty: no pixel differs.
+struct PixelBox {
+    int x0 = 1 << 30, y0 = 1 << 30, x1 = -1, y1 = -1;
+    long area() const { return x1 < x0 ? 0 : long(x1 - x0 + 1) * long(y1 - y0 + 1); }
+};
+PixelBox differingBox(const render::Image& a, const render::Image& b) {
+    PixelBox box;
+    for (int y = 0; y < a.height; ++y)
+        for (int x = 0; x < a.width; ++x) {
+            const auto p = a.pixel(x, y), q = b.pixel(x, y);
+            if (p[0] == q[0] && p[1] == q[1] && p[2] == q[2]) continue;
+            box = {std::min(box.x0, x), std::min(box.y0, y), std::max(box.x1, x), std::max(box.y1, y)};
+        }
+    return box;
+}
+
+// h hides the panel: the same frames with and without it differ only where the panel was, and the
+// panel keeps to a corner of a 960x540 window (under a sixth of it).
+TEST(View, PanelHidesWithHAndKeepsToACorner) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    std::string err;
+    for (const std::string& run : {std::string("shown"), std::string("hidden")}) {
+        const int code =
+            shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/bar_sag.json") +
+                      " --threads 1 --frames 3 --width 960 --height 540 --screenshot " + dir + "/" + run + ".png" +
+                      (run == "hidden" ? " --press 0,h" : ""),
+                  dir, &err);
+        ASSERT_EQ(code, 0) << err;
+    }
+    const render::Image shown = render::readPng(dir + "/shown.png"), hidden = render::readPng(dir + "/hidden.png");
+    const PixelBox panel = differingBox(shown, hidden);
+    std::printf("panel: %d x %d px of 960 x 540\n", panel.x1 - panel.x0 + 1, panel.y1 - panel.y0 + 1);
+    EXPECT_GT(panel.area(), 0) << "the panel must show without h";
+    EXPECT_LT(panel.area(), 960L * 540L / 6)
+        << "panel " << panel.x0 << "," << panel.y0 << " to " << panel.x1 << "," << panel.y1;
+    EXPECT_LT(panel.x1, 960 / 2);
+}
+
+// --scene-camera: the view follows the scene's camera keyframes as `cutsim run` frames them; with
+// the panel hidden its frame is the run's frame of the same time, at the golden tolerance.
+TEST(View, SceneCameraFollowsTheKeyframesAsRunDoes) {
+    if (render::findOnPath("xvfb-run").empty()) GTEST_SKIP() << "xvfb-run not installed";
+    const std::string dir = test::tempDir();
+    const int frames = 6;  // 0.2 s at 30 fps, half way along the camera's move
+    const std::string sets =
+        " --threads 1 --set 'camera.keyframes=[{\"time\":0,\"eye\":[0.5,-1.6,0.25],\"target\":[0.5,0.05,-0.05]},"
+        "{\"time\":0.4,\"eye\":[1.8,-0.4,0.6],\"target\":[0.5,0,-0.05]}]' --set capture.width=320 "
+        "--set capture.height=180 ";
+    std::string err;
+    int code =
+        shell(std::string(CUTSIM_BINARY) + " run " + test::source("assets/scenes/bar_sag.json") + " --quiet --out " +
+                  dir + "/run" + sets + "--set capture.hud=false --set capture.video=false --set duration=" +
+                  std::to_string((frames + 1) / 30.0),
+              dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/bar_sag.json") +
+                     " --scene-camera --press 0,h --frames " + std::to_string(frames) + " --screenshot " + dir +
+                     "/view.png" + sets,
+                 dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    char name[32];
+    std::snprintf(name, sizeof name, "/run/frames/frame_%06d.png", frames);
+    const render::Image run = render::readPng(dir + name), view = render::readPng(dir + "/view.png");
+    ASSERT_EQ(view.width, run.width);
+    const render::ImageDiff d = render::diffImages(run, view, 5);
+    EXPECT_LE(d.fraction, 0.001) << "max difference " << d.maxChannel;
+    // Without the option the view keeps the first keyframe's camera: a different picture.
+    code = shell(kXvfb + std::string(CUTSIM_BINARY) + " view " + test::source("assets/scenes/bar_sag.json") +
+                     " --press 0,h --frames " + std::to_string(frames) + " --screenshot " + dir + "/still.png" + sets,
+                 dir, &err);
+    ASSERT_EQ(code, 0) << err;
+    EXPECT_GT(render::diffImages(run, render::readPng(dir + "/still.png"), 5).fraction, 0.05);
 }
 
 // `cutsim run` and `cutsim view` drive the same Simulation: a scene with scripted cuts and a

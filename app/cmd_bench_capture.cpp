@@ -1,0 +1,111 @@
+// `cutsim bench capture`: frames per second of the capture path of a scene, split into its parts:
+// the snapshot from the state (physics), drawing with the HUD, reading the frame back, and the
+// hand-off to the video encoder (its writer thread encodes meanwhile). The state stays at the
+// scene's start, so the number is the capture path alone, not the simulation.
+#include "bench.hpp"
+#include "commands.hpp"
+
+#include "sim/simulation.hpp"
+#include "snapshot/scene_snapshot.hpp"
+#include "util/stopwatch.hpp"
+
+#ifdef CUTSIM_HAVE_RENDER
+#include "renderer.hpp"
+#include "video.hpp"
+#endif
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <string>
+
+namespace cutsim::app {
+namespace {
+
+struct CaptureArgs {
+    std::string scene = "assets/scenes/demo.json";
+    int frames = 60;
+    int width = 1280, height = 720;
+    bool hud = true;
+    bool video = true;
+};
+
+int runCapture(const CaptureArgs& a) {
+#ifndef CUTSIM_HAVE_RENDER
+    (void)a;
+    throw std::runtime_error("this cutsim was built without the renderer (-DCUTSIM_RENDER=OFF)");
+#else
+    const SceneDef sc = loadScene(a.scene);
+    Simulation::Options so;
+    so.renderSurface = true;
+    Simulation sim(sc, so);
+    SceneSnapshot scene(sc, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+    render::RenderOptions ro;
+    ro.width = a.width;
+    ro.height = a.height;
+    ro.hud = a.hud;
+    ro.xray = sc.capture.xray;
+    ro.floor = sc.capture.floor;
+    render::Renderer renderer(ro);
+    std::unique_ptr<render::VideoEncoder> video;
+    const std::string mp4 = (std::filesystem::temp_directory_path() / "cutsim_bench_capture.mp4").string();
+    if (a.video && !render::findOnPath("ffmpeg").empty() && a.width % 2 == 0 && a.height % 2 == 0)
+        video = std::make_unique<render::VideoEncoder>(mp4, a.width, a.height, sc.capture.fps);
+    const FrameInfo fi = frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN());
+
+    // Warm-up (shader compilation, ImGui's hidden first frame), then the timed frames.
+    double snapT = 0, drawT = 0, readT = 0, handT = 0;
+    for (int f = -3; f < a.frames; ++f) {
+        const Stopwatch t0;
+        const RenderSnapshot& snap = scene.update(sim.model(), sim.state(), fi);
+        const double t1 = t0.seconds();
+        renderer.draw(snap);
+        const double t2 = t0.seconds();
+        render::Image img = renderer.read();
+        const double t3 = t0.seconds();
+        if (video) video->addFrame(std::move(img));
+        const double t4 = t0.seconds();
+        if (f < 0) continue;
+        snapT += t1;
+        drawT += t2 - t1;
+        readT += t3 - t2;
+        handT += t4 - t3;
+    }
+    const Stopwatch tf;
+    if (video) video->finish();
+    const double finishT = tf.seconds();
+    std::filesystem::remove(mp4);
+    const double n = a.frames, total = snapT + drawT + readT + handT;
+    std::printf("scene,width,height,hud,frames,snapshot_ms,draw_ms,read_ms,handoff_ms,frame_ms,fps,encoder_drain_s,"
+                "renderer\n");
+    std::printf("%s,%d,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%.2f,%s\n", sc.name.c_str(), a.width, a.height,
+                a.hud ? 1 : 0, a.frames, 1e3 * snapT / n, 1e3 * drawT / n, 1e3 * readT / n, 1e3 * handT / n,
+                1e3 * total / n, n / total, finishT, renderer.glRenderer().c_str());
+    return 0;
+#endif
+}
+
+}  // namespace
+
+void addCaptureBench() {
+    addBenchSubcommand([](CLI::App& bench) {
+        auto a = std::make_shared<CaptureArgs>();
+        auto* c = bench.add_subcommand(
+            "capture", "Capture frames per second of a scene's first frame: snapshot, draw (with the HUD), read-back "
+                       "and hand-off to the video encoder, in ms per frame (CSV)");
+        c->add_option("SCENE", a->scene, "Scene file")->capture_default_str();
+        c->add_option("--frames", a->frames, "Timed frames (after 3 warm-up frames)")
+            ->check(CLI::Range(1, 100000))
+            ->capture_default_str();
+        c->add_option("--width", a->width, "Frame width [px]")->check(CLI::Range(16, 8192))->capture_default_str();
+        c->add_option("--height", a->height, "Frame height [px]")->check(CLI::Range(16, 8192))->capture_default_str();
+        c->add_flag("!--no-hud", a->hud, "Without the HUD");
+        c->add_flag("!--no-video", a->video, "Without the hand-off to ffmpeg");
+        c->callback([a] { setExitCode(benchGuarded([&] { return runCapture(*a); })); });
+    });
+}
+
+}  // namespace cutsim::app
