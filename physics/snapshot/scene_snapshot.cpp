@@ -46,6 +46,13 @@ SceneSnapshot::SceneSnapshot(const SceneDef& sc, const Model& model, const Eigen
     const Eigen::Vector3d lo = model.X.rowwise().minCoeff(), hi = model.X.rowwise().maxCoeff();
     floor_.height =
         std::isnan(sc.capture.floorHeight) ? (up_.transpose() * model.X).minCoeff() : sc.capture.floorHeight;
+    // a floor collider (the first plane) is the floor drawn, unless capture.floor_height says otherwise
+    for (const ColliderDef& c : sc.colliders)
+        if (c.kind == ColliderDef::Kind::Plane && std::isnan(sc.capture.floorHeight)) {
+            floor_.normal = c.normal();
+            floor_.height = floor_.normal.dot(c.pose.position);
+            break;
+        }
     floor_.centre = 0.5 * (lo + hi);
     const double radius = std::max(0.5 * (hi - lo).norm(), 1e-6);
     floor_.spacing = niceGridStep(radius / 4);
