@@ -36,9 +36,10 @@ struct ToolDef {
                                              // edge is the local -y edge, along x; grasper: one jaw's full extents
     Eigen::Matrix3Xd hull;                   // hull: points in local coordinates (3 x nPoints) [m]
     std::vector<ToolKey> keys;               // in time order; the pose is held before the first and after the last
-    double stiffness = 0;  // penalty stiffness per contact point [N/m]; 0 = automatic (0.8 of the stable limit)
-    double damping = -1;   // penalty damping per contact point [N s/m]; < 0 = automatic
-    double friction = 0;   // Coulomb coefficient with the tissue [-] (projection contact)
+    double stiffness =
+        0;  // penalty stiffness per contact point [N/m]; 0 = automatic (penalty model: 0.5 of the stable limit)
+    double damping = -1;  // penalty damping per contact point [N s/m]; < 0 = automatic
+    double friction = 0;  // Coulomb coefficient with the tissue [-] (projection contact)
 };
 
 // One convex piece of a tool in the tool's frame (a grasper has two).

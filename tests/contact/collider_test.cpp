@@ -55,7 +55,7 @@ TEST(Collider, CubeLandsOnTheFloorAndComesToRest) {
 // cube slides at its terminal speed g sin / c = 8.8 cm/s; with mu = 0.2 it slides slower, and with
 // mu = 0.8 (> tan) slower still. (Stiction is not exact: the soft, coarse cube rocks on its nodes
 // and creeps; docs/method.md, Contact.)
-TEST(Collider, CoulombFrictionSlowsAndHolds) {
+TEST(Collider, CoulombFrictionSlowsASlide) {
     const double angle = std::atan(0.5);
     const Eigen::Vector3d g(9.81 * std::sin(angle), -9.81 * std::cos(angle), 0);
     auto slide = [&](double mu) {
