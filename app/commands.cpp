@@ -35,6 +35,7 @@ void registerCommands(CLI::App& app) {
     addRunCommand(app);
     addSweepCommand(app);
     addMiCommand(app);
+    addImproveCommand(app);
     addRenderCommand(app);
     addViewCommand(app);
     addCheckCommand(app);
