@@ -71,6 +71,7 @@ int runImprove(ImproveArgs& a) {
         j["flips23"] = r.flips23;
         j["flips32"] = r.flips32;
         j["collapses"] = r.collapses;
+        j["evaluations"] = r.evaluations;
         nlohmann::json sec = nlohmann::json::object();
         for (const auto& [k, v] : r.seconds) sec[k] = v;
         j["seconds"] = sec;
@@ -117,7 +118,12 @@ void addImproveCommand(CLI::App& app) {
     cmd->add_option("--scale", args->scale, "Multiply every coordinate by S to get meters")->check(CLI::PositiveNumber);
     cmd->add_option("--out", args->out, "Write the improved mesh (.msh: Gmsh 2.2, .vtu)");
     cmd->add_option("--target-dt", args->opts.targetDt, "Stop once the exact step reaches DT [s]");
-    cmd->add_option("--max-seconds", args->opts.maxSeconds, "Wall-time budget [s]")->capture_default_str();
+    cmd->add_option("--work", args->opts.maxEvaluations,
+                    "Work budget in element eigenvalue problems (deterministic); default 200 per element, at "
+                    "least 1e5 (about 1 s per 10,000 elements)");
+    cmd->add_option("--max-seconds", args->opts.maxSeconds,
+                    "Wall-time limit besides (a run it stops depends on the machine's speed)")
+        ->capture_default_str();
     cmd->add_option("--rounds", args->opts.maxRounds, "Rounds at most")->capture_default_str();
     cmd->add_option("--E", args->opts.material.E, "Young's modulus [Pa]")->capture_default_str();
     cmd->add_option("--nu", args->opts.material.nu, "Poisson's ratio [-]")->capture_default_str();

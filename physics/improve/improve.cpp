@@ -36,6 +36,10 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinFlatness = 1e-3;
 // Soft maximum exponent: ties between equally bad elements still give a descent direction.
 constexpr double kSoftMaxPower = 16;
+// Default work: 12x12 problems per element of the input, about 0.1 ms per element on one core,
+// with a floor for small meshes.
+constexpr long long kEvaluationsPerTet = 200;
+constexpr long long kMinEvaluations = 100000;
 
 double signedVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
     return (b - a).dot((c - a).cross(d - a)) / 6.0;
@@ -111,6 +115,7 @@ public:
 
     double diagonal() const { return diag_; }
     int moves = 0, flips23 = 0, flips32 = 0, collapses = 0;
+    long long evaluations = 0;  // 12x12 eigenvalue problems solved
 
     // The live mesh, unreferenced nodes dropped.
     TetMesh mesh() const {
@@ -140,26 +145,34 @@ public:
         return out;
     }
 
-    // Largest distance from a sample of the new boundary (vertices, edge midpoints, centroids) to
-    // the old faces around its face's vertices: a bound on the distance to the old surface.
-    double boundaryDistance() const {
+    // Largest distance from a sample of the boundary at positions X (vertices, edge midpoints,
+    // centroids) to the old faces around its face's vertices: a bound on the distance to the old
+    // surface. Faces whose vertices did not move are at distance 0.
+    double boundaryDistance(const Eigen::Matrix3Xd& X) const {
         double worst = 0;
         std::vector<int> patch;
         for (int f = 0; f < static_cast<int>(bf_.size()); ++f) {
             const auto& t = bf_[f];
+            if (X.col(t[0]) == X0_.col(t[0]) && X.col(t[1]) == X0_.col(t[1]) && X.col(t[2]) == X0_.col(t[2])) continue;
             patch.clear();
             for (int v : t)
                 for (int g : ringFaces_[v]) patch.push_back(g);
-            const Vec3 p0 = X_.col(t[0]), p1 = X_.col(t[1]), p2 = X_.col(t[2]);
+            const Vec3 p0 = X.col(t[0]), p1 = X.col(t[1]), p2 = X.col(t[2]);
             const Vec3 samples[7] = {p0, p1, p2, (p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
             for (const Vec3& s : samples) worst = std::max(worst, distanceToFaces(s, patch));
         }
         return worst;
     }
+    const Eigen::Matrix3Xd& positions() const { return X_; }
 
-    // One round: smooth the nodes of the critical elements, then flip and collapse around them.
-    // Returns false when nothing changed.
-    bool round(const WallClock::time_point& deadline, double& tSmooth, double& tTopo) {
+    // Work budget (12x12 problems solved) and wall-clock deadline.
+    void setLimits(long long budget, WallClock::time_point deadline) {
+        budget_ = budget;
+        deadline_ = deadline;
+    }
+    bool outOfTime() const { return evaluations >= budget_ || WallClock::now() > deadline_; }
+
+    bool round(double& tSmooth, double& tTopo) {
         std::vector<int> bad = criticalElements();
         if (bad.empty()) return false;
         bool changed = false;
@@ -173,14 +186,14 @@ public:
                     stampN_[a] = stamp_;
                     if (smoothNode(a)) changed = true;
                 }
-                if (WallClock::now() > deadline) break;
+                if (outOfTime()) break;
             }
         }
         tSmooth += secondsSince(t0);
         t0 = WallClock::now();
         if (opts_.flips || opts_.collapse) {
             for (int e : bad) {
-                if (WallClock::now() > deadline) break;
+                if (outOfTime()) break;
                 if (!alive_[e]) continue;
                 if (opts_.flips && (flipFaces(e) || flipEdges(e))) {
                     changed = true;
@@ -290,6 +303,7 @@ private:
                 for (int b = 0; b < 4; ++b) A.block<3, 3>(3 * a, 3 * b) = blockOf(t[a], t[b]) * (s[a] * s[b]);
         }
         if (n) largestEigenvalues(mats_.data(), n, out_.data());
+        evaluations += n;
         for (int k = 0; k < n; ++k) lam_[elems[k]] = out_[k];
     }
 
@@ -727,6 +741,8 @@ private:
     std::vector<double> vs_;
     double volume_ = 0, volume0_ = 0, diag_ = 0, ref_ = 1;
     int elements0_ = 0;
+    long long budget_ = 0;
+    WallClock::time_point deadline_;
     std::vector<char> movable_, boundary_;
     std::vector<std::array<int, 3>> bf_;
     std::vector<Tri> faces0_;
@@ -769,14 +785,18 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     r.history.push_back({secondsSince(start), r.before.dtExact});
 
     Improver imp(mesh, opts);
+    imp.setLimits(opts.maxEvaluations > 0 ? opts.maxEvaluations
+                                          : std::max<long long>(kMinEvaluations, kEvaluationsPerTet * mesh.elements()),
+                  deadline);
     r.diagonal = imp.diagonal();
     TetMesh best = mesh;
+    Eigen::Matrix3Xd bestX = mesh.X;  // all positions of the best round, before unused nodes are dropped
     double bestDt = r.before.dtExact;
     int stale = 0;
     for (int round = 1; round <= opts.maxRounds; ++round) {
         if (opts.targetDt > 0 && bestDt >= opts.targetDt) break;
-        if (WallClock::now() > deadline) break;
-        const bool changed = imp.round(deadline, tSmooth, tTopo);
+        if (imp.outOfTime()) break;
+        const bool changed = imp.round(tSmooth, tTopo);
         r.rounds = round;
         if (!changed) break;
         t0 = WallClock::now();
@@ -789,7 +809,7 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
             bestDt = dt;
             best = std::move(cur);
             r.bestRound = round;
-            r.boundaryDistance = imp.boundaryDistance();
+            bestX = imp.positions();
             stale = 0;
         } else if (++stale >= 3) {
             break;
@@ -799,6 +819,8 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     r.flips23 = imp.flips23;
     r.flips32 = imp.flips32;
     r.collapses = imp.collapses;
+    r.boundaryDistance = imp.boundaryDistance(bestX);
+    r.evaluations = imp.evaluations;
     best.source = mesh.source;
     mesh = std::move(best);
     t0 = WallClock::now();

@@ -16,7 +16,10 @@ namespace cutsim {
 struct ImproveOptions {
     Material material;
     double targetDt = 0;                 // stop once the exact step reaches it (0: no target) [s]
-    double maxSeconds = 10;              // wall-time budget [s]
+    long long maxEvaluations = 0;        // work budget in reduced-one-ring eigenvalue problems, the
+                                         // unit that makes a run deterministic; 0: 200 per element
+                                         // (at least 1e5), about 1 s per 10,000 elements on one core
+    double maxSeconds = 60;              // wall-time limit besides [s]
     int maxRounds = 40;                  // rounds of smoothing then flips
     bool smooth = true;                  // move nodes
     bool flips = true;                   // 2-3 and 3-2 flips
@@ -54,6 +57,7 @@ struct ImproveReport {
     double diagonal = 0;          // bounding-box diagonal [m]
     int rounds = 0, bestRound = 0;
     int moves = 0, flips23 = 0, flips32 = 0, collapses = 0;
+    long long evaluations = 0;                            // reduced-one-ring eigenvalue problems solved (the work)
     std::vector<std::pair<std::string, double>> seconds;  // per stage [s]
     struct Point {
         double seconds, dtExact;

@@ -147,6 +147,7 @@ json Simulation::report(const json& extra) const {
                       {"nodes_final", model_.nodes()},
                       {"elements_final", model_.elements()}};
     if (!embedding_.is_null()) report["embedding"] = embedding_;
+    if (!improvement_.is_null()) report["improve"] = improvement_;
     report["cuts"] = rec_.cuts;
     if (bladePhase_)
         report["blade"] = {{"tools", bladeTools_},

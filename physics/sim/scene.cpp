@@ -404,6 +404,23 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.translate = o.vec3("translate", s.translate);
         s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
         s.reorient = o.boolean("reorient", false);
+        if (o.has("improve")) {
+            if (o.has("surface")) o.fail("improve", "applies to a tet mesh object (mesh or box), not to surface");
+            if (o.raw("improve").is_boolean()) {
+                s.improve = o.boolean("improve", false);
+            } else {
+                ObjectReader im = o.object("improve");
+                s.improve = true;
+                ImproveOptions& io = s.improveOptions;
+                io.maxSeconds = im.number("max_seconds", io.maxSeconds, 0, 1e6, true);
+                io.maxRounds = static_cast<int>(im.integer("rounds", io.maxRounds, 1, 100000));
+                io.featureAngleDeg = im.number("feature_angle", io.featureAngleDeg, 0, 180);
+                io.maxVolumeChange = im.number("max_volume_change", io.maxVolumeChange, 0, 0.5);
+                io.maxBoundaryDistance = im.number("max_boundary_distance", io.maxBoundaryDistance, 0, 0.5);
+                io.moveBoundary = im.boolean("move_boundary", io.moveBoundary);
+                im.finish();
+            }
+        }
         s.anySize = o.boolean("any_size", false);
         s.element = o.string("element", "corotational", {"corotational", "linear"}) == "linear"
                         ? ElementModel::Linear

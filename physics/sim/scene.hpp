@@ -7,6 +7,7 @@
 #include "fem/integrate.hpp"
 #include "fem/material.hpp"
 #include "fem/model.hpp"
+#include "improve/improve.hpp"
 #include "sim/step_policy.hpp"
 
 #include <nlohmann/json.hpp>
@@ -140,7 +141,9 @@ struct SceneDef {
     Eigen::Vector3d translate = Eigen::Vector3d::Zero();  // [m], after scale and rotation
     Eigen::Vector3d rotateDeg = Eigen::Vector3d::Zero();  // XYZ Euler angles [deg]
     bool reorient = false;                                // fix inverted tets instead of refusing the mesh
-    bool anySize = false;  // object.any_size: allow an object under 1 mm or over 10 m across
+    bool improve = false;           // object.improve: improve the tet mesh on load (improve/improve.hpp)
+    ImproveOptions improveOptions;  // its options (material and fixed nodes set at load)
+    bool anySize = false;           // object.any_size: allow an object under 1 mm or over 10 m across
     ElementModel element = ElementModel::Corotational;
 
     Material material;

@@ -163,6 +163,7 @@ public:
 
 private:
     void buildObject();
+    void improveOnLoad(TetMesh& mesh);
     void chooseAndApply(bool initial);
     void setupContact();
     void ensureCutter();
@@ -190,6 +191,7 @@ private:
     std::vector<std::vector<int>> loadNodes_;    // nodes of each scene load (sc.forces order)
     std::unique_ptr<EmbeddedSurface> embedded_;  // an MI object's surface in the uncut lattice
     nlohmann::json embedding_;                   // MI set-up for the report (null: a tet mesh object)
+    nlohmann::json improvement_;                 // object.improve for the report (null: not asked)
     TetMesh rest_;                               // the uncut rest mesh, for cutting.compare
     std::unique_ptr<EmbeddedSurface> surface_;   // drawn surface after cuts (see surface())
     int topologyVersion_ = 0;

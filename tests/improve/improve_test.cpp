@@ -164,3 +164,44 @@ TEST(CmdImprove, BadInputNamesTheFile) {
 
 }  // namespace
 }  // namespace cutsim
+
+namespace cutsim {
+namespace {
+
+std::string liverScene(const std::string& improve) {
+    return R"({"object": {"mesh": ")" + test::data("tet/sofa_liver.msh") + R"(", "scale": 0.0254, "improve": )" +
+           improve + R"(},
+  "fixed": [{"plane": {"point": [0, 0, -0.043], "normal": [0, 0, 1], "distance": 0.015}}],
+  "loads": {"gravity": [0, -9.81, 0]},
+  "integrator": {"dt": {"mode": "fraction", "of": "exact", "fraction": 0.9}},
+  "duration": 0.02})";
+}
+
+TEST(SceneImprove, ObjectImproveRaisesTheStepAndReportsIt) {
+    const std::string dir = test::workDir();
+    const std::string scene = test::writeText(dir + "/liver.json", liverScene("{\"rounds\": 4}"));
+    std::string out, err;
+    ASSERT_EQ(test::runCutsim("run " + scene + " --no-render --out " + dir + "/out", &out, &err), 0) << err;
+    const nlohmann::json r = nlohmann::json::parse(test::readText(dir + "/out/report.json"));
+    ASSERT_TRUE(r.contains("improve")) << r.dump();
+    const nlohmann::json& im = r["improve"];
+    EXPECT_NEAR(im["dt_before"].get<double>(), 0.4510e-3, 0.005e-3);
+    EXPECT_GT(im["gain"].get<double>(), 1.5);
+    EXPECT_LE(std::abs(im["volume_change"].get<double>()), 0.01);
+    // The run steps at the improved mesh's limit (the fixed nodes change it a little).
+    EXPECT_GT(r["dt_initial"]["exact"].get<double>(), 1.5 * 0.4510e-3);
+}
+
+TEST(SceneImprove, BadImproveKeysAreNamed) {
+    const std::string dir = test::workDir();
+    std::string err;
+    const std::string bad = test::writeText(dir + "/bad.json", liverScene("{\"rounds\": 0}"));
+    EXPECT_EQ(test::runCutsim("run " + bad + " --no-render --out " + dir + "/o1", nullptr, &err), 2);
+    EXPECT_NE(err.find("object.improve.rounds"), std::string::npos) << err;
+    const std::string typo = test::writeText(dir + "/typo.json", liverScene("{\"roundz\": 3}"));
+    EXPECT_EQ(test::runCutsim("run " + typo + " --no-render --out " + dir + "/o2", nullptr, &err), 2);
+    EXPECT_NE(err.find("roundz"), std::string::npos) << err;
+}
+
+}  // namespace
+}  // namespace cutsim
