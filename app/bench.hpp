@@ -59,6 +59,12 @@ struct Cantilever {
 // bench meshes it Mirrored (no skew bending axes); elsewhere it is the plain Kuhn split.
 Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational,
                       BoxSplit split = BoxSplit::Kuhn);
+// The SOFA liver as the demo and liver_cuts scenes set it up (inches to m, E 30 kPa, fixed behind
+// z = -0.028 m, gravity -y), refined `levels` times, with mass damping (cmd_bench_cuts.cpp).
+Model liverModel(const TetMesh& inches, int levels, double damping);
+// Static equilibrium under gravity by backward Euler at a long step; *steps gets its steps.
+Eigen::Matrix3Xd liverEquilibrium(const Model& m0, int* steps);
+
 // Mean z displacement of the nodes at x = L [m].
 double tipDeflection(const Model& m, const Eigen::Matrix3Xd& x);
 
@@ -188,6 +194,7 @@ void addStabilityBench();  // cmd_bench_stability.cpp
 void addStepCostBench();   // cmd_bench_step.cpp
 void addContactBench();    // cmd_bench_contact.cpp
 void addCaptureBench();    // cmd_bench_capture.cpp
+void addImproveBench();    // cmd_bench_improve.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);

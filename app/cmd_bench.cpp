@@ -973,6 +973,7 @@ void registerBenchExtensions() {
     addMiBarBench();          // cmd_bench_mibar.cpp: Table 6.1
     addContactBench();        // cmd_bench_contact.cpp: contact cost and penetration
     addCaptureBench();        // cmd_bench_capture.cpp: capture frames per second
+    addImproveBench();        // cmd_bench_improve.cpp: mesh improvement against TetGen and Gmsh
     addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 

@@ -274,6 +274,8 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
     return pts;
 }
 
+}  // namespace
+
 // ---- the liver sagging under gravity ----
 
 // The SOFA liver as the demo and liver_cuts scenes set it up (inches to m, E 30 kPa, fixed behind
@@ -304,6 +306,8 @@ Eigen::Matrix3Xd liverEquilibrium(const Model& m0, int* steps) {
     *steps = k + 1;
     return s.x;
 }
+
+namespace {
 
 // Relative L2 error of displacements u (3 x n0) at the coarse nodes not fixed in the coarse model.
 double displacementError(const std::vector<std::uint8_t>& coarseFixed, const Eigen::Matrix3Xd& u,

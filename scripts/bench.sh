@@ -37,6 +37,9 @@ gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plo
   (cd "$data/tet" && "$bin" dt sofa_Armadillo_Tetra_4406.gmsh22.msh --scale 0.01 --worst 5); } > "$D/dt_table43.txt"
 "$B/cutsim" bench stability > "$D/stability.txt"
 
+# mesh improvement against TetGen's and Gmsh's optimisers (thesis Table 5.1)
+"$B/cutsim" bench improve --plot "$D/improve.png" > "$D/improve.txt"
+
 # Table 6.1 (mesh intersection against conforming cuts), and the cut moved through its cell
 "$B/cutsim" bench mi-bar > "$D/mi_bar.txt"
 "$B/cutsim" bench mi-bar --sweep 12 > "$D/mi_bar_sweep.txt"

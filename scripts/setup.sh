@@ -2,7 +2,7 @@
 # Installs the Debian packages cutsim builds and runs with (idempotent; root or sudo).
 set -euo pipefail
 PKGS=(build-essential cmake pkg-config
-      libeigen3-dev libspectra-dev libbullet-dev libtet1.5-dev
+      libeigen3-dev libspectra-dev libbullet-dev libtet1.5-dev libgmsh-dev libcgal-dev
       libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libglfw3-dev libimgui-dev libstb-dev libpng-dev
       nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
       ffmpeg xvfb xauth gnuplot-nox clang-format

@@ -29,9 +29,9 @@ bool haveTetGen() {
 #endif
 }
 
+#ifdef CUTSIM_HAVE_TETGEN
 namespace {
 
-#ifdef CUTSIM_HAVE_TETGEN
 // A closed surface as TetGen facets: coplanar edge-connected triangles become one polygon (their
 // boundary loop) so the cut face is one facet and TetGen is free to triangulate it well.
 struct Plc {
@@ -181,10 +181,14 @@ std::string tetgenReason(int code) {
     }
 }
 
+// Runs TetGen on `in` in a child process and appends its mesh to (X, T).
+void runTetgen(tetgenio& in, const std::string& switches, const std::string& what, std::vector<Eigen::Vector3d>& X,
+               std::vector<Eigen::Vector4i>& T);
+
 // Runs TetGen on one PLC and appends the tets to (X, T).
 void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::string& what,
                        std::vector<Eigen::Vector3d>& X, std::vector<Eigen::Vector4i>& T) {
-    tetgenio in, out;
+    tetgenio in;
     in.firstnumber = 0;
     in.numberofpoints = static_cast<int>(plc.points.size());
     in.pointlist = new REAL[3 * plc.points.size()];
@@ -206,6 +210,12 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
             std::copy(poly.begin(), poly.end(), pg.vertexlist);
         }
     }
+    runTetgen(in, switches, what, X, T);
+}
+
+void runTetgen(tetgenio& in, const std::string& switches, const std::string& what, std::vector<Eigen::Vector3d>& X,
+               std::vector<Eigen::Vector4i>& T) {
+    tetgenio out;
     std::vector<char> sw(switches.begin(), switches.end());
     sw.push_back('\0');
     // TetGen 1.5 frees its mesh twice when it throws (terminatetetgen, then the destructor), so an
@@ -282,9 +292,35 @@ void tetrahedralizePlc(const Plc& plc, const std::string& switches, const std::s
         T.push_back(tt);
     }
 }
-#endif
 
 }  // namespace
+
+TetMesh tetgenOptimize(const TetMesh& mesh, const std::string& switches) {
+    tetgenio in;
+    in.firstnumber = 0;
+    in.numberofpoints = mesh.nodes();
+    in.pointlist = new REAL[3 * static_cast<size_t>(mesh.nodes())];
+    std::copy(mesh.X.data(), mesh.X.data() + 3 * mesh.nodes(), in.pointlist);
+    in.numberofcorners = 4;
+    in.numberoftetrahedra = mesh.elements();
+    in.tetrahedronlist = new int[4 * static_cast<size_t>(mesh.elements())];
+    std::copy(mesh.tets.data(), mesh.tets.data() + 4 * mesh.elements(), in.tetrahedronlist);
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector4i> T;
+    runTetgen(in, switches, mesh.source.empty() ? std::string("a tet mesh") : mesh.source, X, T);
+    TetMesh out;
+    out.X.resize(3, static_cast<Eigen::Index>(X.size()));
+    for (size_t i = 0; i < X.size(); ++i) out.X.col(static_cast<Eigen::Index>(i)) = X[i];
+    out.tets.resize(4, static_cast<Eigen::Index>(T.size()));
+    for (size_t t = 0; t < T.size(); ++t) out.tets.col(static_cast<Eigen::Index>(t)) = T[t];
+    out.source = mesh.source;
+    return out;
+}
+#else
+TetMesh tetgenOptimize(const TetMesh&, const std::string&) {
+    throw RemeshError("TetGen's optimisation needs TetGen (Debian libtet1.5-dev); this build has none");
+}
+#endif
 
 RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts) {
 #ifndef CUTSIM_HAVE_TETGEN

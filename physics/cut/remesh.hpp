@@ -21,6 +21,11 @@ public:
 // True when this build links TetGen; without it the functions below throw RemeshError.
 bool haveTetGen();
 
+// TetGen's own improvement of an existing tet mesh (switches e.g. "rO10/7zQ": reconstruct the
+// mesh, then flips, smoothing and vertex insertion/deletion at optimisation level 10), the
+// baseline of `cutsim bench improve`. Throws RemeshError when TetGen fails or is absent.
+TetMesh tetgenOptimize(const TetMesh& mesh, const std::string& switches);
+
 struct RemeshOptions {
     // TetGen switches: p = the input is a piecewise linear complex (our closed surface),
     // q1.414 = radius-edge ratio bound sqrt(2) (TetGen's quality default, well shaped tets),

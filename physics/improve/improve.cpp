@@ -773,6 +773,35 @@ MeshStepStats meshStepStats(const TetMesh& mesh, const Material& material) {
     return s;
 }
 
+double surfaceDistance(const TetMesh& from, const TetMesh& to) {
+    const Eigen::Matrix3Xi F = boundaryFaces(from), G = boundaryFaces(to);
+    // Each old face's bounding sphere prunes the exact point-triangle distances.
+    std::vector<Vec3> centre(F.cols());
+    std::vector<double> radius(F.cols());
+    for (int f = 0; f < F.cols(); ++f) {
+        centre[f] = (from.X.col(F(0, f)) + from.X.col(F(1, f)) + from.X.col(F(2, f))) / 3;
+        radius[f] = 0;
+        for (int k = 0; k < 3; ++k) radius[f] = std::max(radius[f], (from.X.col(F(k, f)) - centre[f]).norm());
+    }
+    auto distance = [&](const Vec3& p) {
+        double best = std::numeric_limits<double>::infinity();
+        for (int f = 0; f < F.cols(); ++f) {
+            if ((p - centre[f]).norm() - radius[f] >= best) continue;
+            const Vec3 c = closestOnTriangle(p, from.X.col(F(0, f)), from.X.col(F(1, f)), from.X.col(F(2, f)));
+            best = std::min(best, (c - p).norm());
+        }
+        return best;
+    };
+    double worst = 0;
+    for (int g = 0; g < G.cols(); ++g) {
+        const Vec3 p0 = to.X.col(G(0, g)), p1 = to.X.col(G(1, g)), p2 = to.X.col(G(2, g));
+        for (const Vec3& s :
+             {p0, p1, p2, Vec3((p0 + p1) / 2), Vec3((p1 + p2) / 2), Vec3((p2 + p0) / 2), Vec3((p0 + p1 + p2) / 3)})
+            worst = std::max(worst, distance(s));
+    }
+    return worst;
+}
+
 ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     const auto start = WallClock::now();
     const auto deadline =

@@ -65,6 +65,10 @@ struct ImproveReport {
     std::vector<Point> history;  // exact step after each round (round 0: the input)
 };
 
+// Largest distance from the boundary of `to` (its vertices, edge midpoints and face centroids) to
+// the boundary surface of `from` [m]: how far an improver moved the surface.
+double surfaceDistance(const TetMesh& from, const TetMesh& to);
+
 // Improves `mesh` in place (rest positions, elements; unreferenced nodes are dropped, so node
 // numbers may change when edges were collapsed). Never produces an inverted element.
 // Throws EigenSolveError when an exact step cannot be computed.

@@ -205,3 +205,42 @@ TEST(SceneImprove, BadImproveKeysAreNamed) {
 
 }  // namespace
 }  // namespace cutsim
+
+namespace cutsim {
+namespace {
+
+TEST(Improve, ReportedBoundaryDistanceBoundsTheTrueOne) {
+    // The improver measures against the old faces near each moved face, a subset of the old
+    // surface, so its figure is at least the distance to the whole surface.
+    ReadOptions ro;
+    ro.scale = 0.01;
+    const TetMesh input = readTetMesh(test::data("tet/sofa_Armadillo_Tetra_4406.vtu"), ro);
+    TetMesh mesh = input;
+    ImproveOptions o;
+    o.maxRounds = 3;
+    const ImproveReport r = improveMesh(mesh, o);
+    const double d = surfaceDistance(input, mesh);
+    EXPECT_GT(d, 0);
+    EXPECT_LE(d, r.boundaryDistance * (1 + 1e-12));
+    EXPECT_LT(surfaceDistance(input, input), 1e-15);
+    EXPECT_GT(r.after.dtExact, 1.5 * r.before.dtExact);
+}
+
+TEST(CmdBenchImprove, TinyRunGivesEveryMethodARow) {
+    std::string out, err;
+    ASSERT_EQ(test::runCutsim("bench improve --tiny --json", &out, &err), 0) << err;
+    const nlohmann::json j = nlohmann::json::parse(out);
+    ASSERT_EQ(j["meshes"].size(), 1u);
+    const nlohmann::json& m = j["meshes"][0]["methods"];
+    EXPECT_GT(m["cutsim"]["gain"].get<double>(), 1.5);
+    EXPECT_TRUE(m.contains("tetgen -rO10/7"));
+    EXPECT_TRUE(m.contains("gmsh"));  // a row, with its numbers or the reason it failed
+    // The improved liver sags as the input does (error within 10%) at a lower cost.
+    const nlohmann::json& sag = j["liver_sag"];
+    EXPECT_LE(sag[1]["error"].get<double>(), 1.1 * sag[0]["error"].get<double>());
+    EXPECT_LT(sag[1]["wall_per_sim_second"].get<double>(), sag[0]["wall_per_sim_second"].get<double>());
+    EXPECT_LT(std::abs(j["bar_frequency"]["frequency_change"].get<double>()), 0.005);
+}
+
+}  // namespace
+}  // namespace cutsim
