@@ -1,5 +1,5 @@
-// `cutsim bench improve`: the mesh improver against TetGen's and Gmsh's optimisers on the same
-// meshes (thesis Table 5.1), the step gained against time, and what the improvement does to the
+// `cutsim bench improve`: the mesh improver against TetGen's and Gmsh's optimisers and CGAL's
+// mesher on the same meshes (thesis Table 5.1), the step gained against time, and what the improvement does to the
 // physics (the liver's sag, a bar's first frequency).
 #include "bench.hpp"
 #include "commands.hpp"

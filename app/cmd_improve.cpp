@@ -1,4 +1,4 @@
-// `cutsim improve`: raise a tet mesh's stable step by smoothing and flips (docs/method.md sec. 7,
+// `cutsim improve`: raise a tet mesh's stable step by smoothing and flips (docs/method.md sec. 4,
 // thesis sec. 5.1), and write the improved mesh.
 #include "commands.hpp"
 
@@ -120,7 +120,7 @@ void addImproveCommand(CLI::App& app) {
     cmd->add_option("--target-dt", args->opts.targetDt, "Stop once the exact step reaches DT [s]");
     cmd->add_option("--work", args->opts.maxEvaluations,
                     "Work budget in element eigenvalue problems (deterministic); default 200 per element, at "
-                    "least 1e5 (about 1 s per 10,000 elements)");
+                    "least 1e5 (about 1.2 s per 10,000 elements on one core)");
     cmd->add_option("--max-seconds", args->opts.maxSeconds,
                     "Wall-time limit besides (a run it stops depends on the machine's speed)")
         ->capture_default_str();

@@ -37,7 +37,10 @@ void refinedInsideFraction(const SurfaceMesh& s, const std::vector<int>& tris, c
 bool insideFromAnchor(const SurfaceMesh& s, const std::vector<int>& tris, const Eigen::Vector3d& a, bool aInside,
                       const Eigen::Vector3d& x);
 
-// Closest distance from q to triangle (a, b, c) [m] (Ericson, Real-Time Collision Detection 5.1.5).
+// The point of triangle (a, b, c) closest to q (Ericson, Real-Time Collision Detection 5.1.5).
+Eigen::Vector3d closestPointOnTriangle(const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                       const Eigen::Vector3d& c);
+// Closest distance from q to triangle (a, b, c) [m].
 double pointTriangleDistance(const Eigen::Vector3d& q, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                              const Eigen::Vector3d& c);
 

@@ -1,14 +1,15 @@
-// Mesh improvement for a larger stable step (docs/method.md sec. 7, thesis sec. 5.1).
+// Mesh improvement for a larger stable step (docs/method.md sec. 4, thesis sec. 5.1).
 //
 // The objective is the one the thesis keeps its best mesh by, the exact step, through its sharpest
 // local form: the reduced-one-ring eigenvalue lambda_R1R(e) = lambda_max(M_r^-1/2 K_r M_r^-1/2) of
 // each element (K_r the assembled 12x12 rows of its 4 nodes, M_r their lumped masses; Fierz et al.
 // 2012). K_r is a principal submatrix of the assembled K, so every lambda_R1R bounds the global
-// lambda_max from below, and on our meshes their maximum is within 0.1% of it (docs/method.md
-// sec. 3). Moving a node or flipping changes the rows of a few nodes only, so each trial re-solves
-// the 12x12 problems of the elements touching them and nothing else.
+// lambda_max from below, and on the data meshes their maximum is within 1% of it (0.1% on the
+// thesis's liver and armadillo; docs/method.md sec. 3). Moving a node or flipping changes the rows
+// of a few nodes only, so each trial re-solves the 12x12 problems of the elements touching them.
 #include "improve/improve.hpp"
 
+#include "embed/clip.hpp"
 #include "fem/model.hpp"
 #include "fem/tet.hpp"
 #include "timestep/timestep.hpp"
@@ -40,31 +41,6 @@ constexpr double kSoftMaxPower = 16;
 // with a floor for small meshes.
 constexpr long long kEvaluationsPerTet = 200;
 constexpr long long kMinEvaluations = 100000;
-
-double signedVolume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-    return (b - a).dot((c - a).cross(d - a)) / 6.0;
-}
-
-// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection, sec. 5.1.5).
-Vec3 closestOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-    if (d1 <= 0 && d2 <= 0) return a;
-    const Vec3 bp = p - b;
-    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-    if (d3 >= 0 && d4 <= d3) return b;
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
-    const Vec3 cp = p - c;
-    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-    if (d6 >= 0 && d5 <= d6) return c;
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    const double denom = 1.0 / (va + vb + vc);
-    return a + ab * (vb * denom) + ac * (vc * denom);
-}
 
 double minDihedralDeg(const TetMesh& m) {
     static constexpr int kEdges[6][4] = {{0, 1, 2, 3}, {0, 2, 1, 3}, {0, 3, 1, 2},
@@ -101,7 +77,7 @@ public:
         stampN_.assign(n, 0);
         for (int e = 0; e < mesh.elements(); ++e) {
             Tet t{mesh.tets(0, e), mesh.tets(1, e), mesh.tets(2, e), mesh.tets(3, e)};
-            if (signedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3])) < 0) std::swap(t[2], t[3]);
+            if (tetSignedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3])) < 0) std::swap(t[2], t[3]);
             addTet(t);
         }
         elements0_ = mesh.elements();
@@ -262,11 +238,13 @@ private:
         geometry(e);
         scatter(e, 1);
         for (int a : t) nt_[a].push_back(e);
+        ++aliveCount_;
         return e;
     }
     void killTet(int e) {
         scatter(e, -1);
         alive_[e] = 0;
+        --aliveCount_;
         for (int a : T_[e]) {
             auto& v = nt_[a];
             v.erase(std::find(v.begin(), v.end(), e));
@@ -274,6 +252,7 @@ private:
     }
     void reviveTet(int e) {
         alive_[e] = 1;
+        ++aliveCount_;
         geometry(e);
         scatter(e, 1);
         for (int a : T_[e]) nt_[a].push_back(e);
@@ -284,7 +263,7 @@ private:
         double l2 = 0;
         for (int a = 0; a < 4; ++a)
             for (int b = a + 1; b < 4; ++b) l2 = std::max(l2, (X_.col(t[a]) - X_.col(t[b])).squaredNorm());
-        return 6 * signedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3])) / (l2 * std::sqrt(l2));
+        return 6 * tetSignedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3])) / (l2 * std::sqrt(l2));
     }
 
     // ---- the objective --------------------------------------------------------------------------
@@ -313,13 +292,14 @@ private:
             return max < o.max * (1 - 1e-12) || (max <= o.max && soft < o.soft * (1 - 1e-12));
         }
     };
-    Score score(const std::vector<int>& elems) {
+    // Solves elems' problems and scores them; `reference` first makes their maximum the soft
+    // maximum's unit (the start of a node's descent or of a flip).
+    Score score(const std::vector<int>& elems, bool reference = false) {
         evaluate(elems);
         Score s;
-        for (int e : elems) {
-            s.max = std::max(s.max, lam_[e]);
-            s.soft += std::pow(lam_[e] / ref_, kSoftMaxPower);
-        }
+        for (int e : elems) s.max = std::max(s.max, lam_[e]);
+        if (reference) ref_ = s.max;
+        for (int e : elems) s.soft += std::pow(lam_[e] / ref_, kSoftMaxPower);
         return s;
     }
 
@@ -335,7 +315,7 @@ private:
                 }
     }
 
-    // Elements whose R1R step is within a factor of the worst, worst first; sets ref_.
+    // Elements whose R1R step is within a factor of the worst, worst first.
     std::vector<int> criticalElements() {
         std::vector<int> all;
         for (int e = 0; e < static_cast<int>(T_.size()); ++e)
@@ -343,7 +323,6 @@ private:
         evaluate(all);
         double top = 0;
         for (int e : all) top = std::max(top, lam_[e]);
-        ref_ = top;
         std::vector<int> bad;
         for (int e : all)
             if (lam_[e] > 0.5 * top) bad.push_back(e);
@@ -414,7 +393,7 @@ private:
         double best = std::numeric_limits<double>::infinity();
         for (int f : faces) {
             const Tri& t = faces0_[f];
-            best = std::min(best, (closestOnTriangle(p, t[0], t[1], t[2]) - p).squaredNorm());
+            best = std::min(best, (closestPointOnTriangle(p, t[0], t[1], t[2]) - p).squaredNorm());
         }
         return std::sqrt(best);
     }
@@ -435,7 +414,7 @@ private:
         double bd = std::numeric_limits<double>::infinity();
         for (int f : ringFaces_[i]) {
             const Tri& t = faces0_[f];
-            const Vec3 c = closestOnTriangle(p, t[0], t[1], t[2]);
+            const Vec3 c = closestPointOnTriangle(p, t[0], t[1], t[2]);
             const double d = (c - p).squaredNorm();
             if (d < bd) bd = d, best = c;
         }
@@ -512,9 +491,7 @@ private:
         if (onCrease) t1 = (X0_.col(creaseNbr_[i][0]) - X0_.col(creaseNbr_[i][1])).normalized();
         floor_.clear();
         for (int e : nt_[i]) floor_.push_back(std::min(kMinFlatness, flatness(T_[e])));
-        ref_ = 1;
-        ref_ = score(elems).max;
-        Score best = score(elems);
+        Score best = score(elems, true);
         bool moved = false;
         for (int iter = 0; iter < 3; ++iter) {
             const Vec3 x = X_.col(i);
@@ -554,7 +531,6 @@ private:
             }
             if (!accepted) {
                 place(i, x);
-                score(elems);
                 break;
             }
             moved = true;
@@ -576,7 +552,7 @@ private:
             floor = std::min(floor, flatness(T_[e]));
         }
         for (Tet& t : news) {
-            double v = signedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3]));
+            double v = tetSignedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3]));
             if (v < 0) {
                 std::swap(t[2], t[3]);
                 v = -v;
@@ -592,9 +568,7 @@ private:
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
         std::vector<int> elems;
         touching(nodes, elems);
-        ref_ = 1;
-        ref_ = score(elems).max;
-        const Score before = score(elems);
+        const Score before = score(elems, true);
         for (int e : olds) killTet(e);
         std::vector<int> added;
         for (const Tet& t : news) added.push_back(addTet(t));
@@ -602,8 +576,6 @@ private:
         if (score(elems).better(before)) return true;
         for (int e : added) killTet(e);
         for (int e : olds) reviveTet(e);
-        touching(nodes, elems);
-        score(elems);
         return false;
     }
 
@@ -665,8 +637,6 @@ private:
 
     // Collapses the shortest edge of element e that has an interior, movable end into its other end.
     bool collapseShortest(int e) {
-        int alive = 0;
-        for (char c : alive_) alive += c;
         std::array<std::pair<double, std::pair<int, int>>, 12> cand;
         int nc = 0;
         for (int a = 0; a < 4; ++a)
@@ -692,7 +662,7 @@ private:
                     if (v == p) v = q;
                 news.push_back(t);
             }
-            if (alive - removed < (1 - opts_.maxElementLoss) * elements0_) return false;
+            if (aliveCount_ - removed < (1 - opts_.maxElementLoss) * elements0_) return false;
             if (!manifoldAfter(q, olds, news)) continue;
             if (tryReplace(olds, news)) {
                 ++collapses;
@@ -740,7 +710,7 @@ private:
     std::vector<std::vector<Eigen::Matrix3d, Eigen::aligned_allocator<Eigen::Matrix3d>>> blk_;
     std::vector<double> vs_;
     double volume_ = 0, volume0_ = 0, diag_ = 0, ref_ = 1;
-    int elements0_ = 0;
+    int elements0_ = 0, aliveCount_ = 0;
     long long budget_ = 0;
     WallClock::time_point deadline_;
     std::vector<char> movable_, boundary_;
@@ -787,7 +757,7 @@ double surfaceDistance(const TetMesh& from, const TetMesh& to) {
         double best = std::numeric_limits<double>::infinity();
         for (int f = 0; f < F.cols(); ++f) {
             if ((p - centre[f]).norm() - radius[f] >= best) continue;
-            const Vec3 c = closestOnTriangle(p, from.X.col(F(0, f)), from.X.col(F(1, f)), from.X.col(F(2, f)));
+            const Vec3 c = closestPointOnTriangle(p, from.X.col(F(0, f)), from.X.col(F(1, f)), from.X.col(F(2, f)));
             best = std::min(best, (c - p).norm());
         }
         return best;

@@ -1,4 +1,4 @@
-// Mesh improvement for a larger stable time step (docs/method.md sec. 7, thesis sec. 5.1): node
+// Mesh improvement for a larger stable time step (docs/method.md sec. 4, thesis sec. 5.1): node
 // smoothing and flips that lower the largest reduced-one-ring eigenvalue of the mesh, keeping the
 // mesh whose exact step is best.
 #pragma once
@@ -18,7 +18,7 @@ struct ImproveOptions {
     double targetDt = 0;                 // stop once the exact step reaches it (0: no target) [s]
     long long maxEvaluations = 0;        // work budget in reduced-one-ring eigenvalue problems, the
                                          // unit that makes a run deterministic; 0: 200 per element
-                                         // (at least 1e5), about 1 s per 10,000 elements on one core
+                                         // (at least 1e5), about 1.2 s per 10,000 elements on one core
     double maxSeconds = 60;              // wall-time limit besides [s]
     int maxRounds = 40;                  // rounds of smoothing then flips
     bool smooth = true;                  // move nodes
