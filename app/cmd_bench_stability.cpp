@@ -217,9 +217,12 @@ int runStability(const StabilityArgs& a) {
     if (a.cutRuns > 0) {
         if (!a.json)
             std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
-                        "integrator.min_stretch)\n%-10s %6s %6s %6s %9s %9s %14s %15s %13s %12s\n",
-                        a.cutSteps, "object", "limit", "runs", "cuts", "steps", "failures", "inverted runs",
-                        "inverted at end", "limited runs", "min dt ratio");
+                        "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
+                        "scaling) or globally (keepStep))\n%-10s %6s %7s %6s %6s %9s %9s %14s %15s %13s %12s %11s "
+                        "%13s %14s\n",
+                        a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
+                        "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
+                        "floor ms/cut");
         std::vector<std::pair<std::string, Model>> objects;
         objects.emplace_back("bar", randomCutBarModel());
         const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
@@ -227,12 +230,29 @@ int runStability(const StabilityArgs& a) {
         unsigned seed = 21;
         for (const auto& [name, model] : objects) {
             // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
-            for (const double limit : {0.0, 0.2}) {
+            // and with the step floor held locally and globally (timestep/floor.hpp, keepStep)
+            struct Variant {
+                double limit;
+                const char* floor;
+            };
+            using Floor = RandomCutOptions::Floor;
+            for (const Variant& v : {Variant{0.0, "-"}, Variant{0.2, "-"}, Variant{0.2, "local"},
+                                     Variant{0.2, "certified"}, Variant{0.2, "global"}}) {
+                const double limit = v.limit;
+                const std::string fl = v.floor;
+                RandomCutOptions ro{MassLumping::Enrichment, 0.9, limit};
+                ro.stepFloor = fl == "-" ? 0.0 : 0.95;
+                ro.floor = fl == "global" ? Floor::Global : fl == "certified" ? Floor::Certified : Floor::Local;
                 const auto t0 = WallClock::now();
-                const RandomCutStats st =
-                    runRandomCuts(model, a.cutRuns, a.cutSteps, seed, {MassLumping::Enrichment, 0.9, limit});
+                const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, ro);
                 j["random_cuts"].push_back({{"object", name},
                                             {"min_stretch", limit},
+                                            {"floor", v.floor},
+                                            {"cuts_below_floor", st.cutsBelowFloor},
+                                            {"cuts_topped_up", st.toppedUp},
+                                            {"max_added_mass", st.maxAddedMass},
+                                            {"max_floor_seconds", st.maxFloorSeconds},
+                                            {"mean_floor_seconds", st.cuts ? st.floorSeconds / st.cuts : 0.0},
                                             {"runs", st.runs},
                                             {"cuts", st.cuts},
                                             {"steps", st.steps},
@@ -248,10 +268,12 @@ int runStability(const StabilityArgs& a) {
                                             {"first_failure", st.firstFailure},
                                             {"seconds", secondsSince(t0)}});
                 if (!a.json)
-                    std::printf("%-10s %6.2f %6d %6d %9ld %9d %14d %15d %13d %12.4f%s%s\n", name.c_str(), limit,
-                                st.runs, st.cuts, st.steps, st.failures, st.invertedRuns, st.invertedAtEnd,
-                                st.limitedRuns, st.minDtRatio,
-                                st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
+                    std::printf(
+                        "%-10s %6.2f %9s %6d %6d %9ld %9d %14d %15d %13d %12.4f %11d %9d %12.3f%% %6.3f/%-7.3f%s%s\n",
+                        name.c_str(), limit, v.floor, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns,
+                        st.invertedAtEnd, st.limitedRuns, st.minDtRatio, st.cutsBelowFloor, st.toppedUp,
+                        100 * st.maxAddedMass, st.cuts ? 1e3 * st.floorSeconds / st.cuts : 0.0,
+                        1e3 * st.maxFloorSeconds, st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
             }
             ++seed;
         }

@@ -3,6 +3,8 @@
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"
 #include "timestep/analyzer.hpp"
+#include "timestep/floor.hpp"
+#include "util/stopwatch.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -77,6 +79,7 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
     const Eigen::Vector3d lo = base.X.rowwise().minCoeff(), hi = base.X.rowwise().maxCoeff();
     RandomCutRun out;
     Model m = base;
+    const double totalMass = m.mass.sum();
     State s = makeState(m);
     TimestepAnalyzer ta(m);
     CutOptions co;
@@ -122,8 +125,24 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
         out.maxVolumeError = std::max(out.maxVolumeError, std::abs(r.volumeAfter - r.volumeBefore) / r.volumeBefore);
         out.maxMassError = std::max(out.maxMassError, std::abs(r.massAfter - r.massBefore) / r.massBefore);
         ta.update(m, r.changedElements, r.changedNodes);
+        if (ro.stepFloor > 0) {
+            Stopwatch sw;
+            if (ro.floor == RandomCutOptions::Floor::Global) {
+                keepStep(m, ta.rows(), ro.stepFloor * dt0);
+                ta.compute(m);
+            } else if (ro.floor == RandomCutOptions::Floor::Certified) {
+                out.toppedUp += holdStepFloorCertified(m, ta, ro.stepFloor * dt0).toppedUp;
+            } else {
+                holdStepFloor(m, ta, ro.stepFloor * dt0);
+            }
+            const double sec = sw.seconds();
+            out.floorSeconds += sec;
+            out.maxFloorSeconds = std::max(out.maxFloorSeconds, sec);
+            out.addedMass = m.addedMass.size() ? m.addedMass.sum() / totalMass : 0.0;
+        }
         const double dt = ta.exact(m).dt;
         out.minDtRatio = std::min(out.minDtRatio, dt / dt0);
+        if (ro.stepFloor > 0 && dt < ro.stepFloor * dt0 * (1 - 1e-6)) ++out.cutsBelowFloor;
         opt.dt = ro.dtFactor * dt;
         stepper.reset();
     }
@@ -161,6 +180,11 @@ RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsi
         st.minDtRatio = std::min(st.minDtRatio, r.minDtRatio);
         st.maxVolumeError = std::max(st.maxVolumeError, r.maxVolumeError);
         st.maxMassError = std::max(st.maxMassError, r.maxMassError);
+        st.maxAddedMass = std::max(st.maxAddedMass, r.addedMass);
+        st.maxFloorSeconds = std::max(st.maxFloorSeconds, r.maxFloorSeconds);
+        st.floorSeconds += r.floorSeconds;
+        st.cutsBelowFloor += r.cutsBelowFloor;
+        st.toppedUp += r.toppedUp;
         st.failures += r.failed;
         st.invertedRuns += r.inverted;
         st.invertedAtEnd += r.invertedAtEnd;

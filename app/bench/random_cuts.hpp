@@ -8,6 +8,7 @@
 #include "fem/model.hpp"
 #include "mesh/mesh.hpp"
 
+#include <cstdint>
 #include <random>
 #include <string>
 #include <vector>
@@ -28,6 +29,12 @@ struct RandomCutStats {
     double minDtRatio = 1;      // smallest exact dt after a cut over the uncut one [-]
     double maxVolumeError = 0;  // largest |volume after - before| / before of a cut [-]
     double maxMassError = 0;    // largest |mass after - before| / before of a cut [-]
+    // With a step floor (RandomCutOptions::stepFloor):
+    double maxAddedMass = 0;     // largest mass added over a sequence, over the object's mass [-]
+    double maxFloorSeconds = 0;  // slowest floor update of a cut [s]
+    double floorSeconds = 0;     // all floor updates [s]
+    int cutsBelowFloor = 0;      // cuts whose exact step stayed under the floor after it
+    int toppedUp = 0;            // cuts the certified floor topped up globally
     std::string firstFailure;
 };
 
@@ -35,15 +42,19 @@ struct RandomCutStats {
 struct RandomCutRun {
     int cuts = 0;
     long steps = 0;
-    bool failed = false;                          // a non-finite value or a speed above kBlowUpSpeed
-    bool inverted = false;                        // some element had det F <= 0
-    bool invertedAtEnd = false;                   // an element still had det F <= 0 at the last step
-    long limitedSteps = 0;                        // steps in which stretch limiting corrected an element
-    int maxLimited = 0;                           // most elements it corrected in one step
-    double maxSpeed = 0;                          // [m/s]
-    double minDtRatio = 1;                        // smallest exact dt after a cut over the uncut one [-]
-    double maxVolumeError = 0, maxMassError = 0;  // relative, over the cuts [-]
-    std::string failure;                          // where it blew up
+    bool failed = false;                           // a non-finite value or a speed above kBlowUpSpeed
+    bool inverted = false;                         // some element had det F <= 0
+    bool invertedAtEnd = false;                    // an element still had det F <= 0 at the last step
+    long limitedSteps = 0;                         // steps in which stretch limiting corrected an element
+    int maxLimited = 0;                            // most elements it corrected in one step
+    double maxSpeed = 0;                           // [m/s]
+    double minDtRatio = 1;                         // smallest exact dt after a cut over the uncut one [-]
+    double maxVolumeError = 0, maxMassError = 0;   // relative, over the cuts [-]
+    double addedMass = 0;                          // mass the floor added, over the object's mass [-]
+    double floorSeconds = 0, maxFloorSeconds = 0;  // the floor's updates: all, slowest [s]
+    int cutsBelowFloor = 0;                        // cuts whose exact step stayed under the floor
+    int toppedUp = 0;                              // cuts the certified floor topped up globally
+    std::string failure;                           // where it blew up
     // The first inverted element: after which cut (0: before any), at which step after it, its
     // fraction, its prescribed corners, and the piece it belongs to (elements, volume share of
     // the object, prescribed nodes).
@@ -70,6 +81,10 @@ struct RandomCutOptions {
     double dtFactor = 0.9;                      // step / exact dt of the current model [-]
     double minStretch = 0;                      // StepOptions::minStretch, 0: off [-]
     double fuseReach = CutOptions{}.fuseReach;  // CutOptions::fuseReach [-]
+    // Step floor after each cut, as a fraction of the uncut exact step (0: none), held by
+    // holdStepFloor (local) or keepStep (global selective mass scaling, an eigen-solve per round).
+    double stepFloor = 0;
+    enum class Floor : std::uint8_t { Local, Certified, Global } floor = Floor::Local;
 };
 
 // One sequence of 1-4 random planes through the model's box, the generator seeded with

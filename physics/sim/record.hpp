@@ -62,6 +62,7 @@ struct RunRecord {
     double maxDisplacement = 0;  // largest node displacement seen [m]
     int cutsMade = 0;            // cuts that split elements (a blade stroke counts once)
     long bladeCutSteps = 0;      // steps in which a blade split elements
+    double floorMass = 0;        // mass the step floor added after cuts (cutting.step_floor) [kg]
     ToolRecord tool;
     nlohmann::json compare;  // cutting.compare results (null: none)
     nlohmann::json initial;  // the object before the first step: nodes, elements, fixed_nodes, mass

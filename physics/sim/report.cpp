@@ -160,7 +160,9 @@ json Simulation::report(const json& extra) const {
     const std::vector<double> pieces = pieceVolumes(model_);
     report["pieces"] = pieces.size();
     report["piece_volumes"] = pieces;
-    report["mass"] = {{"initial", rec_.initial.value("mass", 0.0)}, {"final", model_.mass.sum()}};
+    report["mass"] = {{"initial", rec_.initial.value("mass", 0.0)},
+                      {"final", model_.mass.sum()},
+                      {"step_floor_added", rec_.floorMass}};
     report["energy"] = rec_.energy;
     report["inverted"] = {{"steps", rec_.invertedSteps},
                           {"max_elements", rec_.maxInverted},

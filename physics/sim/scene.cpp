@@ -506,6 +506,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
             parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
         s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
         s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+        s.cutting.stepFloor = c.number("step_floor", Cutting{}.stepFloor, 0, 1);
         const Cutting dflt;
         s.cutting.mergeDebris = c.boolean("merge_debris", dflt.mergeDebris);
         s.cutting.relaxIterations = c.integer("relax_iterations", dflt.relaxIterations, 0, 100);

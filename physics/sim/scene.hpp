@@ -111,7 +111,11 @@ struct Cutting {
     MassLumping lumping = MassLumping::Enrichment;  // cutting.lumping: row_sum | weighted_diagonal | enrichment
     double minFraction = CutOptions{}.minFraction;  // sides below this share of their element merge into the other [-]
     bool exactAfterCut = true;                      // exact dt (global eigen-solve) after every cut, for the report
-    bool mergeDebris = CutOptions{}.mergeDebris;    // CutOptions::mergeDebris
+    // Floor under the step after cuts, as a fraction of the uncut object's exact step (0: none;
+    // explicit schemes only): local mass scaling (timestep/floor.hpp), certified by the exact
+    // step when exactAfterCut, topped up globally when that is still under it.
+    double stepFloor = 0.95;
+    bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
     int relaxIterations = CutOptions{}.relaxIterations;  // CutOptions::relaxIterations
     double lightShare = CutOptions{}.lightShare;         // CutOptions::lightShare [-]
     std::vector<std::string> compare;                    // baselines run on the rest mesh with the same planes:

@@ -4,6 +4,7 @@
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "timestep/floor.hpp"
 #include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
@@ -728,16 +729,35 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
     // Local update of the estimators and the certified bound around the cut; no global solve.
     Stopwatch sw;
     ta_.update(model_, r.changedElements, r.changedNodes);
+    // The step floor: local mass scaling around the cut, then (with the exact step) certified.
+    const double dtFloor = sc_.cutting.stepFloor * initial_.exact;
+    const bool holdFloor = dtFloor > 0 && std::isfinite(dtFloor) && sc_.integrator != Integrator::BackwardEuler;
+    StepFloorResult floor;
+    if (holdFloor) floor = holdStepFloor(model_, ta_, dtFloor);
     const double updateSeconds = sw.lap();
-    limits_.certified = ta_.certifiedDt();
-    limits_.estimate = ta_.minDt().r1r;
     limits_.exact = std::numeric_limits<double>::quiet_NaN();
     double exactSeconds = 0;
+    KeepStepResult topUp;
     if (sc_.cutting.exactAfterCut) {
-        limits_.exact = ta_.exact(model_).dt;
+        if (holdFloor) {
+            const Eigen::VectorXd before = model_.addedMass;
+            topUp = keepStep(model_, ta_.rows(), dtFloor);
+            limits_.exact = topUp.dtAfter;
+            if (topUp.addedMass > 0) {
+                std::vector<int> changed;
+                for (int i = 0; i < model_.nodes(); ++i)
+                    if (model_.addedMass(i) != before(i)) changed.push_back(i);
+                ta_.update(model_, {}, changed);
+            }
+        } else {
+            limits_.exact = ta_.exact(model_).dt;
+        }
         exactSeconds = sw.lap();
     }
+    limits_.certified = ta_.certifiedDt();
+    limits_.estimate = ta_.minDt().r1r;
     rec_.stages[Stage::Timestep] += updateSeconds + exactSeconds;
+    rec_.floorMass += floor.addedMass + topUp.addedMass;
     stepper_.reset();
     // The one after-cut rule: the scene's policy chosen again at the new limits.
     chooseAndApply(false);
@@ -780,6 +800,15 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
          {"seconds", r.seconds},
          {"update_seconds", updateSeconds},
          {"exact_seconds", exactSeconds},
+         {"step_floor", holdFloor ? json{{"dt", dtFloor},
+                                         {"added_mass", floor.addedMass + topUp.addedMass},
+                                         {"local_added_mass", floor.addedMass},
+                                         {"nodes", floor.nodes},
+                                         {"elements_under", floor.elements},
+                                         {"sweeps", floor.sweeps},
+                                         {"topped_up", topUp.addedMass > 0},
+                                         {"seconds", floor.seconds}}
+                                  : json(nullptr)},
          {"dt_after",
           {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
            {"certified", limits_.certified},

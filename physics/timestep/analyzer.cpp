@@ -38,6 +38,7 @@ void TimestepAnalyzer::compute(const Model& m) {
     stamp_ = 0;
     free_.resize(m.nodes());
     for (int i = 0; i < m.nodes(); ++i) free_[i] = m.invMass(i) > 0;
+    elems_.clear();
     stats_ = {true, m.nodes(), m.elements(), m.nodes(), secondsSince(t0)};
 }
 

@@ -65,6 +65,8 @@ public:
         double seconds = 0;  // wall time
     };
     const UpdateStats& lastUpdate() const { return stats_; }
+    // Elements whose one-ring estimates the last update() recomputed (empty after compute()).
+    const std::vector<int>& lastElements() const { return elems_; }
 
 private:
     StiffnessRows rows_;

@@ -133,11 +133,14 @@ TopModes topModes(const Model& m, const StiffnessRows& rows, int k, int ncvMin, 
 }  // namespace
 
 KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts) {
+    return keepStep(m, assembleStiffnessRows(m), dtTarget, opts);
+}
+
+KeepStepResult keepStep(Model& m, const StiffnessRows& rows, double dtTarget, const KeepStepOptions& opts) {
     if (!(dtTarget > 0) || !std::isfinite(dtTarget))
         throw std::invalid_argument("keepStep: target step must be positive and finite");
     KeepStepResult res;
     res.dtTarget = dtTarget;
-    const StiffnessRows rows = assembleStiffnessRows(m);  // K does not change, only M
     const double lamTarget = 4 / (dtTarget * dtTarget), lamAim = lamTarget * (1 - opts.margin);
     // At the target to the solver's tolerance: rounding must not add mass to the lattice itself.
     const double lamAbove = lamTarget * (1 + opts.exact.tol);

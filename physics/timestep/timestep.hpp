@@ -97,6 +97,8 @@ struct KeepStepResult {
 // Throws EigenSolveError when an eigen-solve fails; leaves the model scaled as far as it got
 // (reached = false) when maxRounds is not enough.
 KeepStepResult keepStep(Model& m, double dtTarget, const KeepStepOptions& opts = {});
+// The same with the model's assembled rows at hand (K does not change, only M).
+KeepStepResult keepStep(Model& m, const StiffnessRows& rows, double dtTarget, const KeepStepOptions& opts = {});
 
 // Gershgorin bound on row i of M^-1/2 K M^-1/2 (max over its 3 free DOFs; 0 for a fixed node):
 // sum_j |K_ij| / sqrt(m_i m_j), free j only. max_i of it bounds lambda_max from above.

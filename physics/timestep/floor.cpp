@@ -1,0 +1,119 @@
+#include "timestep/floor.hpp"
+
+#include "util/stopwatch.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace cutsim {
+
+double r1rTopMode(const Model& m, const StiffnessRows& rows, int e, Eigen::Matrix<double, 12, 1>& y) {
+    // The matrix of r1rBlock (timestep.cpp): M_r^-1/2 K_r M_r^-1/2 from the assembled rows.
+    Eigen::Matrix<double, 12, 12> A = Eigen::Matrix<double, 12, 12>::Zero();
+    int n[4];
+    double sq[4];
+    for (int a = 0; a < 4; ++a) n[a] = m.tets(a, e), sq[a] = std::sqrt(m.invMass(n[a]));
+    for (int a = 0; a < 4; ++a) {
+        const std::vector<int>& nb = rows.nbr[static_cast<size_t>(n[a])];
+        for (int b = 0; b < 4; ++b) {
+            const auto it = std::find(nb.begin(), nb.end(), n[b]);
+            if (it == nb.end()) continue;
+            const Eigen::Matrix3d& K = rows.block[static_cast<size_t>(n[a])][static_cast<size_t>(it - nb.begin())];
+            A.block<3, 3>(3 * a, 3 * b) = sq[a] * sq[b] * K;
+        }
+    }
+    A = 0.5 * (A + A.transpose()).eval();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(A);
+    y = eig.eigenvectors().col(11);
+    return eig.eigenvalues()(11);
+}
+
+StepFloorResult holdStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, const StepFloorOptions& opts) {
+    Stopwatch sw;
+    StepFloorResult res;
+    res.dtFloor = dtFloor;
+    if (!(dtFloor > 0) || !std::isfinite(dtFloor)) return res;
+    const double lamAim = 4 / (dtFloor * dtFloor) * (1 - opts.margin) / std::max(opts.coherence, 1.0);
+    // An R1R step is compared with the aim's step to a hair under it, so a sweep that brought a
+    // mode exactly to the aim does not start another.
+    const double dtAim = 2 / std::sqrt(lamAim) * (1 - 1e-9);
+    if (m.addedMass.size() != m.nodes()) {
+        const Eigen::Index old = m.addedMass.size();
+        m.addedMass.conservativeResize(m.nodes());
+        if (m.addedMass.size() > old) m.addedMass.tail(m.addedMass.size() - old).setZero();
+    }
+    std::vector<int> above;
+    std::unordered_map<int, double> dm;  // node -> mass it asks for this sweep
+    std::unordered_map<int, char> given;
+    std::vector<int> changed;
+    Eigen::Matrix<double, 12, 1> y;
+    for (;;) {
+        const Eigen::VectorXd& r1r = ta.estimates().r1r;
+        above.clear();
+        for (int e : ta.lastElements())
+            if (r1r(e) < dtAim) above.push_back(e);
+        if (res.sweeps == 0) res.elements = static_cast<int>(above.size());
+        if (above.empty()) {
+            res.reached = true;
+            break;
+        }
+        if (res.sweeps == opts.maxSweeps) break;
+        ++res.sweeps;
+        dm.clear();
+        for (int e : above) {
+            const double lam = r1rTopMode(m, ta.rows(), e, y);
+            if (!(lam > lamAim)) continue;
+            double w[4], sumW2 = 0;
+            for (int a = 0; a < 4; ++a) {
+                w[a] = m.invMass(m.tets(a, e)) > 0 ? y.segment<3>(3 * a).squaredNorm() : 0.0;
+                sumW2 += w[a] * w[a];
+            }
+            const double beta = (lam / lamAim - 1) / sumW2;
+            for (int a = 0; a < 4; ++a) {
+                if (!(w[a] > 0)) continue;
+                const int i = m.tets(a, e);
+                double& d = dm[i];
+                d = std::max(d, beta * m.mass(i) * w[a]);  // the most any element asks, not the sum
+            }
+        }
+        if (dm.empty()) break;
+        changed.clear();
+        for (const auto& [i, d] : dm) {
+            m.addedMass(i) += d;
+            m.mass(i) += d;
+            m.invMass(i) = 1 / m.mass(i);
+            res.addedMass += d;
+            given[i] = 1;
+            changed.push_back(i);
+        }
+        std::sort(changed.begin(), changed.end());  // deterministic order for the update
+        ta.update(m, {}, changed);
+    }
+    res.nodes = static_cast<int>(given.size());
+    res.seconds = sw.seconds();
+    return res;
+}
+
+CertifiedFloorResult holdStepFloorCertified(Model& m, TimestepAnalyzer& ta, double dtFloor,
+                                            const StepFloorOptions& opts, const KeepStepOptions& keep) {
+    Stopwatch sw;
+    CertifiedFloorResult res;
+    res.local = holdStepFloor(m, ta, dtFloor, opts);
+    const Eigen::VectorXd before = m.addedMass;
+    res.topUp = keepStep(m, ta.rows(), dtFloor, keep);
+    res.dtExact = res.topUp.dtAfter;
+    res.toppedUp = res.topUp.addedMass > 0;
+    if (res.toppedUp) {
+        std::vector<int> changed;
+        for (int i = 0; i < m.nodes(); ++i)
+            if (m.addedMass(i) != before(i)) changed.push_back(i);
+        ta.update(m, {}, changed);
+    }
+    res.seconds = sw.seconds();
+    return res;
+}
+
+}  // namespace cutsim
