@@ -114,7 +114,7 @@ struct ImplicitWorkspace {
             }
         const bool corot = m.elementModel == ElementModel::Corotational;
         for (int e = 0; e < nElems; ++e) {
-            Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.volume(e) * m.fraction(e), m.material);
+            Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.stiffnessVolume(e), m.material);
             if (corot) {
                 const Eigen::Map<const Eigen::Matrix3d> R(s.rot.col(e).data());
                 for (int a = 0; a < 4; ++a)
@@ -242,6 +242,17 @@ void Stepper::dampLight(const Model& m, State& s, double dt) const {
     }
 }
 
+const double* Stepper::forceFactors(const Model& m, const double* alpha) {
+    if (m.matchedList.empty()) return alpha;
+    matchAlpha_.resize(m.elements());
+    if (alpha)
+        matchAlpha_ = Eigen::Map<const Eigen::VectorXd>(alpha, m.elements());
+    else
+        matchAlpha_.setOnes();
+    for (const int e : m.matchedList) matchAlpha_(e) = 0;  // moved by shape matching, not by forces
+    return matchAlpha_.data();
+}
+
 void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {
     if (opt.minStretch > 0 && nearFlat > 0) s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_);
 }
@@ -249,7 +260,7 @@ void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFl
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     forceSeconds_ = 0;
     const double dt = opt.dt, c = m.massDamping;
-    const double* alpha = opt.alphaElem ? opt.alphaElem->data() : nullptr;
+    const double* alpha = forceFactors(m, opt.alphaElem ? opt.alphaElem->data() : nullptr);
     const double watch = opt.minStretch > 0 ? opt.minStretch + kStretchWatchMargin : 0;
     const int n = m.nodes();
     const int nearBefore = s.flags.nearFlat;  // Newmark moves before its force stage
@@ -263,6 +274,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
         forces(m, s, alpha, watch, false, &up);
         s.flags.nonFinite = up.nonFinite;
         if (!m.lightNodes.empty()) dampLight(m, s, dt);
+        shapeMatch(m, s, dt, match_);
         limit(m, s, opt, s.flags.nearFlat);
         break;
     }
@@ -274,6 +286,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
         forces(m, s, alpha, watch, false, &up);
         s.flags.nonFinite = up.nonFinite;
         if (!m.lightNodes.empty()) dampLight(m, s, dt);
+        shapeMatch(m, s, dt, match_);
         s.started = true;
         limit(m, s, opt, s.flags.nearFlat);
         break;
@@ -307,12 +320,15 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
             s.v.col(i) = (cm * s.v.col(i) + 0.5 * dt * al * (s.a.col(i) + aNew)) * cp;
             s.a.col(i) = aNew;
         }
+        shapeMatch(m, s, dt, match_);
         break;
     }
     case Integrator::BackwardEuler: {
         if (!implicit_) implicit_ = std::make_unique<ImplicitWorkspace>();
-        forces(m, s, nullptr, watch, true);  // the tangent is assembled from every element's R
+        // the tangent is assembled from every element's R; no damping factors (matched elements: none)
+        forces(m, s, forceFactors(m, nullptr), watch, true);
         implicit_->step(m, s, opt);
+        shapeMatch(m, s, dt, match_);
         limit(m, s, opt, s.flags.nearFlat);
         break;
     }
@@ -324,7 +340,7 @@ void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     // stretch limiting).
     const bool counted =
         opt.integrator == Integrator::SymplecticEuler || opt.integrator == Integrator::CentralDifference;
-    if (!counted || !m.lightNodes.empty() || s.flags.limited > 0) checkFinite(m, s);
+    if (!counted || !m.lightNodes.empty() || !m.matchedList.empty() || s.flags.limited > 0) checkFinite(m, s);
 }
 
 }  // namespace cutsim

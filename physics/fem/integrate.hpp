@@ -9,6 +9,7 @@
 //   4. checks    stretch limiting when asked; non-finite values and inverted elements into state.flags
 #pragma once
 
+#include "fem/shape_matching.hpp"
 #include "fem/state.hpp"
 
 #include <memory>
@@ -87,6 +88,9 @@ private:
     double forceSeconds_ = 0;
     std::vector<int> limitScratch_;  // elements below the smallest stretch (reused)
     Eigen::Matrix3Xd lightMean_;     // mean velocity around each of Model::lightNodes at the step's start [m/s]
+    ShapeMatchScratch match_;        // hybrid elements' shape matching (Model::matched)
+    Eigen::VectorXd matchAlpha_;     // per-element force factor with the matched elements at 0
+    const double* forceFactors(const Model& m, const double* alpha);
     void lightMeans(const Model& m, const State& s);
     void dampLight(const Model& m, State& s, double dt) const;
 };

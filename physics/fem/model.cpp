@@ -85,7 +85,7 @@ Eigen::SparseMatrix<double> assembleStiffness(const Model& m) {
     std::vector<Eigen::Triplet<double>> trips;
     trips.reserve(static_cast<size_t>(m.elements()) * 144);
     for (int e = 0; e < m.elements(); ++e) {
-        const Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.volume(e) * m.fraction(e), m.material);
+        const Mat12 K = elementStiffness(shapeGradients(m.dmInv(e)), m.stiffnessVolume(e), m.material);
         for (int a = 0; a < 4; ++a)
             for (int b = 0; b < 4; ++b)
                 for (int i = 0; i < 3; ++i)

@@ -54,6 +54,17 @@ struct Model {
     // Empty for an uncut model.
     std::vector<int> lightNodes;
 
+    // Hybrid elements (Fierz et al. 2012; timestep/hybrid.hpp): moved by shape matching (Mueller et
+    // al. 2005) after each explicit step instead of by FEM forces, so their stiffness leaves K, the
+    // force stage and the step's limit (nElems or shorter; missing entries are 0). Empty: none.
+    std::vector<std::uint8_t> matched;
+    std::vector<int> matchedList;  // the elements with matched[e] = 1, ascending
+    double matchStiffness = 1;     // shape matching's alpha in (0, 1]: share of the way to the goal per step
+
+    bool isMatched(int e) const { return static_cast<size_t>(e) < matched.size() && matched[static_cast<size_t>(e)]; }
+    // V fraction for the stiffness: 0 for a matched element.
+    double stiffnessVolume(int e) const { return isMatched(e) ? 0.0 : volume(e) * fraction(e); }
+
     // Node -> incident element slots (CSR): slot s = 4*e + a means local node a of element e; a
     // node's slots in ascending element order (computeForces sums in it and finds the nodes two
     // threads share from the first and last).

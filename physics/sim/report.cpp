@@ -148,6 +148,10 @@ json Simulation::report(const json& extra) const {
                       {"elements_final", model_.elements()}};
     if (!embedding_.is_null()) report["embedding"] = embedding_;
     if (!improvement_.is_null()) report["improve"] = improvement_;
+    if (!hybrid_.is_null()) {
+        report["hybrid"] = hybrid_;
+        report["hybrid"]["matched_final"] = model_.matchedList.size();
+    }
     report["cuts"] = rec_.cuts;
     if (bladePhase_)
         report["blade"] = {{"tools", bladeTools_},

@@ -422,9 +422,11 @@ SceneDef parseScene(const json& j, const std::string& file) {
             }
         }
         s.anySize = o.boolean("any_size", false);
-        s.element = o.string("element", "corotational", {"corotational", "linear"}) == "linear"
-                        ? ElementModel::Linear
-                        : ElementModel::Corotational;
+        const std::string element = o.string("element", "corotational", {"corotational", "linear", "hybrid"});
+        s.element = element == "linear" ? ElementModel::Linear : ElementModel::Corotational;
+        s.hybrid = element == "hybrid";
+        s.hybridThreshold = o.number("hybrid_threshold", s.hybridThreshold, 1, 10);
+        s.matchStiffness = o.number("match_stiffness", s.matchStiffness, 0, 1, true);
         o.finish();
     }
     if (root.has("material")) {

@@ -149,6 +149,11 @@ struct SceneDef {
     ImproveOptions improveOptions;  // its options (material and fixed nodes set at load)
     bool anySize = false;           // object.any_size: allow an object under 1 mm or over 10 m across
     ElementModel element = ElementModel::Corotational;
+    // object.element "hybrid": corotational FEM with the elements that would limit the step moved
+    // by shape matching (timestep/hybrid.hpp), identified on load and after each cut.
+    bool hybrid = false;
+    double hybridThreshold = 1.1;  // object.hybrid_threshold: R1R step under this x dt_sim is matched [-]
+    double matchStiffness = 1;     // object.match_stiffness: shape matching's alpha, (0, 1] [-]
 
     Material material;
     double damping = 0;  // mass-proportional damping [1/s]

@@ -5,6 +5,7 @@
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/floor.hpp"
+#include "timestep/hybrid.hpp"
 #include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
@@ -188,6 +189,22 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
         exact = ta_.exact(model_);
     } catch (const EigenSolveError& e) {
         throw EigenSolveError(sc_.file + ": " + e.what());
+    }
+    if (sc_.hybrid) {
+        // Thesis sec. 5.2.1: dt_sim = 0.95 of the exact step of the FEM object; the elements under
+        // threshold x dt_sim are matched, now and after each cut.
+        hybridDtSim_ = 0.95 * exact.dt;
+        model_.matchStiffness = sc_.matchStiffness;
+        const HybridResult h =
+            matchCriticalCertified(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold}, true);
+        hybrid_ = {{"dt_sim", hybridDtSim_},
+                   {"threshold", sc_.hybridThreshold},
+                   {"match_stiffness", sc_.matchStiffness},
+                   {"dt_fem_only", exact.dt},
+                   {"matched", h.matched},
+                   {"matched_share", double(h.matched) / model_.elements()},
+                   {"seconds", h.seconds}};
+        exact.dt = h.dtExact;
     }
     limits_ = {exact.dt, ta_.certifiedDt(), ta_.minDt().r1r};
     initial_ = limits_;
@@ -730,16 +747,24 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
     Stopwatch sw;
     ta_.update(model_, r.changedElements, r.changedNodes);
     // The step floor: local mass scaling around the cut, then (with the exact step) certified.
+    // The hybrid instead matches what the cut made critical (no mass added).
     const double dtFloor = sc_.cutting.stepFloor * initial_.exact;
-    const bool holdFloor = dtFloor > 0 && std::isfinite(dtFloor) && sc_.integrator != Integrator::BackwardEuler;
+    const bool holdFloor =
+        !sc_.hybrid && dtFloor > 0 && std::isfinite(dtFloor) && sc_.integrator != Integrator::BackwardEuler;
     StepFloorResult floor;
+    HybridResult hybrid;
     if (holdFloor) floor = holdStepFloor(model_, ta_, dtFloor);
+    if (sc_.hybrid && !sc_.cutting.exactAfterCut)
+        hybrid = matchCritical(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold});
     const double updateSeconds = sw.lap();
     limits_.exact = std::numeric_limits<double>::quiet_NaN();
     double exactSeconds = 0;
     KeepStepResult topUp;
     if (sc_.cutting.exactAfterCut) {
-        if (holdFloor) {
+        if (sc_.hybrid) {
+            hybrid = matchCriticalCertified(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold});
+            limits_.exact = hybrid.dtExact;
+        } else if (holdFloor) {
             const Eigen::VectorXd before = model_.addedMass;
             topUp = keepStep(model_, ta_.rows(), dtFloor);
             limits_.exact = topUp.dtAfter;
@@ -809,6 +834,8 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
                                          {"topped_up", topUp.addedMass > 0},
                                          {"seconds", floor.seconds}}
                                   : json(nullptr)},
+         {"hybrid", sc_.hybrid ? json{{"added", hybrid.added}, {"matched", hybrid.matched}, {"seconds", hybrid.seconds}}
+                               : json(nullptr)},
          {"dt_after",
           {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
            {"certified", limits_.certified},

@@ -192,6 +192,8 @@ private:
     std::unique_ptr<EmbeddedSurface> embedded_;  // an MI object's surface in the uncut lattice
     nlohmann::json embedding_;                   // MI set-up for the report (null: a tet mesh object)
     nlohmann::json improvement_;                 // object.improve for the report (null: not asked)
+    nlohmann::json hybrid_;                      // object.element "hybrid" on load, for the report (null: not)
+    double hybridDtSim_ = 0;                     // the hybrid's dt_sim: 0.95 of the FEM object's exact step [s]
     TetMesh rest_;                               // the uncut rest mesh, for cutting.compare
     std::unique_ptr<EmbeddedSurface> surface_;   // drawn surface after cuts (see surface())
     int topologyVersion_ = 0;

@@ -48,7 +48,7 @@ void assembleStiffnessRow(const Model& m, int i, std::vector<int>& nbr, std::vec
     const double lam = m.material.lambda(), mu = m.material.mu();
     for (int s = s0; s < s1; ++s) {
         const int e = m.nodeSlots[s] / 4, a = m.nodeSlots[s] % 4;
-        const double V = m.volume(e) * m.fraction(e);
+        const double V = m.stiffnessVolume(e);
         const Mat34 g = shapeGradients(m.dmInv(e));
         const Eigen::Vector3d la = V * lam * g.col(a), ma = V * mu * g.col(a);
         for (int b = 0; b < 4; ++b) {
@@ -83,7 +83,7 @@ Eigen::Vector3d nodeStiffnessDiagonal(const Model& m, int i) {
         Eigen::Vector3d ga;
         for (int k = 0; k < 3; ++k) ga(k) = a > 0 ? dm[3 * k + a - 1] : -(dm[3 * k] + dm[3 * k + 1] + dm[3 * k + 2]);
         const Eigen::Vector3d sq = ga.cwiseAbs2();
-        const double sum = sq.sum(), V = m.volume(e) * m.fraction(e);
+        const double sum = sq.sum(), V = m.stiffnessVolume(e);
         for (int k = 0; k < 3; ++k) d(k) += V * (eh * sq(k) + mu * (sum - sq(k)));
     }
     return d;
