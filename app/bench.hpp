@@ -195,6 +195,7 @@ void addStepCostBench();   // cmd_bench_step.cpp
 void addContactBench();    // cmd_bench_contact.cpp
 void addCaptureBench();    // cmd_bench_capture.cpp
 void addImproveBench();    // cmd_bench_improve.cpp
+void addCutStepBench();    // cmd_bench_cutstep.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);

@@ -749,6 +749,7 @@ void registerBenchExtensions() {
     addContactBench();        // cmd_bench_contact.cpp: contact cost and penetration
     addCaptureBench();        // cmd_bench_capture.cpp: capture frames per second
     addImproveBench();        // cmd_bench_improve.cpp: mesh improvement against TetGen and Gmsh
+    addCutStepBench();        // cmd_bench_cutstep.cpp: Tables 5.5 and 5.6, the step through cuts
     addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 

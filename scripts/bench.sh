@@ -44,6 +44,9 @@ gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plo
 "$B/cutsim" bench mi-bar > "$D/mi_bar.txt"
 "$B/cutsim" bench mi-bar --sweep 12 > "$D/mi_bar_sweep.txt"
 
+# the step through four plane cuts per cutting method (thesis Tables 5.5 and 5.6)
+"$B/cutsim" bench cutstep > "$D/cutstep.txt"
+
 # per-stage cost of a scene
 "$B/cutsim" bench cost assets/scenes/bar_sag.json --set duration=0.5 > "$D/cost.txt"
 

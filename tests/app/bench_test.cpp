@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <unistd.h>
 
@@ -422,6 +423,38 @@ TEST(BenchStep, TinyRunContract) {
         EXPECT_EQ(j["runs"][k]["threads"], 1 + k / 2);
         EXPECT_EQ(j["runs"][k]["precision"], precisions[k % 2]);
     }
+}
+
+// Tables 5.5 and 5.6 on the bar: four cuts per method; the floor holds 0.95 of the uncut step
+// after every cut; subdivision adds elements with every cut; every step a real one.
+TEST(BenchCutStep, TinyRunContract) {
+    const json j = runJson("bench cutstep --tiny --json");
+    ASSERT_EQ(j["objects"].size(), 1u);
+    const json& o = j["objects"][0];
+    EXPECT_EQ(o["name"], "bar");
+    const double dt0 = o["dt_uncut"].get<double>();
+    ASSERT_TRUE(std::isfinite(dt0));
+    ASSERT_GT(dt0, 0);
+    std::vector<std::string> names;
+    for (const auto& m : o["methods"]) {
+        const std::string name = m["name"].get<std::string>();
+        names.push_back(name);
+        ASSERT_EQ(m["cuts"].size(), 4u) << name;
+        int elements = o["tets"].get<int>();
+        for (const auto& c : m["cuts"]) {
+            ASSERT_TRUE(c["dt_exact"].is_number()) << name;
+            const double dt = c["dt_exact"].get<double>();
+            EXPECT_TRUE(std::isfinite(dt) && dt > 0) << name;
+            EXPECT_NEAR(c["dt_ratio"].get<double>(), dt / dt0, 1e-9) << name;
+            EXPECT_LE(c["critical"].get<int>(), c["elements"].get<int>()) << name;
+            if (name == "xfem+floor") EXPECT_GE(c["dt_ratio"].get<double>(), 0.95 * (1 - 1e-6)) << "cut " << c["cut"];
+            if (name == "subdivision") EXPECT_GT(c["elements"].get<int>(), elements) << "cut " << c["cut"];
+            elements = c["elements"].get<int>();
+        }
+        const double cost = m["cost"]["wall_per_simulated_second"].get<double>();
+        EXPECT_TRUE(std::isfinite(cost) && cost > 0) << name;
+    }
+    EXPECT_EQ(names, (std::vector<std::string>{"subdivision", "subdivision+improve", "xfem", "xfem+floor"}));
 }
 
 // What a scene does not use costs nothing: no tools, no cuts, no rendering -> those stages are 0.
