@@ -3,7 +3,9 @@
 // crosses up to 50 elements.
 //   BM_CutBladeStep/N     one blade step (CutEngine::sweep between two poses) whose swept area
 //                         crosses about N = 10, 25, 50 elements, plus TimestepAnalyzer::update;
-//                         time = both, counters sweep_us and update_us split it, crossed = count.
+//                         time = both and the step floor's local pass (timestep/floor.hpp, 0.95
+//                         of the uncut exact step), counters cut_us, update_us and floor_us split
+//                         it, crossed = count.
 //   BM_CutPlane           a plane through the whole liver (CutEngine::cut) plus the update.
 //   BM_CutExactDt/k       the exact dt (Lanczos) of the model after the 50-element step (k = 0)
 //                         or the plane cut (k = 1), for comparison with the local update.
@@ -19,6 +21,7 @@
 #include "fem/state.hpp"
 #include "mesh/io.hpp"
 #include "timestep/analyzer.hpp"
+#include "timestep/floor.hpp"
 
 #include <benchmark/benchmark.h>
 
@@ -48,6 +51,7 @@ struct Scene {
     State s;
     CutEngine eng;
     TimestepAnalyzer an;
+    double dt0 = 0;  // exact step of the uncut liver [s]
 };
 
 // The liver fixed at its back under gravity, as randomCutModel(true), with a prepared engine.
@@ -60,6 +64,7 @@ const Scene& uncut() {
         sc->s = makeState(m);
         sc->eng.prepare(m);
         sc->an.compute(m);
+        sc->dt0 = sc->an.exact(m).dt;
     }
     return *sc;
 }
@@ -108,7 +113,7 @@ CutSurface centrePlane() {
 // Cut (a blade step or the plane) plus the analyzer's update, timed separately.
 template <class CutFn>
 void runCut(benchmark::State& st, CutFn cutFn) {
-    double sweepSum = 0, updateSum = 0, cpuSum = 0;
+    double sweepSum = 0, updateSum = 0, floorSum = 0, cpuSum = 0;
     CutResult last;
     TimestepAnalyzer::UpdateStats lastStats;
     for (auto _ : st) {
@@ -121,18 +126,22 @@ void runCut(benchmark::State& st, CutFn cutFn) {
         const auto t1 = Clock::now();
         sc.an.update(sc.m, r.changedElements, r.changedNodes);
         const auto t2 = Clock::now();
+        holdStepFloor(sc.m, sc.an, 0.95 * sc.dt0);
+        const auto t3 = Clock::now();
         cpuSum += threadSeconds() - c0;
         benchmark::DoNotOptimize(sc.an.certifiedLambda());
-        st.SetIterationTime(secondsBetween(t0, t2));
+        st.SetIterationTime(secondsBetween(t0, t3));
         sweepSum += secondsBetween(t0, t1);
         updateSum += secondsBetween(t1, t2);
+        floorSum += secondsBetween(t2, t3);
         last = std::move(r);
         lastStats = sc.an.lastUpdate();
     }
     const double n = static_cast<double>(st.iterations());
     st.counters["cut_us"] = 1e6 * sweepSum / n;
     st.counters["update_us"] = 1e6 * updateSum / n;
-    st.counters["thread_cpu_us"] = 1e6 * cpuSum / n;  // cut + update, CPU time of the thread
+    st.counters["floor_us"] = 1e6 * floorSum / n;
+    st.counters["thread_cpu_us"] = 1e6 * cpuSum / n;  // cut + update + floor, CPU time of the thread
     st.counters["crossed"] = last.crossed;
     st.counters["new_elems"] = static_cast<double>(last.newElements.size());
     st.counters["new_nodes"] = static_cast<double>(last.newNodes.size());

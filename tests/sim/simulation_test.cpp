@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include <functional>
+#include <string>
 
 namespace cutsim {
 namespace {
@@ -280,6 +281,81 @@ TEST(Scene, InlineMeshRunsAsTheBox) {
               std::string::npos);
     j["object"]["mesh"].erase("nodes");
     EXPECT_NE(errorOf([&] { parseScene(j, "inline.json"); }).find("object.mesh.nodes: is required"), std::string::npos);
+}
+
+// The step through cuts (cutting.step_floor, object.element "hybrid"): the bar with a wedge cut
+// 1.5 mm from its free end, which leaves nearly free elements (the exact step falls to ~0.86 of
+// the uncut one without a floor).
+json wedgeScene() {
+    json j = barScene();
+    j["duration"] = 0.01;
+    j["cutting"] = {{"cuts", {{{"time", 0.002}, {"point", {0.0985, 0.015, 0.015}}, {"normal", {1, 0.5, 0}}}}}};
+    return j;
+}
+
+json run(const json& scene) {
+    SimulationOptions o;
+    o.threads = 1;
+    Simulation sim(parseScene(scene, "bar.json"), o);
+    sim.advance(1.0);
+    return sim.report();
+}
+
+TEST(CutStep, FloorHoldsWhereTheCutLostTheStep) {
+    json off = wedgeScene();
+    off["cutting"]["step_floor"] = 0;
+    const json a = run(off);
+    ASSERT_EQ(a["cuts"].size(), 1u);
+    EXPECT_LT(a["cuts"][0]["dt_ratio"].get<double>(), 0.9);
+    EXPECT_TRUE(a["cuts"][0]["step_floor"].is_null());
+    EXPECT_EQ(a["mass"]["step_floor_added"].get<double>(), 0.0);
+
+    const json b = run(wedgeScene());  // default 0.95
+    ASSERT_EQ(b["cuts"].size(), 1u);
+    const json& c = b["cuts"][0];
+    EXPECT_GE(c["dt_ratio"].get<double>(), 0.95 * (1 - 1e-6));
+    EXPECT_GT(c["step_floor"]["added_mass"].get<double>(), 0.0);
+    EXPECT_DOUBLE_EQ(b["mass"]["step_floor_added"].get<double>(), c["step_floor"]["added_mass"].get<double>());
+    // the mass the floor added is in the model: final = initial + added (the cut itself keeps mass)
+    EXPECT_NEAR(b["mass"]["final"].get<double>(),
+                b["mass"]["initial"].get<double>() + b["mass"]["step_floor_added"].get<double>(), 1e-12);
+    EXPECT_LT(b["mass"]["step_floor_added"].get<double>() / b["mass"]["initial"].get<double>(), 5e-3);
+    EXPECT_EQ(b["status"], "ok");
+}
+
+TEST(CutStep, HybridMatchesOnLoadAndAfterTheCut) {
+    json j = wedgeScene();
+    j["object"]["element"] = "hybrid";
+    const json r = run(j);
+    EXPECT_EQ(r["status"], "ok");
+    const json& h = r["hybrid"];
+    EXPECT_DOUBLE_EQ(h["dt_sim"].get<double>(), 0.95 * h["dt_fem_only"].get<double>());
+    EXPECT_GE(r["dt_initial"]["exact"].get<double>(), h["dt_fem_only"].get<double>());
+    ASSERT_EQ(r["cuts"].size(), 1u);
+    const json& c = r["cuts"][0];
+    EXPECT_GT(c["hybrid"]["added"].get<int>(), 0);
+    EXPECT_GE(c["dt_after"]["exact"].get<double>(), h["dt_sim"].get<double>());
+    EXPECT_TRUE(c["step_floor"].is_null());
+    EXPECT_EQ(r["mass"]["final"].get<double>(), r["mass"]["initial"].get<double>());  // no mass added
+    EXPECT_EQ(h["matched_final"].get<int>(), h["matched"].get<int>() + c["hybrid"]["added"].get<int>());
+}
+
+TEST(CutStep, BadKeysAreNamed) {
+    json a = wedgeScene();
+    a["cutting"]["step_floor"] = 1.5;
+    json b = wedgeScene();
+    b["object"]["element"] = "hybird";
+    json c = wedgeScene();
+    c["object"]["match_stiffness"] = 0;
+    for (const auto& [scene, key] :
+         {std::pair{a, "step_floor"}, std::pair{b, "element"}, std::pair{c, "match_stiffness"}}) {
+        try {
+            parseScene(scene, "bar.json");
+            ADD_FAILURE() << key << " accepted";
+        } catch (const InputError& e) {
+            EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+        }
+    }
 }
 
 }  // namespace
