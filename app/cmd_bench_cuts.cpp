@@ -15,6 +15,8 @@
 #include "mesh/embedding.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "timestep/floor.hpp"
+#include "timestep/hybrid.hpp"
 #include "timestep/modes.hpp"
 #include "timestep/timestep.hpp"
 
@@ -169,15 +171,26 @@ CutSurface notchSurface(const Cantilever& c) {
     return cs;
 }
 
+// How the step is kept through the notch (thesis sec. 5.2): nothing beyond the lumping, the step
+// floor at 0.95 of the uncut exact step (timestep/floor.hpp), or the hybrid (timestep/hybrid.hpp)
+// with dt_sim = 0.95 of it, matched before and after the cut.
+enum class NotchRoute : std::uint8_t { Plain, Floor, Hybrid };
+
 // The 10r x r x r cantilever notched by an XFEM cut at rest with the given lumping.
-Model notchedXfem(const Cantilever& c, int r, MassLumping lumping, int* crossed) {
+Model notchedXfem(const Cantilever& c, int r, MassLumping lumping, int* crossed, NotchRoute route = NotchRoute::Plain) {
     Model m = cantileverModel(c, r);
     State s = makeState(m);
     CutOptions co;
     co.lumping = lumping;
     CutEngine eng(co);
+    TimestepAnalyzer ta(m);
+    const double dt0 = route == NotchRoute::Plain ? 0.0 : ta.exact(m).dt;
+    if (route == NotchRoute::Hybrid) matchCriticalCertified(m, ta, 0.95 * dt0, {}, true);
     const CutResult res = eng.cut(m, s, notchSurface(c));
     if (crossed) *crossed = res.crossed;
+    if (route != NotchRoute::Plain) ta.update(m, res.changedElements, res.changedNodes);
+    if (route == NotchRoute::Floor) holdStepFloorCertified(m, ta, 0.95 * dt0);
+    if (route == NotchRoute::Hybrid) matchCriticalCertified(m, ta, 0.95 * dt0);
     return m;
 }
 
@@ -253,6 +266,25 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
                             {"dt_exact", dtExact},
                             {"linear_static_tip", linearStaticTip(m)},
                             {"frequency", firstBendingFrequency(m)}});
+        }
+        // Enrichment with the step kept by the floor and by the hybrid: the error each costs.
+        for (const NotchRoute route : {NotchRoute::Floor, NotchRoute::Hybrid}) {
+            const bool hybrid = route == NotchRoute::Hybrid;
+            const Model m = notchedXfem(ctx.bar, r, MassLumping::Enrichment, nullptr, route);
+            const double dtExact = exactCriticalDt(m).dt;  // the hybrid's: of its FEM part
+            const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
+            std::snprintf(name, sizeof name, "xfem enrichment+%s %dx%dx%d f=0.9", hybrid ? "hybrid" : "floor", 10 * r,
+                          r, r);
+            add(runStaticPoint(ctx, m, opt, name, stat));
+            add(runFrequencyPoint(ctx, m, opt, name, freq));
+            json row = {{"config", name},
+                        {"tets", m.elements()},
+                        {"dt_exact", dtExact},
+                        {"added_mass", m.addedMass.size() ? m.addedMass.sum() : 0.0},
+                        {"matched", m.matchedList.size()}};
+            if (!hybrid)  // the linear solves see K only: the hybrid's matched elements are not in it
+                row["linear_static_tip"] = linearStaticTip(m), row["frequency"] = firstBendingFrequency(m);
+            cuts.push_back(row);
         }
     }
     // The same notch meshed conformingly, explicit and backward Euler.

@@ -7,7 +7,7 @@
 #include "cut/conforming.hpp"
 #include "cut/xfem.hpp"
 #include "fem/forces.hpp"
-#include "improve/improve.hpp"
+#include "improve/region.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/analyzer.hpp"
@@ -175,9 +175,10 @@ private:
         io.maxRounds = tiny_ ? 2 : 4;  // a small budget: the improvement has to keep up with cutting
         io.maxEvaluations = std::max(2000LL, 100LL * nearElements);
         io.maxSeconds = tiny_ ? 2 : 10;
+        std::vector<int> freeNodes;
         for (int i = 0; i < mesh_.nodes(); ++i)
-            if (!near[static_cast<size_t>(i)]) io.fixedNodes.push_back(i);
-        improveMesh(mesh_, io);
+            if (near[static_cast<size_t>(i)]) freeNodes.push_back(i);
+        improveRegion(mesh_, freeNodes, io);  // the region alone: its cost follows the cut, not the object
     }
 
     const BenchObject& o_;

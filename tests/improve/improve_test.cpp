@@ -2,6 +2,7 @@
 // beaten within the shape bounds, no inverted or flat element ever, determinism, fixed nodes kept.
 #include "fem/model.hpp"
 #include "improve/improve.hpp"
+#include "improve/region.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
 #include "timestep/timestep.hpp"
@@ -92,6 +93,56 @@ TEST(Improve, NeverInvertsOrFlattensARandomlyPerturbedMesh) {
         EXPECT_LT(r.boundaryDistance, 1e-9) << "seed " << seed;
         EXPECT_LT(std::abs(r.volumeChange), 1e-9) << "seed " << seed;
     }
+}
+
+// A region of a jittered box improved alone (improveRegion): the nodes outside it and the
+// elements away from it are untouched, nothing inverts, the volume is kept exactly (only interior
+// nodes are free), and the whole mesh's exact step does not fall.
+TEST(Improve, RegionLeavesTheRestAlone) {
+    TetMesh mesh = test::boxMesh(0.06, 0.03, 0.03, 6, 3, 3);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-0.35, 0.35);
+    for (int i = 0; i < mesh.nodes(); ++i) {
+        const Eigen::Vector3d p = mesh.X.col(i);
+        const bool interior = p.x() > 1e-9 && p.x() < 0.06 - 1e-9 && p.y() > 1e-9 && p.y() < 0.03 - 1e-9 &&
+                              p.z() > 1e-9 && p.z() < 0.03 - 1e-9;
+        if (!interior) continue;
+        mesh.X.col(i) = p + 0.01 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+        if (minFlatness(mesh) <= 1e-4) mesh.X.col(i) = p;
+    }
+    const TetMesh before = mesh;
+    const Material mat;
+    const double dt0 = meshStepStats(mesh, mat).dtExact;
+    std::vector<int> freeNodes;  // the interior nodes of the left half
+    for (int i = 0; i < mesh.nodes(); ++i) {
+        const Eigen::Vector3d p = before.X.col(i);
+        if (p.x() > 1e-9 && p.x() < 0.03 && p.y() > 1e-9 && p.y() < 0.03 - 1e-9 && p.z() > 1e-9 && p.z() < 0.03 - 1e-9)
+            freeNodes.push_back(i);
+    }
+    std::vector<char> isFree(static_cast<size_t>(mesh.nodes()), 0);
+    for (int i : freeNodes) isFree[static_cast<size_t>(i)] = 1;
+    ImproveOptions o = untimed();
+    o.maxRounds = 6;
+    improveRegion(mesh, freeNodes, o);
+    ASSERT_EQ(mesh.nodes(), before.nodes());
+    for (int i = 0; i < mesh.nodes(); ++i)
+        if (!isFree[static_cast<size_t>(i)]) EXPECT_EQ((mesh.X.col(i) - before.X.col(i)).norm(), 0.0) << i;
+    double v0 = 0, v1 = 0;
+    for (int e = 0; e < before.elements(); ++e) v0 += tetSignedVolume(before, e);
+    for (int e = 0; e < mesh.elements(); ++e) {
+        EXPECT_GT(tetSignedVolume(mesh, e), 0.0);
+        v1 += tetSignedVolume(mesh, e);
+    }
+    EXPECT_NEAR(v1, v0, 1e-12 * v0);
+    // the elements without a free node come first, unchanged and in their order
+    int kept = 0;
+    for (int e = 0; e < before.elements(); ++e) {
+        bool touches = false;
+        for (int a = 0; a < 4; ++a) touches |= isFree[static_cast<size_t>(before.tets(a, e))] != 0;
+        if (!touches) EXPECT_EQ(mesh.tets.col(kept++), before.tets.col(e));
+    }
+    EXPECT_GT(kept, 0);
+    EXPECT_GE(meshStepStats(mesh, mat).dtExact, dt0 * (1 - 1e-9));
 }
 
 TEST(Improve, IsDeterministic) {
