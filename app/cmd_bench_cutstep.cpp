@@ -7,7 +7,7 @@
 #include "cut/conforming.hpp"
 #include "cut/xfem.hpp"
 #include "fem/forces.hpp"
-#include "improve/region.hpp"
+#include "cut/baselines.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/analyzer.hpp"
@@ -39,7 +39,7 @@ namespace {
 
 constexpr double kCriticalShare = 0.85;  // Table 5.2: critical when the R1R step < 0.85 of the uncut minimum
 constexpr double kFloor = 0.95;          // step floor and stepping fraction, of the exact step
-constexpr double kNearReach = 1.5;       // local improvement: elements this many edge lengths from the plane
+constexpr double kNearReach = 2.0;       // local improvement: elements this many mean edges from the plane
 
 struct CutStepArgs {
     bool json = false, tiny = false;
@@ -54,7 +54,6 @@ struct BenchObject {
     std::vector<CutPlane> planes;
     double dt0 = 0;      // exact step of the uncut model [s]
     double r1rMin0 = 0;  // smallest R1R step of the uncut model [s]
-    double edge = 0;     // mean edge length [m]
     double mass = 0;     // [kg]
 };
 
@@ -69,12 +68,6 @@ BenchObject makeObject(std::string name, TetMesh mesh, std::vector<CutPlane> pla
     const TimestepAnalyzer ta(o.model);
     o.dt0 = ta.exact(o.model).dt;
     o.r1rMin0 = ta.estimates().r1r.minCoeff();
-    double sum = 0;
-    for (int e = 0; e < o.mesh.elements(); ++e)
-        for (int a = 0; a < 4; ++a)
-            for (int b = a + 1; b < 4; ++b)
-                sum += (o.mesh.X.col(o.mesh.tets(a, e)) - o.mesh.X.col(o.mesh.tets(b, e))).norm();
-    o.edge = sum / (6.0 * o.mesh.elements());
     o.mass = o.model.mass.sum();
     return o;
 }
@@ -145,7 +138,7 @@ public:
         mesh_ = conformingCut(mesh_, plane, ConformingOptions{}).mesh;
         r.cutSeconds = sw.lap();
         if (improve_) {
-            improveNear(plane);
+            improveNearPlane(mesh_, plane, o_.material, kNearReach, tiny_ ? 2 : 4, tiny_ ? 2 : 10);
             r.improveSeconds = sw.lap();
         }
         model_ = buildModel(mesh_, o_.material);
@@ -158,29 +151,6 @@ public:
     const Model& model() const override { return model_; }
 
 private:
-    void improveNear(const CutPlane& plane) {
-        std::vector<char> near(static_cast<size_t>(mesh_.nodes()), 0);
-        const double reach = kNearReach * o_.edge;
-        int nearElements = 0;
-        for (int e = 0; e < mesh_.elements(); ++e) {
-            bool isNear = false;
-            for (int a = 0; a < 4; ++a)
-                isNear |= std::abs(plane.normal.dot(mesh_.X.col(mesh_.tets(a, e)) - plane.point)) < reach;
-            if (!isNear) continue;
-            ++nearElements;
-            for (int a = 0; a < 4; ++a) near[static_cast<size_t>(mesh_.tets(a, e))] = 1;
-        }
-        ImproveOptions io;
-        io.material = o_.material;
-        io.maxRounds = tiny_ ? 2 : 4;  // a small budget: the improvement has to keep up with cutting
-        io.maxEvaluations = std::max(2000LL, 100LL * nearElements);
-        io.maxSeconds = tiny_ ? 2 : 10;
-        std::vector<int> freeNodes;
-        for (int i = 0; i < mesh_.nodes(); ++i)
-            if (near[static_cast<size_t>(i)]) freeNodes.push_back(i);
-        improveRegion(mesh_, freeNodes, io);  // the region alone: its cost follows the cut, not the object
-    }
-
     const BenchObject& o_;
     TetMesh mesh_;
     Model model_;

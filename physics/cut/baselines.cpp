@@ -1,13 +1,61 @@
 #include "cut/baselines.hpp"
 
 #include "cut/remesh.hpp"
+#include "improve/region.hpp"
 #include "fem/model.hpp"
 #include "mesh/generate.hpp"
 #include "timestep/timestep.hpp"
+#include "util/stopwatch.hpp"
+
+#include <cmath>
 
 namespace cutsim {
 
-const char* cutMethodName(CutMethod m) { return m == CutMethod::Subdivision ? "subdivision" : "remesh"; }
+const char* cutMethodName(CutMethod m) {
+    switch (m) {
+    case CutMethod::Subdivision: return "subdivision";
+    case CutMethod::Remesh: return "remesh";
+    case CutMethod::SubdivisionImproved: return "subdivision_improve";
+    }
+    return "?";
+}
+
+CutMethod parseCutMethod(const std::string& name) {
+    for (const CutMethod m : {CutMethod::Subdivision, CutMethod::Remesh, CutMethod::SubdivisionImproved})
+        if (name == cutMethodName(m)) return m;
+    throw InputError("unknown cut method \"" + name + "\" (subdivision, remesh, subdivision_improve)");
+}
+
+double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double reach, int rounds,
+                        double maxSeconds) {
+    Stopwatch sw;
+    if (mesh.elements() == 0) return 0;
+    double edges = 0;
+    for (int e = 0; e < mesh.elements(); ++e)
+        for (int a = 0; a < 4; ++a)
+            for (int b = a + 1; b < 4; ++b) edges += (mesh.X.col(mesh.tets(a, e)) - mesh.X.col(mesh.tets(b, e))).norm();
+    const double band = reach * edges / (6.0 * mesh.elements());
+    std::vector<char> near(static_cast<size_t>(mesh.nodes()), 0);
+    long long nearElements = 0;
+    for (int e = 0; e < mesh.elements(); ++e) {
+        bool isNear = false;
+        for (int a = 0; a < 4; ++a)
+            isNear |= std::abs(plane.normal.dot(mesh.X.col(mesh.tets(a, e)) - plane.point)) < band;
+        if (!isNear) continue;
+        ++nearElements;
+        for (int a = 0; a < 4; ++a) near[static_cast<size_t>(mesh.tets(a, e))] = 1;
+    }
+    std::vector<int> freeNodes;
+    for (int i = 0; i < mesh.nodes(); ++i)
+        if (near[static_cast<size_t>(i)]) freeNodes.push_back(i);
+    ImproveOptions io;
+    io.material = material;
+    io.maxRounds = rounds;  // a small budget: the improvement has to keep up with cutting
+    io.maxEvaluations = std::max(2000LL, 100LL * nearElements);
+    io.maxSeconds = maxSeconds;
+    improveRegion(mesh, freeNodes, io);
+    return sw.seconds();
+}
 
 TetMesh barMesh(const BarOptions& opts) {
     TetMesh m = boxMesh(opts.unit, opts.unit, 10 * opts.unit, opts.nx, opts.ny, opts.nz);
@@ -56,7 +104,8 @@ std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutP
     RemeshOptions ro;
     if (mesh.elements() > 0) ro.maxVolume = totalVolume(mesh) / mesh.elements();
     for (const CutPlane& p : planes) {
-        m = method == CutMethod::Subdivision ? conformingCut(m, p).mesh : remeshCut(m, p, ro).mesh;
+        m = method == CutMethod::Remesh ? remeshCut(m, p, ro).mesh : conformingCut(m, p).mesh;
+        if (method == CutMethod::SubdivisionImproved) improveNearPlane(m, p, material);
         dts.push_back(exactDtOf(m, material));
     }
     return dts;

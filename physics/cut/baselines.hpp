@@ -12,8 +12,10 @@
 
 namespace cutsim {
 
-enum class CutMethod { Subdivision, Remesh };
-const char* cutMethodName(CutMethod m);  // "subdivision", "remesh"
+// SubdivisionImproved: subdivision, then the elements near the plane improved (improveNearPlane).
+enum class CutMethod { Subdivision, Remesh, SubdivisionImproved };
+const char* cutMethodName(CutMethod m);             // "subdivision", "remesh", "subdivision_improve"
+CutMethod parseCutMethod(const std::string& name);  // the names above; throws InputError
 
 // One row of Table 6.1 for one method.
 struct BaselineRow {
@@ -46,6 +48,13 @@ TetMesh barMesh(const BarOptions& opts = {});
 
 // Exact critical step of a mesh with no fixed nodes [s] (timestep/timestep.hpp exactCriticalDt).
 double exactDtOf(const TetMesh& mesh, const Material& material = {});
+
+// The thesis's local improvement after a conforming cut (sec. 5.2), with the improver of sec. 5.1:
+// the nodes of the elements within `reach` mean edge lengths of the plane move, as a region of
+// their own (improve/region.hpp), for `rounds` rounds of 100 one-ring problems per such element.
+// Returns the seconds it took.
+double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double reach = 2.0,
+                        int rounds = 4, double maxSeconds = 10);
 
 // Applies the planes in sequence with the method (both sides kept and separated) and returns the
 // exact critical step after each cut [s] (planes.size() values).

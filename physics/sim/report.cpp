@@ -43,8 +43,7 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
     for (const std::string& name : sc.cutting.compare) {
         Stopwatch sw;
         try {
-            const auto dts = dtAfterPlaneCuts(
-                rest, planes, name == "remesh" ? CutMethod::Remesh : CutMethod::Subdivision, sc.material);
+            const auto dts = dtAfterPlaneCuts(rest, planes, parseCutMethod(name), sc.material);
             add(name, dts, sw.seconds());
         } catch (const std::exception& e) {
             out[name] = {{"error", e.what()}};

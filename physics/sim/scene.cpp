@@ -516,10 +516,11 @@ SceneDef parseScene(const json& j, const std::string& file) {
         if (c.has("compare")) {
             const json& cmp = c.raw("compare");
             c.touch("compare");
-            if (!cmp.is_array()) c.fail("compare", "must be an array of \"subdivision\" and \"remesh\"");
+            const char* what = "must be an array of \"subdivision\", \"subdivision_improve\" and \"remesh\"";
+            if (!cmp.is_array()) c.fail("compare", what);
             for (const auto& m : cmp) {
-                if (!m.is_string() || (m != "subdivision" && m != "remesh"))
-                    c.fail("compare", "must be an array of \"subdivision\" and \"remesh\"");
+                if (!m.is_string() || (m != "subdivision" && m != "remesh" && m != "subdivision_improve"))
+                    c.fail("compare", what);
                 s.cutting.compare.push_back(m.get<std::string>());
             }
         }

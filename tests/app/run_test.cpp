@@ -575,7 +575,7 @@ TEST(Run, LiverCutsReportEachCut) {
     // The same planes by each method, in one setting (thesis sec. 5.2): XFEM keeps the step that
     // conforming subdivision and remeshing lose.
     const json& cmp = r["compare"];
-    for (const char* m : {"xfem", "subdivision", "remesh"}) {
+    for (const char* m : {"xfem", "subdivision", "subdivision_improve", "remesh"}) {
         ASSERT_TRUE(cmp.contains(m)) << m;
         ASSERT_EQ(cmp[m]["dt_ratio"].size(), 4u) << m;
         for (const auto& q : cmp[m]["dt_ratio"]) EXPECT_LE(q.get<double>(), 1.0 + 1e-9) << m;
@@ -583,6 +583,11 @@ TEST(Run, LiverCutsReportEachCut) {
     EXPECT_NEAR(cmp["xfem"]["dt_ratio"][0].get<double>(), 1.0, 1e-6);  // cut 1 crosses no sliver in this mesh
     EXPECT_GT(cmp["xfem"]["dt_ratio"][3].get<double>(), 2 * cmp["subdivision"]["dt_ratio"][3].get<double>());
     EXPECT_GT(cmp["xfem"]["dt_ratio"][3].get<double>(), 2 * cmp["remesh"]["dt_ratio"][3].get<double>());
+    // the local improvement after each conforming cut wins back part of what it lost
+    for (int k = 0; k < 3; ++k)
+        EXPECT_GT(cmp["subdivision_improve"]["dt_ratio"][k].get<double>(),
+                  1.3 * cmp["subdivision"]["dt_ratio"][k].get<double>())
+            << "cut " << k + 1;
 }
 
 // The scene's cutting options reach the engine: without fusing, the fourth plane's two slivers
