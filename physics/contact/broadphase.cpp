@@ -38,19 +38,25 @@ int ElementBroadphase::elements() const { return static_cast<int>(impl_->leaves.
 void ElementBroadphase::refit(const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& x) {
     Impl& m = *impl_;
     const int ne = static_cast<int>(tets.cols());
-    if (static_cast<int>(m.leaves.size()) != ne) {
+    const int had = static_cast<int>(m.leaves.size());
+    auto insert = [&](int e) {
+        btDbvtVolume v = elementBox(tets, x, e);
+        v.Expand(btVector3(m.margin, m.margin, m.margin));
+        m.leaves[static_cast<size_t>(e)] = m.tree.insert(v, nullptr);
+        m.leaves[static_cast<size_t>(e)]->dataAsInt = e;
+    };
+    if (ne < had || had == 0) {  // renumbered (or first): a new, balanced tree
         m.tree.clear();
         m.leaves.resize(static_cast<size_t>(ne));
-        for (int e = 0; e < ne; ++e) {
-            btDbvtVolume v = elementBox(tets, x, e);
-            v.Expand(btVector3(m.margin, m.margin, m.margin));
-            m.leaves[static_cast<size_t>(e)] = m.tree.insert(v, nullptr);
-            m.leaves[static_cast<size_t>(e)]->dataAsInt = e;
-        }
+        for (int e = 0; e < ne; ++e) insert(e);
         m.tree.optimizeTopDown();
         return;
     }
-    for (int e = 0; e < ne; ++e) {
+    // A cut appends elements and keeps the old indices: only the new leaves go in (rebuilding the
+    // tree after every blade step cost more than the step), the others are updated below.
+    m.leaves.resize(static_cast<size_t>(ne));
+    for (int e = had; e < ne; ++e) insert(e);
+    for (int e = 0; e < had; ++e) {
         btDbvtVolume v = elementBox(tets, x, e);
         btDbvtNode* leaf = m.leaves[static_cast<size_t>(e)];
         if (m.margin > 0) {

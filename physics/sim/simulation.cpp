@@ -227,6 +227,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             double margin = 1e300;
             for (int i : bladeTools_) margin = std::min(margin, sc_.tools[static_cast<size_t>(i)].size.z());
             bladePhase_ = std::make_unique<ElementBroadphase>(margin);
+            bladeMargin_ = margin;
             lastEdge_.resize(bladeTools_.size());
         }
         rec_.stages[Stage::Cuts] += sw.seconds();
@@ -680,8 +681,31 @@ bool Simulation::applyDueCuts() {
 // element's box meets its swept box) or another blade starts cutting.
 bool Simulation::applyBlades() {
     if (!bladePhase_) return true;
-    bladePhase_->refit(model_.tets, state_.x);
     const double t0 = state_.time, t1 = state_.time + choice_.dt;
+    // A blade whose swept box misses the object's box cannot cut: then no tree is refitted. The
+    // box is widened by three margins, past any fattened element box the tree could hold, so a
+    // blade that would have met one is still queried.
+    const Eigen::Vector3d pad = Eigen::Vector3d::Constant(3 * bladeMargin_);
+    const Eigen::Vector3d objLo = state_.x.rowwise().minCoeff() - pad, objHi = state_.x.rowwise().maxCoeff() + pad;
+    bool anyNear = false;
+    for (size_t b = 0; b < bladeTools_.size() && !anyNear; ++b) {
+        const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
+        Eigen::Vector3d lo, hi;
+        sweptAabb(tool, t0, t1, lo, hi);
+        const BladeEdge& from = lastEdge_[b];
+        if (!(from.a == from.b))
+            for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+        anyNear = (lo.array() <= objHi.array()).all() && (hi.array() >= objLo.array()).all();
+    }
+    if (!anyNear) {
+        for (size_t b = 0; b < bladeTools_.size(); ++b) {
+            const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
+            bladeEdge(tool, t1, lastEdge_[b].a, lastEdge_[b].b);  // where the next step starts from
+        }
+        if (stroke_ >= 0) cutter_->endStroke(), stroke_ = -1;
+        return true;
+    }
+    bladePhase_->refit(model_.tets, state_.x);
     for (size_t b = 0; b < bladeTools_.size(); ++b) {
         const int i = bladeTools_[b];
         const ToolDef& tool = contact_->tools()[static_cast<size_t>(i)];

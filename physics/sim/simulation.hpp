@@ -204,6 +204,7 @@ private:
     std::unique_ptr<CutEngine> cutter_;
     std::unique_ptr<ElementBroadphase> bladePhase_;
     std::vector<int> bladeTools_;      // scene tools that cut
+    double bladeMargin_ = 0;           // fattening of bladePhase_'s element boxes [m]
     std::vector<BladeEdge> lastEdge_;  // each blade's edge at the end of the last step
     std::vector<int> candidates_;
     int stroke_ = -1;  // blade whose stroke the engine holds, or -1

@@ -71,6 +71,7 @@ StepFloorResult holdStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, co
                 w[a] = m.invMass(m.tets(a, e)) > 0 ? y.segment<3>(3 * a).squaredNorm() : 0.0;
                 sumW2 += w[a] * w[a];
             }
+            if (!(sumW2 > 0)) continue;  // no free DOF carries the mode (cannot happen for lambda > 0)
             const double beta = (lam / lamAim - 1) / sumW2;
             for (int a = 0; a < 4; ++a) {
                 if (!(w[a] > 0)) continue;

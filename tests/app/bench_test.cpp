@@ -122,12 +122,28 @@ void checkMiLumpingAndLiver(const json& j) {
     // cubes; the notch takes its upper layer: 2 cubes of 6 tets) and every lumping gives a finite
     // error. K does not depend on the lumping, so the linear static tips differ only by how the
     // weight of the cut tets is spread over their corners.
-    ASSERT_EQ(ns["xfem"].size(), 3u);
-    for (const auto& x : ns["xfem"]) {
+    // Then enrichment with the step floor and with the hybrid: the notch does not lower the step,
+    // so the floor adds no mass and changes nothing; the hybrid matches elements and gains step.
+    ASSERT_EQ(ns["xfem"].size(), 5u);
+    for (int k = 0; k < 3; ++k) {
+        const json& x = ns["xfem"][k];
         EXPECT_EQ(x["crossed"].get<int>(), 12) << x.dump();
         EXPECT_NEAR(x["linear_static_tip"].get<double>(), ns["xfem"][2]["linear_static_tip"].get<double>(),
                     1e-3 * 0.01);
     }
+    const json& fl = ns["xfem"][3];
+    const json& hy = ns["xfem"][4];
+    EXPECT_EQ(fl["added_mass"].get<double>(), 0.0);
+    EXPECT_EQ(fl["linear_static_tip"].get<double>(), ns["xfem"][2]["linear_static_tip"].get<double>());
+    EXPECT_EQ(fl["dt_exact"].get<double>(), ns["xfem"][2]["dt_exact"].get<double>());
+    EXPECT_GT(hy["matched"].get<int>(), 0);
+    EXPECT_GT(hy["dt_exact"].get<double>(), ns["xfem"][2]["dt_exact"].get<double>());
+    for (const char* route : {"xfem enrichment+floor 20x2x2 f=0.9", "xfem enrichment+hybrid 20x2x2 f=0.9"})
+        for (const char* prob : {"cantilever_notch_static", "cantilever_notch_frequency"}) {
+            const json* p = findPoint(j, prob, route);
+            ASSERT_TRUE(p) << prob << " " << route;
+            EXPECT_TRUE((*p)["error"].is_number()) << p->dump();
+        }
     for (const char* l : {"row_sum", "weighted_diagonal", "enrichment"}) {
         for (const char* prob : {"cantilever_notch_static", "cantilever_notch_frequency"}) {
             const json* p = findPoint(j, prob, std::string("xfem ") + l + " 20x2x2 f=0.9");
