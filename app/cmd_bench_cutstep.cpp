@@ -138,7 +138,7 @@ public:
         mesh_ = conformingCut(mesh_, plane, ConformingOptions{}).mesh;
         r.cutSeconds = sw.lap();
         if (improve_) {
-            improveNearPlane(mesh_, plane, o_.material, kNearReach, tiny_ ? 2 : 4, tiny_ ? 2 : 10);
+            improveNearPlane(mesh_, plane, o_.material, o_.dt0, kNearReach, tiny_ ? 2 : 4, tiny_ ? 2 : 10);
             r.improveSeconds = sw.lap();
         }
         model_ = buildModel(mesh_, o_.material);

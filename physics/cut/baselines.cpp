@@ -26,8 +26,8 @@ CutMethod parseCutMethod(const std::string& name) {
     throw InputError("unknown cut method \"" + name + "\" (subdivision, remesh, subdivision_improve)");
 }
 
-double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double reach, int rounds,
-                        double maxSeconds) {
+double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double dtCritical, double reach,
+                        int rounds, double maxSeconds) {
     Stopwatch sw;
     if (mesh.elements() == 0) return 0;
     double edges = 0;
@@ -35,23 +35,51 @@ double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& ma
         for (int a = 0; a < 4; ++a)
             for (int b = a + 1; b < 4; ++b) edges += (mesh.X.col(mesh.tets(a, e)) - mesh.X.col(mesh.tets(b, e))).norm();
     const double band = reach * edges / (6.0 * mesh.elements());
-    std::vector<char> near(static_cast<size_t>(mesh.nodes()), 0);
-    long long nearElements = 0;
+    std::vector<int> bandElems;
     for (int e = 0; e < mesh.elements(); ++e) {
         bool isNear = false;
         for (int a = 0; a < 4; ++a)
             isNear |= std::abs(plane.normal.dot(mesh.X.col(mesh.tets(a, e)) - plane.point)) < band;
-        if (!isNear) continue;
-        ++nearElements;
-        for (int a = 0; a < 4; ++a) near[static_cast<size_t>(mesh.tets(a, e))] = 1;
+        if (isNear) bandElems.push_back(e);
+    }
+    std::vector<char> isFree(static_cast<size_t>(mesh.nodes()), 0);
+    if (dtCritical > 0 && !bandElems.empty()) {
+        // The band as a mesh of its own: the R1R steps of its inner elements are the whole mesh's.
+        TetMesh sub;
+        std::vector<int> local(static_cast<size_t>(mesh.nodes()), -1), global;
+        sub.tets.resize(4, static_cast<Eigen::Index>(bandElems.size()));
+        for (size_t k = 0; k < bandElems.size(); ++k)
+            for (int a = 0; a < 4; ++a) {
+                const int i = mesh.tets(a, bandElems[k]);
+                int& l = local[static_cast<size_t>(i)];
+                if (l < 0) l = static_cast<int>(global.size()), global.push_back(i);
+                sub.tets(a, static_cast<Eigen::Index>(k)) = l;
+            }
+        sub.X.resize(3, static_cast<Eigen::Index>(global.size()));
+        for (size_t l = 0; l < global.size(); ++l) sub.X.col(static_cast<Eigen::Index>(l)) = mesh.X.col(global[l]);
+        const Model m = buildModel(sub, material);
+        const ElementEstimates est = estimateElements(m);
+        for (size_t k = 0; k < bandElems.size(); ++k)
+            if (est.r1r(static_cast<Eigen::Index>(k)) < dtCritical)
+                for (int a = 0; a < 4; ++a) isFree[static_cast<size_t>(mesh.tets(a, bandElems[k]))] = 1;
+    } else {
+        for (int e : bandElems)
+            for (int a = 0; a < 4; ++a) isFree[static_cast<size_t>(mesh.tets(a, e))] = 1;
     }
     std::vector<int> freeNodes;
     for (int i = 0; i < mesh.nodes(); ++i)
-        if (near[static_cast<size_t>(i)]) freeNodes.push_back(i);
+        if (isFree[static_cast<size_t>(i)]) freeNodes.push_back(i);
+    if (freeNodes.empty()) return sw.seconds();
+    long long regionElements = 0;  // elements with a free node: the region improveRegion works on
+    for (int e = 0; e < mesh.elements(); ++e) {
+        bool in = false;
+        for (int a = 0; a < 4; ++a) in |= isFree[static_cast<size_t>(mesh.tets(a, e))] != 0;
+        regionElements += in;
+    }
     ImproveOptions io;
     io.material = material;
     io.maxRounds = rounds;  // a small budget: the improvement has to keep up with cutting
-    io.maxEvaluations = std::max(2000LL, 100LL * nearElements);
+    io.maxEvaluations = std::max(2000LL, 100LL * regionElements);
     io.maxSeconds = maxSeconds;
     improveRegion(mesh, freeNodes, io);
     return sw.seconds();
@@ -103,9 +131,11 @@ std::vector<double> dtAfterPlaneCuts(const TetMesh& mesh, const std::vector<CutP
     // Remeshing keeps the input's resolution through all cuts.
     RemeshOptions ro;
     if (mesh.elements() > 0) ro.maxVolume = totalVolume(mesh) / mesh.elements();
+    // The improvement works on the elements under the uncut step.
+    const double dt0 = method == CutMethod::SubdivisionImproved ? exactDtOf(mesh, material) : 0.0;
     for (const CutPlane& p : planes) {
         m = method == CutMethod::Remesh ? remeshCut(m, p, ro).mesh : conformingCut(m, p).mesh;
-        if (method == CutMethod::SubdivisionImproved) improveNearPlane(m, p, material);
+        if (method == CutMethod::SubdivisionImproved) improveNearPlane(m, p, material, dt0);
         dts.push_back(exactDtOf(m, material));
     }
     return dts;

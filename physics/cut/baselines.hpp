@@ -49,12 +49,14 @@ TetMesh barMesh(const BarOptions& opts = {});
 // Exact critical step of a mesh with no fixed nodes [s] (timestep/timestep.hpp exactCriticalDt).
 double exactDtOf(const TetMesh& mesh, const Material& material = {});
 
-// The thesis's local improvement after a conforming cut (sec. 5.2), with the improver of sec. 5.1:
-// the nodes of the elements within `reach` mean edge lengths of the plane move, as a region of
-// their own (improve/region.hpp), for `rounds` rounds of 100 one-ring problems per such element.
-// Returns the seconds it took.
-double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double reach = 2.0,
-                        int rounds = 4, double maxSeconds = 10);
+// The thesis's local improvement after a conforming cut (sec. 5.2), with the improver of sec. 5.1,
+// on the elements within `reach` mean edge lengths of the plane (the band). With dtCritical > 0
+// only the band's critical elements are worked on: those whose R1R step (of the band as a mesh of
+// its own) is under dtCritical, their nodes free and their one-ring the region; else every band
+// node is free. The region is improved as a mesh of its own (improve/region.hpp), for `rounds`
+// rounds of 100 one-ring problems per element of it. Returns the seconds it took.
+double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double dtCritical = 0,
+                        double reach = 2.0, int rounds = 4, double maxSeconds = 10);
 
 // Applies the planes in sequence with the method (both sides kept and separated) and returns the
 // exact critical step after each cut [s] (planes.size() values).
