@@ -216,13 +216,14 @@ int runStability(const StabilityArgs& a) {
     j["random_cuts"] = json::array();
     if (a.cutRuns > 0) {
         if (!a.json)
-            std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
-                        "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
-                        "scaling) or globally (keepStep))\n%-10s %6s %7s %6s %6s %9s %9s %14s %15s %13s %12s %11s "
-                        "%13s %14s\n",
-                        a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
-                        "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
-                        "floor ms/cut");
+            std::printf(
+                "\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
+                "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
+                "scaling), certified (local, then the exact step and keepStep) or globally (keepStep))\n%-10s %6s "
+                "%9s %6s %6s %9s %9s %14s %15s %13s %12s %11s %9s %13s %14s\n",
+                a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
+                "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
+                "floor ms/cut");
         std::vector<std::pair<std::string, Model>> objects;
         objects.emplace_back("bar", randomCutBarModel());
         const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";

@@ -45,18 +45,8 @@ double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& ma
     std::vector<char> isFree(static_cast<size_t>(mesh.nodes()), 0);
     if (dtCritical > 0 && !bandElems.empty()) {
         // The band as a mesh of its own: the R1R steps of its inner elements are the whole mesh's.
-        TetMesh sub;
-        std::vector<int> local(static_cast<size_t>(mesh.nodes()), -1), global;
-        sub.tets.resize(4, static_cast<Eigen::Index>(bandElems.size()));
-        for (size_t k = 0; k < bandElems.size(); ++k)
-            for (int a = 0; a < 4; ++a) {
-                const int i = mesh.tets(a, bandElems[k]);
-                int& l = local[static_cast<size_t>(i)];
-                if (l < 0) l = static_cast<int>(global.size()), global.push_back(i);
-                sub.tets(a, static_cast<Eigen::Index>(k)) = l;
-            }
-        sub.X.resize(3, static_cast<Eigen::Index>(global.size()));
-        for (size_t l = 0; l < global.size(); ++l) sub.X.col(static_cast<Eigen::Index>(l)) = mesh.X.col(global[l]);
+        std::vector<int> global;
+        const TetMesh sub = subMesh(mesh, bandElems, global);
         const Model m = buildModel(sub, material);
         const ElementEstimates est = estimateElements(m);
         for (size_t k = 0; k < bandElems.size(); ++k)

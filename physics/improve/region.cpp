@@ -12,28 +12,17 @@ ImproveReport improveRegion(TetMesh& mesh, const std::vector<int>& freeNodes, Im
     for (const int i : opts.fixedNodes)
         if (i >= 0 && i < n) isFree[static_cast<size_t>(i)] = 0;
     // The region: elements with a free node, and their nodes numbered locally.
-    std::vector<int> region, keep, local(static_cast<size_t>(n), -1), global;
+    std::vector<int> region, keep, global;
     for (int e = 0; e < mesh.elements(); ++e) {
         bool in = false;
         for (int a = 0; a < 4; ++a) in |= isFree[static_cast<size_t>(mesh.tets(a, e))] != 0;
         (in ? region : keep).push_back(e);
     }
     if (region.empty()) return improveMesh(mesh, opts);  // nothing free: a report of the unchanged mesh
-    TetMesh sub;
-    sub.tets.resize(4, static_cast<Eigen::Index>(region.size()));
-    for (size_t k = 0; k < region.size(); ++k)
-        for (int a = 0; a < 4; ++a) {
-            const int i = mesh.tets(a, region[k]);
-            int& l = local[static_cast<size_t>(i)];
-            if (l < 0) l = static_cast<int>(global.size()), global.push_back(i);
-            sub.tets(a, static_cast<Eigen::Index>(k)) = l;
-        }
-    sub.X.resize(3, static_cast<Eigen::Index>(global.size()));
+    TetMesh sub = subMesh(mesh, region, global);
     opts.fixedNodes.clear();
-    for (size_t l = 0; l < global.size(); ++l) {
-        sub.X.col(static_cast<Eigen::Index>(l)) = mesh.X.col(global[l]);
+    for (size_t l = 0; l < global.size(); ++l)
         if (!isFree[static_cast<size_t>(global[l])]) opts.fixedNodes.push_back(static_cast<int>(l));
-    }
     opts.collapse = false;
     ImproveReport rep = improveMesh(sub, opts);
     if (sub.nodes() != static_cast<int>(global.size()))

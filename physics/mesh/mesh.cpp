@@ -133,4 +133,21 @@ double enclosedVolume(const SurfaceMesh& s) {
     return v;
 }
 
+TetMesh subMesh(const TetMesh& m, const std::vector<int>& elements, std::vector<int>& nodeOf) {
+    TetMesh sub;
+    std::vector<int> local(static_cast<size_t>(m.nodes()), -1);
+    nodeOf.clear();
+    sub.tets.resize(4, static_cast<Eigen::Index>(elements.size()));
+    for (size_t k = 0; k < elements.size(); ++k)
+        for (int a = 0; a < 4; ++a) {
+            const int i = m.tets(a, elements[k]);
+            int& l = local[static_cast<size_t>(i)];
+            if (l < 0) l = static_cast<int>(nodeOf.size()), nodeOf.push_back(i);
+            sub.tets(a, static_cast<Eigen::Index>(k)) = l;
+        }
+    sub.X.resize(3, static_cast<Eigen::Index>(nodeOf.size()));
+    for (size_t l = 0; l < nodeOf.size(); ++l) sub.X.col(static_cast<Eigen::Index>(l)) = m.X.col(nodeOf[l]);
+    return sub;
+}
+
 }  // namespace cutsim

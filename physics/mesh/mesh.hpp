@@ -72,6 +72,10 @@ Eigen::Matrix3Xi boundaryFaces(const TetMesh& m);
 // Sum of tet volumes [m^3].
 double totalVolume(const TetMesh& m);
 
+// The elements `elements` of m as a mesh of their own, their nodes numbered in order of first use;
+// nodeOf gets each new node's index in m.
+TetMesh subMesh(const TetMesh& m, const std::vector<int>& elements, std::vector<int>& nodeOf);
+
 // Volume enclosed by a closed, consistently oriented surface (divergence theorem) [m^3].
 double enclosedVolume(const SurfaceMesh& s);
 

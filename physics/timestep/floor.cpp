@@ -26,7 +26,10 @@ double r1rTopMode(const Model& m, const StiffnessRows& rows, int e, Eigen::Matri
         }
     }
     A = 0.5 * (A + A.transpose()).eval();
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(A);
+    // Dynamic size: GCC 12 warns of an uninitialised AVX-512 register inside Eigen's fixed 12x12
+    // path (a false positive); the cost is one allocation per call, off the step's path.
+    const Eigen::MatrixXd Ad = A;
+    const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(Ad);
     y = eig.eigenvectors().col(11);
     return eig.eigenvalues()(11);
 }

@@ -125,8 +125,11 @@ TEST(Improve, RegionLeavesTheRestAlone) {
     o.maxRounds = 6;
     improveRegion(mesh, freeNodes, o);
     ASSERT_EQ(mesh.nodes(), before.nodes());
-    for (int i = 0; i < mesh.nodes(); ++i)
-        if (!isFree[static_cast<size_t>(i)]) EXPECT_EQ((mesh.X.col(i) - before.X.col(i)).norm(), 0.0) << i;
+    for (int i = 0; i < mesh.nodes(); ++i) {
+        if (!isFree[static_cast<size_t>(i)]) {
+            EXPECT_EQ((mesh.X.col(i) - before.X.col(i)).norm(), 0.0) << i;
+        }
+    }
     double v0 = 0, v1 = 0;
     for (int e = 0; e < before.elements(); ++e) v0 += tetSignedVolume(before, e);
     for (int e = 0; e < mesh.elements(); ++e) {
@@ -139,7 +142,9 @@ TEST(Improve, RegionLeavesTheRestAlone) {
     for (int e = 0; e < before.elements(); ++e) {
         bool touches = false;
         for (int a = 0; a < 4; ++a) touches |= isFree[static_cast<size_t>(before.tets(a, e))] != 0;
-        if (!touches) EXPECT_EQ(mesh.tets.col(kept++), before.tets.col(e));
+        if (!touches) {
+            EXPECT_EQ(mesh.tets.col(kept++), before.tets.col(e));
+        }
     }
     EXPECT_GT(kept, 0);
     EXPECT_GE(meshStepStats(mesh, mat).dtExact, dt0 * (1 - 1e-9));

@@ -81,10 +81,11 @@ TEST(Hybrid, LiverRunsAboveTheFemLimit) {
             vmax = std::max(vmax, s.flags.nonFinite ? 1e30 : s.v.colwise().norm().maxCoeff());
             if (!(vmax < kBlowUpSpeed)) break;
         }
-        if (hybrid)
+        if (hybrid) {
             EXPECT_LT(vmax, 1.0) << "hybrid";
-        else
+        } else {
             EXPECT_FALSE(vmax < kBlowUpSpeed) << "plain FEM above its limit";
+        }
     }
 }
 
