@@ -673,70 +673,6 @@ bool Simulation::applyDueCuts() {
     return true;
 }
 
-// Blade sweeps of the step [t, t + dt]: each blade's edge moves from where the last step left it
-// (a dragged blade cuts along the path it was dragged) to its pose at t + dt, and CutEngine::sweep
-// splits the elements whose cross-section the swept area has covered. Edge (world space) and
-// coverage (State::x) are both in the deformed configuration, so the broad phase is refitted on
-// state.x. The engine keeps one stroke at a time: it ends when its blade leaves the tissue (no
-// element's box meets its swept box) or another blade starts cutting.
-bool Simulation::applyBlades() {
-    if (!bladePhase_) return true;
-    const double t0 = state_.time, t1 = state_.time + choice_.dt;
-    // A blade whose swept box misses the object's box cannot cut: then no tree is refitted. The
-    // box is widened by three margins, past any fattened element box the tree could hold, so a
-    // blade that would have met one is still queried.
-    const Eigen::Vector3d pad = Eigen::Vector3d::Constant(3 * bladeMargin_);
-    const Eigen::Vector3d objLo = state_.x.rowwise().minCoeff() - pad, objHi = state_.x.rowwise().maxCoeff() + pad;
-    bool anyNear = false;
-    for (size_t b = 0; b < bladeTools_.size() && !anyNear; ++b) {
-        const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
-        Eigen::Vector3d lo, hi;
-        sweptAabb(tool, t0, t1, lo, hi);
-        const BladeEdge& from = lastEdge_[b];
-        if (!(from.a == from.b))
-            for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-        anyNear = (lo.array() <= objHi.array()).all() && (hi.array() >= objLo.array()).all();
-    }
-    if (!anyNear) {
-        for (size_t b = 0; b < bladeTools_.size(); ++b) {
-            const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
-            bladeEdge(tool, t1, lastEdge_[b].a, lastEdge_[b].b);  // where the next step starts from
-        }
-        if (stroke_ >= 0) cutter_->endStroke(), stroke_ = -1;
-        return true;
-    }
-    bladePhase_->refit(model_.tets, state_.x);
-    for (size_t b = 0; b < bladeTools_.size(); ++b) {
-        const int i = bladeTools_[b];
-        const ToolDef& tool = contact_->tools()[static_cast<size_t>(i)];
-        BladeEdge from = lastEdge_[b], to;
-        if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
-        bladeEdge(tool, t1, to.a, to.b);
-        lastEdge_[b] = to;
-        Eigen::Vector3d lo, hi;
-        sweptAabb(tool, t0, t1, lo, hi);
-        for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-        bladePhase_->query(lo, hi, candidates_);
-        if (candidates_.empty()) {
-            if (stroke_ == i) cutter_->endStroke(), stroke_ = -1;
-            continue;
-        }
-        if (stroke_ != i) {
-            if (stroke_ >= 0) cutter_->endStroke();
-            stroke_ = i;
-        }
-        beforeTopologyChange();  // a sweep may split elements (r.changed() tells after it)
-        const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
-        if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
-        if (!r.changed()) continue;
-        bladePhase_->refit(model_.tets, state_.x);  // the new elements, for the next blade
-        ++rec_.bladeCutSteps;
-        applyTopologyChange(r, "tools[" + std::to_string(i) + "]");
-        if (status_ != RunStatus::Running) return false;
-    }
-    return true;
-}
-
 CutResult Simulation::cut(const CutSurface& surface, const std::string& key) {
     Stopwatch sw;
     if (!cutter_) ensureCutter();
@@ -789,15 +725,8 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
             hybrid = matchCriticalCertified(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold});
             limits_.exact = hybrid.dtExact;
         } else if (holdFloor) {
-            const Eigen::VectorXd before = model_.addedMass;
-            topUp = keepStep(model_, ta_.rows(), dtFloor);
+            topUp = topUpStepFloor(model_, ta_, dtFloor);
             limits_.exact = topUp.dtAfter;
-            if (topUp.addedMass > 0) {
-                std::vector<int> changed;
-                for (int i = 0; i < model_.nodes(); ++i)
-                    if (model_.addedMass(i) != before(i)) changed.push_back(i);
-                ta_.update(model_, {}, changed);
-            }
         } else {
             limits_.exact = ta_.exact(model_).dt;
         }

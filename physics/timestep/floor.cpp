@@ -101,21 +101,26 @@ StepFloorResult holdStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, co
     return res;
 }
 
-CertifiedFloorResult holdStepFloorCertified(Model& m, TimestepAnalyzer& ta, double dtFloor,
-                                            const StepFloorOptions& opts, const KeepStepOptions& keep) {
-    Stopwatch sw;
-    CertifiedFloorResult res;
-    res.local = holdStepFloor(m, ta, dtFloor, opts);
+KeepStepResult topUpStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, const KeepStepOptions& keep) {
     const Eigen::VectorXd before = m.addedMass;
-    res.topUp = keepStep(m, ta.rows(), dtFloor, keep);
-    res.dtExact = res.topUp.dtAfter;
-    res.toppedUp = res.topUp.addedMass > 0;
-    if (res.toppedUp) {
+    const KeepStepResult r = keepStep(m, ta.rows(), dtFloor, keep);
+    if (r.addedMass > 0) {
         std::vector<int> changed;
         for (int i = 0; i < m.nodes(); ++i)
             if (m.addedMass(i) != before(i)) changed.push_back(i);
         ta.update(m, {}, changed);
     }
+    return r;
+}
+
+CertifiedFloorResult holdStepFloorCertified(Model& m, TimestepAnalyzer& ta, double dtFloor,
+                                            const StepFloorOptions& opts, const KeepStepOptions& keep) {
+    Stopwatch sw;
+    CertifiedFloorResult res;
+    res.local = holdStepFloor(m, ta, dtFloor, opts);
+    res.topUp = topUpStepFloor(m, ta, dtFloor, keep);
+    res.dtExact = res.topUp.dtAfter;
+    res.toppedUp = res.topUp.addedMass > 0;
     res.seconds = sw.seconds();
     return res;
 }

@@ -52,6 +52,10 @@ struct CertifiedFloorResult {
     double dtExact = 0;     // exact step at the end [s]
     double seconds = 0;     // wall time, all of it [s]
 };
+// The certification alone: the exact step, and keepStep's global top-up when it is under dtFloor;
+// ta is updated at the nodes given mass. dtAfter is the exact step at the end.
+KeepStepResult topUpStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, const KeepStepOptions& keep = {});
+
 CertifiedFloorResult holdStepFloorCertified(Model& m, TimestepAnalyzer& ta, double dtFloor,
                                             const StepFloorOptions& opts = {}, const KeepStepOptions& keep = {});
 
