@@ -30,6 +30,7 @@ struct RenderArgs {
     int width = 1280;
     int height = 720;
     bool wireframe = false;
+    int samples = 4;  // a still: MSAA costs nothing that matters
     std::string field = "volume";
     bool hud = false;
 };
@@ -66,6 +67,7 @@ int runRender(const RenderArgs& a) {
         opts.height = a.height;
         opts.hud = a.hud;
         opts.wireframe = a.wireframe;
+        opts.samples = a.samples;
         render::Renderer r(opts);
         render::writePng(a.out, r.render(ms.snap));
         std::cout << "written: " << a.out << " (" << a.width << "x" << a.height << ", " << ms.snap.faces()
@@ -91,6 +93,9 @@ void addRenderCommand(CLI::App& app) {
     cmd->add_option("--width", args->width, "Image width [px]")->check(CLI::Range(16, 8192))->capture_default_str();
     cmd->add_option("--height", args->height, "Image height [px]")->check(CLI::Range(16, 8192))->capture_default_str();
     cmd->add_flag("--wireframe", args->wireframe, "Draw every tet edge");
+    cmd->add_option("--samples", args->samples, "MSAA samples (1: smoothed lines and silhouettes instead)")
+        ->check(CLI::Range(1, 16))
+        ->capture_default_str();
     cmd->add_option("--field", args->field, "Colour by: volume (per-element volume [m^3]) or none")
         ->check(CLI::IsMember({"volume", "none"}))
         ->capture_default_str();

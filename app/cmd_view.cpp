@@ -183,6 +183,7 @@ int runView(const ViewArgs& a) {
     ro.height = win.framebufferHeight();
     ro.xray = sc.capture.xray;
     ro.floor = sc.capture.floor;
+    ro.samples = sc.capture.samples;
     ro.wireframe = true;  // the snapshot has edges only when wireframe is on
     ro.hud = false;       // the panel shows the HUD values
     render::Renderer renderer(ro, render::RenderTarget::CurrentContext);

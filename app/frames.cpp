@@ -29,6 +29,7 @@ public:
         ro.xray = sc.capture.xray;
         ro.floor = sc.capture.floor;
         ro.hud = sc.capture.hud;
+        ro.samples = sc.capture.samples;
         renderer_ = std::make_unique<render::Renderer>(ro);
         std::filesystem::create_directories(dir_);
         if (sc.capture.video) {
@@ -47,11 +48,13 @@ public:
     }
 
     void frame(const Model& model, const State& state, const FrameInfo& info) override {
-        render::Image img = renderer_->render(scene_.update(model, state, info));
+        renderer_->draw(scene_.update(model, state, info));
+        const bool png = sc_.capture.pngEvery > 0 && frames_ % sc_.capture.pngEvery == 0;
+        render::Image img = video_ && !png ? video_->spareFrame() : render::Image{};
+        renderer_->read(img);
         const auto t0 = Clock::now();
         char name[32];
         std::snprintf(name, sizeof name, "frame_%06d.png", frames_);
-        const bool png = sc_.capture.pngEvery > 0 && frames_ % sc_.capture.pngEvery == 0;
         if (video_ && png)
             video_->addFrame(img);
         else if (video_)

@@ -162,6 +162,7 @@ public:
             ro.xray = cap.xray;
             ro.floor = cap.floor;
             ro.hud = cap.hud;
+            ro.samples = cap.samples;
             renderer_ = std::make_unique<render::Renderer>(ro);
         }
         if (!snapshot_ || drawnVersion_ != sim_.topologyVersion()) {

@@ -2,6 +2,7 @@
 
 #include "colormap.hpp"
 #include "egl_context.hpp"
+#include "geometry.hpp"
 #include "gl.hpp"
 
 #include <imgui.h>
@@ -12,8 +13,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numeric>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -22,6 +25,7 @@ namespace {
 
 using Mat4f = Eigen::Matrix4f;
 using Vec3f = Eigen::Vector3f;
+using Vec4f = Eigen::Vector4f;
 using Vec3d = Eigen::Vector3d;
 
 // ---- shaders ----
@@ -33,19 +37,24 @@ layout(location = 0) in vec3 aPos;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in float aScalar;
 layout(location = 3) in float aCut;
+layout(location = 4) in float aEdge;
+layout(location = 5) in vec2 aOffset;  // smoothed segments: offset in normalised device coordinates
 uniform mat4 uView;
 uniform mat4 uProj;
 out vec3 vNormal;
 out vec3 vPosV;
 out float vScalar;
 out float vCut;
+noperspective out float vEdge;
 void main() {
     vec4 pv = uView * vec4(aPos, 1.0);
     vPosV = pv.xyz;
     vNormal = mat3(uView) * aNormal;
     vScalar = aScalar;
     vCut = aCut;
+    vEdge = aEdge;
     gl_Position = uProj * pv;
+    gl_Position.xy += aOffset * gl_Position.w;
 }
 )";
 
@@ -54,6 +63,8 @@ in vec3 vNormal;
 in vec3 vPosV;
 in float vScalar;
 in float vCut;
+noperspective in float vEdge;  // smoothed segments: distance from the centre line [px]
+uniform float uEdgeHalf;       // their half width [px]; 0: a surface
 uniform int uUseMap;
 uniform vec3 uMap[16];
 uniform int uMapN;
@@ -73,7 +84,8 @@ vec3 colourMap(float s) {
 void main() {
     vec3 base = uUseMap != 0 ? colourMap(vScalar) : uColour;
     if (vCut > 0.5) base = uCutColour;
-    if (uLit == 0) { fragColour = vec4(base, uAlpha); return; }
+    float alpha = uEdgeHalf > 0.0 ? uAlpha * clamp(uEdgeHalf + 0.5 - abs(vEdge), 0.0, 1.0) : uAlpha;
+    if (uLit == 0) { fragColour = vec4(base, alpha); return; }
     vec3 n = normalize(vNormal);
     vec3 v = normalize(-vPosV);
     if (dot(n, v) < 0.0) n = -n;
@@ -81,7 +93,7 @@ void main() {
     vec3 fill = normalize(vec3(-0.6, -0.25, 0.5));
     float diffuse = 0.7 * max(dot(n, key), 0.0) + 0.3 * max(dot(n, fill), 0.0);
     float spec = 0.22 * pow(max(dot(reflect(-key, n), v), 0.0), 32.0);
-    fragColour = vec4(base * (0.22 + diffuse) + vec3(spec), uAlpha);
+    fragColour = vec4(base * (0.22 + diffuse) + vec3(spec), alpha);
 }
 )";
 
@@ -160,75 +172,12 @@ Mat4f perspective(double fovYDeg, double aspect, double zNear, double zFar) {
     return m.cast<float>();
 }
 
-// Interleaved vertex of the mesh program: position, normal, scalar, cut flag.
-struct MeshVertex {
-    float p[3], n[3], s, cut;
-};
-
-void pushTriangle(std::vector<MeshVertex>& out, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
-    Vec3f n = (b - a).cross(c - a).normalized().cast<float>();
-    for (const Vec3d* q : {&a, &b, &c}) {
-        Vec3f p = q->cast<float>();
-        out.push_back({{p.x(), p.y(), p.z()}, {n.x(), n.y(), n.z()}, 0, 0});
-    }
-}
-
-// Tool solids as flat triangles in world coordinates.
-void toolTriangles(const ToolShape& t, std::vector<MeshVertex>& out) {
-    const Eigen::Matrix3d R = t.orientation.normalized().toRotationMatrix();
-    auto world = [&](const Vec3d& p) { return Vec3d(t.position + R * p); };
-    if (t.kind == ToolShape::Kind::Box) {
-        const Vec3d h = t.size;
-        auto corner = [&](int i) {
-            return world(Vec3d((i & 1 ? 1 : -1) * h.x(), (i & 2 ? 1 : -1) * h.y(), (i & 4 ? 1 : -1) * h.z()));
-        };
-        // Each face as two triangles, counter-clockwise from outside.
-        static constexpr int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                                            {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-        for (const auto& f : faces) {
-            pushTriangle(out, corner(f[0]), corner(f[1]), corner(f[2]));
-            pushTriangle(out, corner(f[0]), corner(f[2]), corner(f[3]));
-        }
-        return;
-    }
-    // Sphere or capsule: a UV sphere whose two halves are pushed apart along local z.
-    const double r = t.size.x();
-    const double half = t.kind == ToolShape::Kind::Capsule ? t.size.y() : 0.0;
-    constexpr int nu = 24, nv = 12;
-    auto point = [&](int i, int j, double shift) {
-        const double th = M_PI * j / nv, ph = 2 * M_PI * i / nu;
-        return Vec3d(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th) + shift);
-    };
-    for (int j = 0; j < nv; ++j) {
-        // Rows above the equator belong to the upper cap, the rest to the lower one; the row
-        // across the equator becomes the cylinder.
-        const double s0 = j < nv / 2 ? half : -half;
-        const double s1 = j + 1 <= nv / 2 ? half : -half;
-        for (int i = 0; i < nu; ++i) {
-            Vec3d a = world(point(i, j, s0)), b = world(point(i + 1, j, s0));
-            Vec3d c = world(point(i + 1, j + 1, s1)), d = world(point(i, j + 1, s1));
-            // Each quad of the top row has a, b at the pole, of the bottom row c, d: keep the
-            // triangle of three distinct points there, so the poles are closed.
-            if (j + 1 < nv) pushTriangle(out, a, d, c);
-            if (j > 0) pushTriangle(out, a, c, b);
-        }
-        if (j + 1 == nv / 2 && half > 0) {
-            for (int i = 0; i < nu; ++i) {
-                Vec3d a = world(point(i, nv / 2, half)), b = world(point(i + 1, nv / 2, half));
-                Vec3d c = world(point(i + 1, nv / 2, -half)), d = world(point(i, nv / 2, -half));
-                pushTriangle(out, a, d, c);
-                pushTriangle(out, a, c, b);
-            }
-        }
-    }
-}
-
 }  // namespace
 
 // GL objects.
 struct Renderer::Gl {
-    GLuint msFbo = 0, msColour = 0, msDepth = 0;  // multisampled target
-    GLuint outFbo = 0, outColour = 0;             // resolved, read back
+    GLuint msFbo = 0, msColour = 0, msDepth = 0;     // multisampled target (MSAA)
+    GLuint outFbo = 0, outColour = 0, outDepth = 0;  // read back; drawn into directly with one sample
     GLuint meshProg = 0, lineProg = 0;
     GLuint vao = 0, vbo = 0;
     ImGuiContext* imgui = nullptr;
@@ -236,13 +185,17 @@ struct Renderer::Gl {
     std::vector<MeshVertex> critTris;  // critical elements' faces and edges, this frame
     std::vector<float> critLines;
     std::vector<float> lines;
+    std::vector<MeshVertex> silhouette;                    // this frame's silhouette segments
+    std::vector<MeshVertex> quads;                         // smoothed segments as triangles
+    std::vector<std::pair<std::uint64_t, int>> halfEdges;  // scratch of silhouetteLines
+    std::vector<int> ids;
     // Uniform locations.
     GLint mView = -1, mProj = -1, mUseMap = -1, mMap = -1, mMapN = -1, mMin = -1, mMax = -1, mColour = -1,
-          mCutColour = -1, mLit = -1, mAlpha = -1;
+          mCutColour = -1, mLit = -1, mAlpha = -1, mEdgeHalf = -1;
     GLint lView = -1, lProj = -1, lColour = -1;
 
-    // Uploads and draws interleaved mesh vertices.
-    void drawMesh(const std::vector<MeshVertex>& v) {
+    // Uploads and draws interleaved mesh vertices (triangles, or segments with GL_LINES).
+    void drawMesh(const std::vector<MeshVertex>& v, GLenum mode = GL_TRIANGLES) {
         if (v.empty()) return;
         glBindBuffer(GL_ARRAY_BUFFER, vbo);
         glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_STREAM_DRAW);
@@ -255,7 +208,11 @@ struct Renderer::Gl {
         glVertexAttribPointer(2, 1, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, s)));
         glEnableVertexAttribArray(3);
         glVertexAttribPointer(3, 1, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, cut)));
-        glDrawArrays(GL_TRIANGLES, 0, static_cast<GLsizei>(v.size()));
+        glEnableVertexAttribArray(4);
+        glVertexAttribPointer(4, 1, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, edge)));
+        glEnableVertexAttribArray(5);
+        glVertexAttribPointer(5, 2, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, off)));
+        glDrawArrays(mode, 0, static_cast<GLsizei>(v.size()));
     }
     // Uploads and draws line segments (xyz pairs).
     void drawLines(const std::vector<float>& l) {
@@ -264,7 +221,7 @@ struct Renderer::Gl {
         glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(l.size() * sizeof(float)), l.data(), GL_STREAM_DRAW);
         glEnableVertexAttribArray(0);
         glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
-        for (GLuint a = 1; a < 4; ++a) glDisableVertexAttribArray(a);
+        for (GLuint a = 1; a < 6; ++a) glDisableVertexAttribArray(a);
         glDrawArrays(GL_LINES, 0, static_cast<GLsizei>(l.size() / 3));
     }
 };
@@ -289,6 +246,7 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     glGenRenderbuffers(1, &g.msDepth);
     glGenFramebuffers(1, &g.outFbo);
     glGenRenderbuffers(1, &g.outColour);
+    glGenRenderbuffers(1, &g.outDepth);
     allocateTargets();
 
     g.meshProg = link(kMeshVs, kMeshFs);
@@ -305,6 +263,7 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     g.mCutColour = loc(g.meshProg, "uCutColour");
     g.mLit = loc(g.meshProg, "uLit");
     g.mAlpha = loc(g.meshProg, "uAlpha");
+    g.mEdgeHalf = loc(g.meshProg, "uEdgeHalf");
     g.lView = loc(g.lineProg, "uView");
     g.lProj = loc(g.lineProg, "uProj");
     g.lColour = loc(g.lineProg, "uColour");
@@ -324,23 +283,35 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
 }
 
 void Renderer::allocateTargets() {
-    // Multisampled colour + depth, resolved into a single-sample colour buffer for read-back.
+    // MSAA: multisampled colour and depth, resolved into the read-back buffer. One sample: the
+    // read-back buffer gets a depth buffer and is drawn into directly.
     Gl& g = *gl_;
-    glBindRenderbuffer(GL_RENDERBUFFER, g.msColour);
-    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_RGBA8, opts_.width, opts_.height);
-    glBindRenderbuffer(GL_RENDERBUFFER, g.msDepth);
-    glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples_, GL_DEPTH_COMPONENT24, opts_.width, opts_.height);
-    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.msColour);
-    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.msDepth);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-        throw std::runtime_error("multisampled framebuffer incomplete");
-    glBindRenderbuffer(GL_RENDERBUFFER, g.outColour);
-    glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, opts_.width, opts_.height);
+    auto storage = [&](GLuint rb, int samples, GLenum format) {
+        glBindRenderbuffer(GL_RENDERBUFFER, rb);
+        if (samples > 1)
+            glRenderbufferStorageMultisample(GL_RENDERBUFFER, samples, format, opts_.width, opts_.height);
+        else
+            glRenderbufferStorage(GL_RENDERBUFFER, format, opts_.width, opts_.height);
+    };
+    auto complete = [](GLuint fbo, const char* what) {
+        glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+        if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            throw std::runtime_error(std::string(what) + " framebuffer incomplete");
+    };
+    if (samples_ > 1) {
+        storage(g.msColour, samples_, GL_RGBA8);
+        storage(g.msDepth, samples_, GL_DEPTH_COMPONENT24);
+        glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
+        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.msColour);
+        glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, g.msDepth);
+        complete(g.msFbo, "multisampled");
+    }
+    storage(g.outColour, 1, GL_RGBA8);
     glBindFramebuffer(GL_FRAMEBUFFER, g.outFbo);
     glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, g.outColour);
-    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-        throw std::runtime_error("read-back framebuffer incomplete");
+    if (samples_ == 1) storage(g.outDepth, 1, GL_DEPTH_COMPONENT24);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, samples_ == 1 ? g.outDepth : 0);
+    complete(g.outFbo, "read-back");
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
@@ -377,8 +348,8 @@ Renderer::~Renderer() {
     glDeleteProgram(g.lineProg);
     glDeleteFramebuffers(1, &g.msFbo);
     glDeleteFramebuffers(1, &g.outFbo);
-    GLuint rbs[] = {g.msColour, g.msDepth, g.outColour};
-    glDeleteRenderbuffers(3, rbs);
+    GLuint rbs[] = {g.msColour, g.msDepth, g.outColour, g.outDepth};
+    glDeleteRenderbuffers(4, rbs);
 }
 
 PixelRect Renderer::legendRect() const {
@@ -404,71 +375,11 @@ struct Renderer::View {
 
 namespace {
 
-// The surface's triangle corners with their normals: given per vertex, or from the area-weighted
-// normals of the faces around the vertex that meet this face at less than the crease angle, so
-// box edges and cut rims stay sharp while curved surfaces shade smoothly.
-void surfaceVertices(const RenderSnapshot& snap, bool useMap, std::vector<MeshVertex>& verts) {
-    const int n = snap.vertices();
-    const bool hasCut = snap.cutFace.size() == static_cast<size_t>(snap.faces());
-    const bool given = snap.normals.cols() == n;
-    const int nf = snap.faces();
-    Eigen::Matrix3Xf faceN(3, given ? 0 : nf);
-    std::vector<int> start, vertexFaces;  // vertex -> faces (CSR)
-    if (!given) {
-        start.assign(static_cast<size_t>(n) + 1, 0);
-        for (int f = 0; f < nf; ++f) {
-            const auto t = snap.triangles.col(f);
-            faceN.col(f) = (snap.positions.col(t[1]) - snap.positions.col(t[0]))
-                               .cross(snap.positions.col(t[2]) - snap.positions.col(t[0]))
-                               .cast<float>();
-            for (int k = 0; k < 3; ++k) ++start[static_cast<size_t>(t[k]) + 1];
-        }
-        for (int v = 0; v < n; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
-        vertexFaces.resize(static_cast<size_t>(start.back()));
-        std::vector<int> fill(start.begin(), start.end() - 1);
-        for (int f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k)
-                vertexFaces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
-    }
-    constexpr float kCosCrease = 0.64f;  // about 50 degrees
-    verts.clear();
-    verts.reserve(3 * static_cast<size_t>(nf));
-    for (int f = 0; f < nf; ++f) {
-        const float c = hasCut && snap.cutFace[static_cast<size_t>(f)] ? 1.0f : 0.0f;
-        const Vec3f own = given ? Vec3f::Zero() : Vec3f(faceN.col(f).normalized());
-        for (int k = 0; k < 3; ++k) {
-            const int v = snap.triangles(k, f);
-            Vec3f q;
-            if (given) {
-                q = snap.normals.col(v).cast<float>();
-            } else {
-                q.setZero();
-                for (int i = start[static_cast<size_t>(v)]; i < start[static_cast<size_t>(v) + 1]; ++i) {
-                    const auto other = faceN.col(vertexFaces[static_cast<size_t>(i)]);
-                    if (own.dot(other) > kCosCrease * other.norm()) q += other;
-                }
-                q = q.squaredNorm() > 0 ? Vec3f(q.normalized()) : own;
-            }
-            const Vec3f p = snap.positions.col(v).cast<float>();
-            verts.push_back({{p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z()}, useMap ? float(snap.scalar[v]) : 0.0f, c});
-        }
-    }
-}
-
-// The critical elements' faces and edges.
-void criticalGeometry(const RenderSnapshot& snap, std::vector<MeshVertex>& tris, std::vector<float>& lines) {
-    static constexpr int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
-    static constexpr int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-    const int nCrit = static_cast<int>(snap.criticalTets.cols() / 4);
-    for (int e = 0; e < nCrit; ++e) {
-        auto c = [&](int a) { return Vec3d(snap.criticalTets.col(4 * e + a)); };
-        for (const auto& f : faces) pushTriangle(tris, c(f[0]), c(f[1]), c(f[2]));
-        for (const auto& ed : edges)
-            for (int a : {ed[0], ed[1]}) {
-                Vec3f p = c(a).cast<float>();
-                lines.insert(lines.end(), {p.x(), p.y(), p.z()});
-            }
-    }
+// Alpha blending that leaves the frame opaque: a frame read back with alpha under 1 shows lighter
+// wherever a viewer composites the PNG over white.
+void blendOver() {
+    glEnable(GL_BLEND);
+    glBlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);
 }
 
 }  // namespace
@@ -536,9 +447,71 @@ void Renderer::drawSurface(const RenderSnapshot& snap, const View& v) {
     glPolygonOffset(1.0f, 1.0f);
     g.drawMesh(g.verts);
     glDisable(GL_POLYGON_OFFSET_FILL);
+    if (smoothEdges()) {
+        g.ids.assign(snap.triangles.data(), snap.triangles.data() + snap.triangles.size());
+        drawSilhouette(v);
+    }
 }
 
-void Renderer::drawTools(const RenderSnapshot& snap) {
+bool Renderer::smoothEdges() const { return opts_.smoothEdges && samples_ == 1; }
+
+// The silhouette of the soup in Gl::verts as smoothed segments, with the mesh program's uniforms
+// as they are.
+void Renderer::drawSilhouette(const View& v) {
+    Gl& g = *gl_;
+    const Eigen::Matrix3f r = v.view.topLeftCorner<3, 3>();
+    const Vec3f eye = -(r.transpose() * v.view.topRightCorner<3, 1>());
+    g.silhouette.clear();
+    silhouetteLines(g.verts, g.ids, eye, g.halfEdges, g.silhouette);
+    drawSmoothSegments(v);
+}
+
+// The segments in Gl::silhouette blended over what is drawn, 1 px wide with a 1 px ramp, writing no depth; the mesh
+// program's other uniforms as they are.
+void Renderer::drawSmoothSegments(const View& v) {
+    Gl& g = *gl_;
+    constexpr float kHalfWidth = 0.5f;
+    const Eigen::Matrix4f pv = v.proj * v.view;
+    g.quads.clear();
+    segmentQuads(g.silhouette, pv, 0.5f * static_cast<float>(opts_.width), 0.5f * static_cast<float>(opts_.height),
+                 kHalfWidth, g.quads);
+    glUseProgram(g.meshProg);
+    glUniformMatrix4fv(g.mView, 1, GL_FALSE, v.view.data());
+    glUniformMatrix4fv(g.mProj, 1, GL_FALSE, v.proj.data());
+    glUniform1f(g.mEdgeHalf, kHalfWidth);
+    blendOver();
+    glDepthMask(GL_FALSE);
+    g.drawMesh(g.quads);
+    glDepthMask(GL_TRUE);
+    glDisable(GL_BLEND);
+    glUniform1f(g.mEdgeHalf, 0.0f);
+}
+
+// Lines of one colour (xyz pairs): smoothed segments when they are in use, else GL lines.
+void Renderer::drawColourLines(const std::vector<float>& xyz, const Vec4f& colour, const View& v) {
+    Gl& g = *gl_;
+    if (!smoothEdges()) {
+        glUseProgram(g.lineProg);
+        glUniformMatrix4fv(g.lView, 1, GL_FALSE, v.view.data());
+        glUniformMatrix4fv(g.lProj, 1, GL_FALSE, v.proj.data());
+        glUniform4f(g.lColour, colour.x(), colour.y(), colour.z(), colour.w());
+        g.drawLines(xyz);
+        return;
+    }
+    g.silhouette.clear();
+    for (size_t i = 0; i + 2 < xyz.size(); i += 3)
+        g.silhouette.push_back({{xyz[i], xyz[i + 1], xyz[i + 2]}, {0, 0, 1}, 0, 0});
+    glUseProgram(g.meshProg);
+    glUniform1i(g.mUseMap, 0);
+    glUniform1i(g.mLit, 0);
+    glUniform3f(g.mColour, colour.x(), colour.y(), colour.z());
+    glUniform1f(g.mAlpha, colour.w());
+    drawSmoothSegments(v);
+    glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
+    glUniform1f(g.mAlpha, 1.0f);
+}
+
+void Renderer::drawTools(const RenderSnapshot& snap, const View& v) {
     if (snap.tools.empty()) return;
     Gl& g = *gl_;
     g.verts.clear();
@@ -547,23 +520,28 @@ void Renderer::drawTools(const RenderSnapshot& snap) {
     glUniform1i(g.mUseMap, 0);
     glUniform3f(g.mColour, tc.x(), tc.y(), tc.z());
     g.drawMesh(g.verts);
+    if (smoothEdges()) {
+        g.ids.clear();  // corners at one position are one vertex
+        drawSilhouette(v);
+    }
 }
 
-// Wireframe and the floor grid.
+// Wireframe.
 void Renderer::drawLines(const RenderSnapshot& snap, const View& v) {
+    Gl& g = *gl_;
+    if (opts_.wireframe && snap.edges.cols() >= 2) {
+        g.lines.resize(3 * static_cast<size_t>(snap.edges.cols()));
+        Eigen::Map<Eigen::Matrix3Xf>(g.lines.data(), 3, snap.edges.cols()) = snap.edges.cast<float>();
+        drawColourLines(g.lines, Vec4f(0.08f, 0.08f, 0.1f, 1.0f), v);
+    }
+}
+
+// The floor grid, drawn first so the smoothed edges in front blend over it.
+void Renderer::drawFloor(const RenderSnapshot& snap, const View& v) {
     Gl& g = *gl_;
     const int n = snap.vertices();
     const Vec3d& up = v.up;
     const Vec3f& bg = v.bg;
-    glUseProgram(g.lineProg);
-    glUniformMatrix4fv(g.lView, 1, GL_FALSE, v.view.data());
-    glUniformMatrix4fv(g.lProj, 1, GL_FALSE, v.proj.data());
-    if (opts_.wireframe && snap.edges.cols() >= 2) {
-        g.lines.resize(3 * static_cast<size_t>(snap.edges.cols()));
-        Eigen::Map<Eigen::Matrix3Xf>(g.lines.data(), 3, snap.edges.cols()) = snap.edges.cast<float>();
-        glUniform4f(g.lColour, 0.08f, 0.08f, 0.1f, 1.0f);
-        g.drawLines(g.lines);
-    }
     if (opts_.floor && (snap.floor.fixed || n > 0)) {
         // Grid in a plane normal to up: where the scene puts it, or just under this frame's
         // lowest surface point.
@@ -592,27 +570,24 @@ void Renderer::drawLines(const RenderSnapshot& snap, const View& v) {
                     g.lines.insert(g.lines.end(), {p.x(), p.y(), p.z()});
                 }
             }
-        glUniform4f(g.lColour, bg.x() + 0.12f, bg.y() + 0.12f, bg.z() + 0.12f, 1.0f);
-        g.drawLines(g.lines);
+        drawColourLines(g.lines, Vec4f(bg.x() + 0.12f, bg.y() + 0.12f, bg.z() + 0.12f, 1.0f), v);
     }
 }
 
 // The critical elements through the surface (x-ray): no depth test, blended.
-void Renderer::drawCriticalXray() {
+void Renderer::drawCriticalXray(const View& v) {
     Gl& g = *gl_;
     const Vec3f cc = rgb(opts_.criticalColour);
     glDisable(GL_DEPTH_TEST);
-    glEnable(GL_BLEND);
-    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    blendOver();
     glUseProgram(g.meshProg);
     glUniform1i(g.mUseMap, 0);
     glUniform1i(g.mLit, 0);
     glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
     glUniform1f(g.mAlpha, 0.35f);
     g.drawMesh(g.critTris);
-    glUseProgram(g.lineProg);
-    glUniform4f(g.lColour, cc.x(), cc.y(), cc.z(), 0.9f);
-    g.drawLines(g.critLines);
+    // Edges halfway to white, so they read on the faces of their own colour.
+    drawColourLines(g.critLines, Vec4f(0.5f * (cc.x() + 1), 0.5f * (cc.y() + 1), 0.5f * (cc.z() + 1), 0.9f), v);
     glDisable(GL_BLEND);
     glEnable(GL_DEPTH_TEST);
 }
@@ -621,7 +596,7 @@ void Renderer::draw(const RenderSnapshot& snap) {
     makeCurrent();
     Gl& g = *gl_;
     const View v = viewOf(snap);
-    glBindFramebuffer(GL_FRAMEBUFFER, g.msFbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, samples_ > 1 ? g.msFbo : g.outFbo);
     glViewport(0, 0, opts_.width, opts_.height);
     glClearColor(v.bg.x(), v.bg.y(), v.bg.z(), 1.0f);
     glClearDepth(1.0);
@@ -636,8 +611,9 @@ void Renderer::draw(const RenderSnapshot& snap) {
 
     // The surface, the tools, the critical elements where visible, the lines, then the critical
     // elements through the surface.
+    drawFloor(snap, v);
     drawSurface(snap, v);
-    drawTools(snap);
+    drawTools(snap, v);
     const bool xray = opts_.xray && snap.criticalTets.cols() >= 4;
     if (xray) {
         g.critTris.clear();
@@ -649,17 +625,18 @@ void Renderer::draw(const RenderSnapshot& snap) {
         g.drawMesh(g.critTris);
     }
     drawLines(snap, v);
-    if (xray) drawCriticalXray();
+    if (xray) drawCriticalXray(v);
     glBindVertexArray(0);
 
     // 2D: legend and HUD (ImGui draws into the bound framebuffer).
     drawHudAndLegend(snap);
 
-    // Resolve the samples into the read-back target.
-    glBindFramebuffer(GL_READ_FRAMEBUFFER, g.msFbo);
-    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, g.outFbo);
-    glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT,
-                      GL_NEAREST);
+    if (samples_ > 1) {  // resolve the samples into the read-back target
+        glBindFramebuffer(GL_READ_FRAMEBUFFER, g.msFbo);
+        glBindFramebuffer(GL_DRAW_FRAMEBUFFER, g.outFbo);
+        glBlitFramebuffer(0, 0, opts_.width, opts_.height, 0, 0, opts_.width, opts_.height, GL_COLOR_BUFFER_BIT,
+                          GL_NEAREST);
+    }
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
 }
 
@@ -781,8 +758,13 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
 }
 
 Image Renderer::read() const {
-    makeCurrent();
     Image img;
+    read(img);
+    return img;
+}
+
+void Renderer::read(Image& img) const {
+    makeCurrent();
     img.width = opts_.width;
     img.height = opts_.height;
     img.rgba.resize(4 * static_cast<size_t>(img.width) * static_cast<size_t>(img.height));
@@ -796,7 +778,6 @@ Image Renderer::read() const {
         std::swap_ranges(img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y)),
                          img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y + 1)),
                          img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(img.height - 1 - y)));
-    return img;
 }
 
 }  // namespace cutsim::render

@@ -18,13 +18,15 @@ class EglContext;
 struct RenderOptions {
     int width = 1280;  // frame size [px]
     int height = 720;
-    int samples = 4;        // MSAA samples (clamped to what GL offers; 1 = none)
-    bool lighting = true;   // false: flat colours exactly as the map gives them (pixel tests)
-    bool wireframe = true;  // draw RenderSnapshot::edges when there are any
-    bool xray = true;       // draw critical elements through the surface
-    bool floor = true;      // floor grid under the surface, for depth cues
-    bool legend = true;     // colour bar with ticks when the snapshot has a scalar
-    bool hud = false;       // ImGui window with the HUD values
+    int samples = 1;          // MSAA samples (clamped to what GL offers); on llvmpipe 4 cost ~3x a frame
+    bool smoothEdges = true;  // with one sample: anti-aliased lines and silhouettes (GL_LINE_SMOOTH),
+                              // the cheap alternative to MSAA on a CPU rasteriser
+    bool lighting = true;     // false: flat colours exactly as the map gives them (pixel tests)
+    bool wireframe = true;    // draw RenderSnapshot::edges when there are any
+    bool xray = true;         // draw critical elements through the surface
+    bool floor = true;        // floor grid under the surface, for depth cues
+    bool legend = true;       // colour bar with ticks when the snapshot has a scalar
+    bool hud = false;         // ImGui window with the HUD values
     std::array<std::uint8_t, 3> background{38, 41, 46};        // clear colour
     std::array<std::uint8_t, 3> surfaceColour{222, 184, 166};  // surface without a scalar
     std::array<std::uint8_t, 3> cutColour{196, 60, 84};        // faces made by a cut
@@ -57,6 +59,8 @@ public:
     void draw(const RenderSnapshot& snap);
     // The last frame, RGBA, top row first.
     Image read() const;
+    // The same into `img`, reusing its buffer (no allocation when it already has the size).
+    void read(Image& img) const;
     // draw + read.
     Image render(const RenderSnapshot& snap) {
         draw(snap);
@@ -85,9 +89,14 @@ private:
     struct View;
     View viewOf(const RenderSnapshot& snap) const;
     void drawSurface(const RenderSnapshot& snap, const View& v);
-    void drawTools(const RenderSnapshot& snap);
+    void drawTools(const RenderSnapshot& snap, const View& v);
+    void drawSilhouette(const View& v);
+    void drawSmoothSegments(const View& v);  // Gl::silhouette
+    void drawColourLines(const std::vector<float>& xyz, const Eigen::Vector4f& colour, const View& v);
+    bool smoothEdges() const;  // smoothed lines and silhouettes in use
     void drawLines(const RenderSnapshot& snap, const View& v);
-    void drawCriticalXray();
+    void drawFloor(const RenderSnapshot& snap, const View& v);
+    void drawCriticalXray(const View& v);
     void drawHudAndLegend(const RenderSnapshot& snap);
     void makeCurrent() const;
     void allocateTargets();  // framebuffers at opts_ size

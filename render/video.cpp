@@ -68,6 +68,7 @@ void VideoEncoder::run() {
             ++frames_;
         else
             failed_ = true;
+        if (spare_.size() < 4) spare_.push_back(std::move(img));
         changed_.notify_all();
     }
 }
@@ -100,6 +101,14 @@ void VideoEncoder::addFrame(Image img) {
     if (failed_) throw std::runtime_error("ffmpeg stopped while writing " + path_);
     queue_.push_back(std::move(img));
     changed_.notify_all();
+}
+
+Image VideoEncoder::spareFrame() {
+    std::lock_guard lock(mutex_);
+    if (spare_.empty()) return {};
+    Image img = std::move(spare_.back());
+    spare_.pop_back();
+    return img;
 }
 
 void VideoEncoder::finish() {

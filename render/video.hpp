@@ -11,6 +11,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace cutsim::render {
 
@@ -28,6 +29,8 @@ public:
 
     // Queues a frame (blocks while 4 wait); throws if the size differs or ffmpeg stopped.
     void addFrame(Image img);
+    // A frame whose pixels were written, to be filled again (its buffer reused), or an empty one.
+    Image spareFrame();
     void finish();                          // waits for ffmpeg, renames; throws with its exit status
     int frames() const { return frames_; }  // frames written to ffmpeg
 
@@ -41,6 +44,7 @@ private:
     std::mutex mutex_;
     std::condition_variable changed_;
     std::deque<Image> queue_;
+    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation is ~1 ms of page faults)
     bool stop_ = false, failed_ = false;
     std::thread writer_;
 };

@@ -602,6 +602,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.capture.playbackFps = c.number("playback_fps", 0, 0, 1000);
         s.capture.width = c.integer("width", 1280, 16, 8192);
         s.capture.height = c.integer("height", 720, 16, 8192);
+        s.capture.samples = c.integer("samples", 1, 1, 16);
         s.capture.colormap = c.string("colormap", "timestep", {"timestep", "displacement", "stress", "none"});
         s.capture.video = c.boolean("video", true);
         s.capture.pngEvery = c.integer("png_every", 1, 0, 1000000);

@@ -79,6 +79,7 @@ struct Capture {
     double fps = 30;         // frames per simulated second
     double playbackFps = 0;  // frames per second of the video [1/s]; 0: fps (real time)
     int width = 1280, height = 720;
+    int samples = 1;  // MSAA samples; 1: smoothed lines and silhouettes instead (much cheaper on llvmpipe)
     std::string colormap = "timestep";  // timestep | displacement | stress | none
     bool video = true;                  // MP4 through ffmpeg when it is installed
     int pngEvery = 1;                   // a PNG file for every n-th frame (0: none, the video has them all)

@@ -221,6 +221,52 @@ TEST(Render, CriticalColourIsUsedByNothingElse) {
         }
 }
 
+MeshSnapshot boxWithCritical();
+
+// Pixels of a frame that are neither the background nor `colour` (exactly).
+int mixedPixels(const Image& img, const std::array<std::uint8_t, 3>& bg, const std::array<std::uint8_t, 3>& colour) {
+    int mixed = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const auto p = img.pixel(x, y);
+            const bool isBg = p[0] == bg[0] && p[1] == bg[1] && p[2] == bg[2];
+            const bool isColour = p[0] == colour[0] && p[1] == colour[1] && p[2] == colour[2];
+            mixed += !isBg && !isColour;
+        }
+    return mixed;
+}
+
+// With one sample, the smoothed silhouette blends an unlit box into the background along its
+// outline (about its perimeter in pixels); without it, every pixel is one or the other.
+TEST(Render, SmoothedSilhouetteBlendsTheOutline) {
+    RenderOptions o = goldenOptions();
+    o.lighting = false;
+    o.floor = false;
+    o.legend = false;
+    o.samples = 1;
+    const RenderSnapshot snap = snapshotFromTetMesh(scenebox()).snap;
+    o.smoothEdges = false;
+    EXPECT_EQ(mixedPixels(Renderer(o).render(snap), o.background, o.surfaceColour), 0);
+    o.smoothEdges = true;
+    const int mixed = mixedPixels(Renderer(o).render(snap), o.background, o.surfaceColour);
+    EXPECT_GT(mixed, 150);  // the box's outline is ~400 px long at 320x180
+    EXPECT_LT(mixed, 2000);
+}
+
+// Blended overlays (x-ray, smoothed edges) leave the frame opaque: a PNG with alpha under 255
+// shows lighter wherever a viewer composites it over white.
+TEST(Render, FramesAreOpaque) {
+    for (int samples : {1, 4}) {
+        RenderOptions o = goldenOptions();
+        o.samples = samples;
+        const MeshSnapshot ms = boxWithCritical();
+        const Image img = Renderer(o).render(ms.snap);
+        int translucent = 0;
+        for (size_t i = 3; i < img.rgba.size(); i += 4) translucent += img.rgba[i] != 255;
+        EXPECT_EQ(translucent, 0) << samples << " samples";
+    }
+}
+
 // ---- golden scenes ----
 
 // The box with its bump field and a few critical elements.
