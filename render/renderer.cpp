@@ -92,7 +92,9 @@ void main() {
     vec3 key = normalize(vec3(0.45, 0.65, 0.6));
     vec3 fill = normalize(vec3(-0.6, -0.25, 0.5));
     float diffuse = 0.7 * max(dot(n, key), 0.0) + 0.3 * max(dot(n, fill), 0.0);
-    float spec = 0.22 * pow(max(dot(reflect(-key, n), v), 0.0), 32.0);
+    // Cut faces: a wet, glossier material than the capsule, so a cut reads as fresh tissue.
+    bool cut = vCut > 0.5;
+    float spec = (cut ? 0.45 : 0.22) * pow(max(dot(reflect(-key, n), v), 0.0), cut ? 60.0 : 32.0);
     fragColour = vec4(base * (0.22 + diffuse) + vec3(spec), alpha);
 }
 )";

@@ -263,15 +263,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
     }
 
-    // Fixed-size Eigen vectors are stored contiguously, so the lists are the matrices' columns.
-    EmbeddedSurface out;
-    out.element = std::move(elem);
-    out.weights = Eigen::Map<const Eigen::Matrix4Xd>(weights.empty() ? nullptr : weights[0].data(), 4,
-                                                     static_cast<Eigen::Index>(weights.size()));
-    out.triangles = Eigen::Map<const Eigen::Matrix3Xi>(tris.empty() ? nullptr : tris[0].data(), 3,
-                                                       static_cast<Eigen::Index>(tris.size()));
-    out.cutId = std::move(cutId);
-    return out;
+    return makeEmbeddedSurface(std::move(elem), weights, tris, std::move(cutId));
 }
 
 }  // namespace cutsim

@@ -377,6 +377,9 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     bool keepNeg = !neg.empty() && sneg >= opts_.minFraction, keepPos = !pos.empty() && spos >= opts_.minFraction;
     if (!keepNeg && !keepPos) (fneg >= fpos ? keepNeg : keepPos) = true;  // never lose a whole element
     r.dropped += (!keepNeg && fneg > 0) + (!keepPos && fpos > 0);
+    // The dropped side is no material, but its side of the drawn surface still needs its faces.
+    if (!keepNeg && fneg > 0) slivers_.push_back({e, pass.cutId, false, neg});
+    if (!keepPos && fpos > 0) slivers_.push_back({e, pass.cutId, true, pos});
     if (!keepNeg) spos = total;
     if (!keepPos) sneg = total;
 
@@ -817,79 +820,6 @@ bool CutEngine::followFused(Model& m, CutResult& r) const {
         any = true;
     }
     return any;
-}
-
-EmbeddedSurface CutEngine::surface(const Model& m) const {
-    if (!prepared_) return boundarySurface(m.tets, m.X);
-    EmbeddedSurface out;
-    std::vector<int> elem;
-    std::vector<Eigen::Vector4d> weights;
-    std::vector<Eigen::Vector3i> tris;
-    std::unordered_map<int, int> nodeVertex;  // corners share one vertex per node: smooth shading
-
-    auto vertex = [&](int e, const ConvexPiece& piece, int vi) {
-        const int c = piece.corner[static_cast<size_t>(vi)];
-        if (c >= 0) {
-            auto [it, added] = nodeVertex.emplace(m.tets(c, e), static_cast<int>(elem.size()));
-            if (!added) return it->second;
-            Eigen::Vector4d w = Eigen::Vector4d::Zero();
-            w[c] = 1;
-            elem.push_back(e);
-            weights.push_back(w);
-            return it->second;
-        }
-        elem.push_back(e);
-        weights.push_back(weightsOf(piece.xi[static_cast<size_t>(vi)]));
-        return static_cast<int>(elem.size()) - 1;
-    };
-    // A face of an element is inside the body when a virtual element across it uses the same three nodes.
-    auto exposed = [&](int e, int p, int k) {
-        const int q = adj_(k, p);
-        if (q < 0) return true;
-        std::array<int, 3> mine{};
-        for (int a = 0, j = 0; a < 4; ++a)
-            if (a != k) mine[j++] = m.tets(a, e);
-        std::sort(mine.begin(), mine.end());
-        for (int g : virtualsOf(q)) {
-            std::array<int, 3> theirs{};
-            int j = 0;
-            for (int a = 0; a < 4 && j < 3; ++a) {
-                const int orig = tets0_(a, q);
-                if (orig == tets0_(0, p) || orig == tets0_(1, p) || orig == tets0_(2, p) || orig == tets0_(3, p))
-                    theirs[j++] = m.tets(a, g);
-            }
-            std::sort(theirs.begin(), theirs.end());
-            if (theirs == mine) return false;
-        }
-        return true;
-    };
-
-    std::vector<int> cutId;
-    const int nParents = static_cast<int>(tets0_.cols());
-    for (int p = 0; p < nParents; ++p) {
-        const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
-        for (int e : ves) {
-            const auto it = virt_.find(e);
-            const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
-            for (const PolyFace& f : piece.faces) {
-                const bool cap = f.tag >= 4;
-                if (!cap && !exposed(e, p, f.tag)) continue;
-                std::vector<int> vs;
-                for (int vi : f.v) vs.push_back(vertex(e, piece, vi));
-                for (size_t k = 1; k + 1 < vs.size(); ++k) {
-                    tris.emplace_back(vs[0], vs[k], vs[k + 1]);
-                    cutId.push_back(cap ? f.tag - 4 : -1);
-                }
-            }
-        }
-    }
-    out.element = std::move(elem);
-    out.weights.resize(4, static_cast<int>(weights.size()));
-    for (size_t i = 0; i < weights.size(); ++i) out.weights.col(static_cast<int>(i)) = weights[i];
-    out.triangles.resize(3, static_cast<int>(tris.size()));
-    for (size_t i = 0; i < tris.size(); ++i) out.triangles.col(static_cast<int>(i)) = tris[i];
-    out.cutId = std::move(cutId);
-    return out;
 }
 
 }  // namespace cutsim

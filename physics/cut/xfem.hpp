@@ -123,7 +123,10 @@ public:
     void endStroke();  // the next sweep starts a new stroke (new plane, new cut id)
 
     // The surface to draw and collide with: the original boundary clipped to each virtual
-    // element, plus the cut faces (EmbeddedSurface::cutFace), all riding their elements.
+    // element, plus the cut faces (EmbeddedSurface::cutFace), all riding their elements. Vertices
+    // at the same place on the same nodes are one (a piece's surface is connected and shades
+    // smoothly); a dropped sliver's cut and boundary faces ride an element on its side. Defined
+    // in cut/cut_surface.cpp.
     EmbeddedSurface surface(const Model& m) const;
 
     // The same for an object given by its surface (mesh intersection, thesis ch. 6): `original` is
@@ -149,6 +152,12 @@ private:
         double share = 1;           // volume it stands for, as a fraction of the parent's [-]: the
                                     // piece's own plus slivers merged into it
         std::vector<Halfspace> hs;  // the sides that made it
+    };
+    struct Sliver {        // a side below minFraction, dropped from element `element` by cut `cut`
+        int element = -1;  // the element that kept the other side
+        int cut = -1;
+        bool positive = false;  // the dropped side of the cut's halfspace
+        ConvexPiece piece;      // the dropped side, reference coordinates of the parent
     };
     struct Stroke {
         bool active = false;
@@ -202,6 +211,7 @@ private:
     std::unordered_map<std::uint64_t, bool> gluedSeen_;  // scratch of relink: (element, element) -> glued
     std::vector<int> pieceMark_;            // scratch of mergeDebris: exploration that reached each element
     std::unordered_map<int, int> fusedTo_;  // fused debris element -> the sibling whose nodes it uses
+    std::vector<Sliver> slivers_;           // dropped sides, drawn by surface() on their side
 };
 
 }  // namespace cutsim

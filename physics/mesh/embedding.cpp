@@ -5,8 +5,22 @@
 #include <Eigen/LU>
 
 #include <cassert>
+#include <utility>
 
 namespace cutsim {
+
+EmbeddedSurface makeEmbeddedSurface(std::vector<int> element, const std::vector<Eigen::Vector4d>& weights,
+                                    const std::vector<Eigen::Vector3i>& triangles, std::vector<int> cutId) {
+    // Fixed-size Eigen vectors are stored contiguously, so the lists are the matrices' columns.
+    EmbeddedSurface out;
+    out.element = std::move(element);
+    out.weights = Eigen::Map<const Eigen::Matrix4Xd>(weights.empty() ? nullptr : weights[0].data(), 4,
+                                                     static_cast<Eigen::Index>(weights.size()));
+    out.triangles = Eigen::Map<const Eigen::Matrix3Xi>(triangles.empty() ? nullptr : triangles[0].data(), 3,
+                                                       static_cast<Eigen::Index>(triangles.size()));
+    out.cutId = std::move(cutId);
+    return out;
+}
 
 void embeddedPositions(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& x,
                        Eigen::Matrix3Xd& out) {

@@ -22,6 +22,10 @@ struct EmbeddedSurface {
     bool cutFace(int t) const { return cutId[static_cast<size_t>(t)] >= 0; }  // made by a cut
 };
 
+// An embedded surface from per-vertex lists (element, weights) and per-triangle lists.
+EmbeddedSurface makeEmbeddedSurface(std::vector<int> element, const std::vector<Eigen::Vector4d>& weights,
+                                    const std::vector<Eigen::Vector3i>& triangles, std::vector<int> cutId);
+
 // Vertex positions (3 x nVerts) [m] for node positions x (3 x nNodes) [m].
 void embeddedPositions(const EmbeddedSurface& s, const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& x,
                        Eigen::Matrix3Xd& out);

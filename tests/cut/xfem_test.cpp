@@ -115,6 +115,56 @@ TEST(Xfem, PlaneCutSplitsBoxExactly) {
     EXPECT_EQ(s.rot.cols(), m.elements());
 }
 
+// Undirected edges of a triangle mesh used by other than one face each way: 0 for a closed,
+// consistently oriented surface whose neighbouring faces share their vertices.
+int openEdges(const Eigen::Matrix3Xi& tris) {
+    std::map<std::pair<int, int>, int> directed;
+    for (int f = 0; f < tris.cols(); ++f)
+        for (int k = 0; k < 3; ++k) ++directed[{tris(k, f), tris((k + 1) % 3, f)}];
+    int open = 0;
+    for (const auto& [e, n] : directed) {
+        const auto back = directed.find({e.second, e.first});
+        open += n != 1 || back == directed.end() || back->second != 1;
+    }
+    return open;
+}
+
+// The drawn surface of a cut box is one closed surface per piece whose cut faces share their
+// edges across elements (smooth shading, no cracks as the pieces deform).
+TEST(Xfem, CutSurfaceIsClosedAndItsCutFacesShareEdges) {
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutEngine eng;
+    const CutResult r = eng.cut(m, s, plane({0.37, 0, 0}, {1, 0, 0}));
+    ASSERT_EQ(r.dropped, 0);
+    const EmbeddedSurface es = eng.surface(m);
+    EXPECT_EQ(openEdges(es.triangles), 0);
+    // A vertex per distinct place and node set: the cut plane's crossings of the lattice edges
+    // are shared by the elements around each edge.
+    int cutVertices = 0;
+    std::vector<bool> onCut(static_cast<size_t>(es.vertices()));
+    for (int f = 0; f < es.faces(); ++f)
+        if (es.cutFace(f))
+            for (int k = 0; k < 3; ++k) onCut[static_cast<size_t>(es.triangles(k, f))] = true;
+    for (bool b : onCut) cutVertices += b;
+    EXPECT_LT(cutVertices, es.faces() / 2);
+}
+
+// A side below minFraction is dropped, but its faces are drawn on its side: the cut faces still
+// cover the whole cross-section on both sides, and the surface is still closed around the box.
+TEST(Xfem, DroppedSliversLeaveNoHoleInTheCutFaces) {
+    Model m = unitBox(4);
+    State s = makeState(m);
+    CutEngine eng;
+    const CutResult r = eng.cut(m, s, plane({0.26, 0, 0}, {1, 0, 0}));  // 0.01 past a node layer
+    ASSERT_GT(r.dropped, 0);
+    double cutArea = 0;
+    const EmbeddedSurface es = eng.surface(m);
+    EXPECT_NEAR(surfaceVolume(es, m, &cutArea), 1.0, 1e-9);
+    EXPECT_NEAR(cutArea, 2.0, 1e-9);
+    EXPECT_EQ(openEdges(es.triangles), 0);
+}
+
 // Mass added to keep a step (model.addedMass) stays on its node through a cut; the copies a cut
 // makes start without, so the total mass is unchanged.
 TEST(Xfem, AddedMassStaysOnItsNodeThroughACut) {
