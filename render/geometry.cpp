@@ -204,13 +204,13 @@ void segmentQuads(const std::vector<MeshVertex>& segs, const Eigen::Matrix4f& pv
     }
 }
 
-// The critical elements' faces and edges.
-void criticalGeometry(const RenderSnapshot& snap, std::vector<MeshVertex>& tris, std::vector<float>& lines) {
+// Tets given by their corners: faces and edges.
+void tetGeometry(const Eigen::Matrix3Xd& corners, std::vector<MeshVertex>& tris, std::vector<float>& lines) {
     static constexpr int faces[4][3] = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
     static constexpr int edges[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
-    const int nCrit = static_cast<int>(snap.criticalTets.cols() / 4);
+    const int nCrit = static_cast<int>(corners.cols() / 4);
     for (int e = 0; e < nCrit; ++e) {
-        auto c = [&](int a) { return Vec3d(snap.criticalTets.col(4 * e + a)); };
+        auto c = [&](int a) { return Vec3d(corners.col(4 * e + a)); };
         for (const auto& f : faces) pushTriangle(tris, c(f[0]), c(f[1]), c(f[2]));
         for (const auto& ed : edges)
             for (int a : {ed[0], ed[1]}) {

@@ -40,7 +40,7 @@ void silhouetteLines(const std::vector<MeshVertex>& soup, std::vector<int>& ids,
 void segmentQuads(const std::vector<MeshVertex>& segs, const Eigen::Matrix4f& pv, float width, float height,
                   float halfWidth, std::vector<MeshVertex>& out);
 
-// The critical elements' faces (triangles) and edges (xyz pairs).
-void criticalGeometry(const RenderSnapshot& snap, std::vector<MeshVertex>& tris, std::vector<float>& lines);
+// Tets given by their corners (4 columns each): faces (triangles) and edges (xyz pairs).
+void tetGeometry(const Eigen::Matrix3Xd& corners, std::vector<MeshVertex>& tris, std::vector<float>& lines);
 
 }  // namespace cutsim::render

@@ -576,22 +576,38 @@ void Renderer::drawFloor(const RenderSnapshot& snap, const View& v) {
     }
 }
 
-// The critical elements through the surface (x-ray): no depth test, blended.
-void Renderer::drawCriticalXray(const View& v) {
+// Tets in Gl::critTris / critLines through the surface (x-ray): no depth test, blended faces and
+// edges.
+void Renderer::drawXray(const Vec3f& face, float faceAlpha, const Vec4f& edge, const View& v) {
     Gl& g = *gl_;
-    const Vec3f cc = rgb(opts_.criticalColour);
     glDisable(GL_DEPTH_TEST);
     blendOver();
     glUseProgram(g.meshProg);
     glUniform1i(g.mUseMap, 0);
     glUniform1i(g.mLit, 0);
-    glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
-    glUniform1f(g.mAlpha, 0.35f);
+    glUniform3f(g.mColour, face.x(), face.y(), face.z());
+    glUniform1f(g.mAlpha, faceAlpha);
     g.drawMesh(g.critTris);
-    // Edges halfway to white, so they read on the faces of their own colour.
-    drawColourLines(g.critLines, Vec4f(0.5f * (cc.x() + 1), 0.5f * (cc.y() + 1), 0.5f * (cc.z() + 1), 0.9f), v);
+    drawColourLines(g.critLines, edge, v);
     glDisable(GL_BLEND);
     glEnable(GL_DEPTH_TEST);
+}
+
+// The critical elements, edges halfway to white so they read on faces of their own colour.
+void Renderer::drawCriticalXray(const View& v) {
+    const Vec3f cc = rgb(opts_.criticalColour);
+    drawXray(cc, 0.35f, Vec4f(0.5f * (cc.x() + 1), 0.5f * (cc.y() + 1), 0.5f * (cc.z() + 1), 0.9f), v);
+}
+
+// The elements a cut made critical and the step policy answered: outlines over a faint fill, so
+// they read as resolved next to the filled critical ones.
+void Renderer::drawAnsweredXray(const RenderSnapshot& snap, const View& v) {
+    Gl& g = *gl_;
+    g.critTris.clear();
+    g.critLines.clear();
+    tetGeometry(snap.answeredTets, g.critTris, g.critLines);
+    const Vec3f ac = rgb(opts_.answeredColour);
+    drawXray(ac, 0.12f, Vec4f(ac.x(), ac.y(), ac.z(), 0.95f), v);
 }
 
 void Renderer::draw(const RenderSnapshot& snap) {
@@ -620,7 +636,7 @@ void Renderer::draw(const RenderSnapshot& snap) {
     if (xray) {
         g.critTris.clear();
         g.critLines.clear();
-        criticalGeometry(snap, g.critTris, g.critLines);
+        tetGeometry(snap.criticalTets, g.critTris, g.critLines);
         const Vec3f cc = rgb(opts_.criticalColour);
         glUniform1i(g.mUseMap, 0);
         glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
@@ -628,6 +644,7 @@ void Renderer::draw(const RenderSnapshot& snap) {
     }
     drawLines(snap, v);
     if (xray) drawCriticalXray(v);
+    if (opts_.xray && snap.answeredTets.cols() >= 4) drawAnsweredXray(snap, v);
     glBindVertexArray(0);
 
     // 2D: legend and HUD (ImGui draws into the bound framebuffer).
@@ -646,7 +663,8 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
     Gl& g = *gl_;
     const bool legend = opts_.legend && snap.scalar.size() == snap.vertices() && snap.vertices() > 0;
     const int critical = opts_.xray ? static_cast<int>(snap.criticalTets.cols() / 4) : 0;
-    const bool critLegend = opts_.legend && critical > 0;
+    const int answered = opts_.xray ? static_cast<int>(snap.answeredTets.cols() / 4) : 0;
+    const bool critLegend = opts_.legend && (critical > 0 || answered > 0);
     if (!legend && !critLegend && !opts_.hud) return;
     ImGui::SetCurrentContext(g.imgui);
     ImGuiIO& io = ImGui::GetIO();
@@ -675,6 +693,7 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
                 ImGui::Text("RT x     %.3f", h.realTimeFactor);
             }
             ImGui::Text("critical %d", h.criticalElements);
+            if (h.answeredElements > 0) ImGui::Text("answered %d", h.answeredElements);
             ImGui::Text("cuts     %d", h.cuts);
         }
         for (const auto& line : h.lines) ImGui::TextUnformatted(line.c_str());
@@ -736,24 +755,37 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
         }
     }
     if (critLegend) {
-        // The critical elements' swatch under the colour bar: how many, and the step they would allow.
+        // Swatches under the colour bar: the critical elements, how many and the step they would
+        // allow; the ones a recent cut made critical and the step policy answered.
         ImDrawList* dl = ImGui::GetBackgroundDrawList();
         const PixelRect r = legendRect();
         const float lineH = ImGui::GetTextLineHeight();
         const ImU32 text = IM_COL32(235, 235, 235, 255);
-        const auto& cc = opts_.criticalColour;
+        float y = r.y1 + lineH + 2;
+        auto swatch = [&](const std::array<std::uint8_t, 3>& c, const char* line1, const char* line2) {
+            const float w = std::max(ImGui::CalcTextSize(line1).x, ImGui::CalcTextSize(line2).x) + lineH + 4;
+            const float x = std::max(4.0f, std::min(r.x0, static_cast<float>(opts_.width) - w - 4.0f));
+            dl->AddRectFilled(ImVec2(x, y + 2), ImVec2(x + lineH - 4, y + lineH - 2), IM_COL32(c[0], c[1], c[2], 255));
+            dl->AddText(ImVec2(x + lineH, y), text, line1);
+            y += lineH;
+            if (line2[0]) {
+                dl->AddText(ImVec2(x, y), text, line2);
+                y += lineH;
+            }
+        };
         char line1[48], line2[48];
-        std::snprintf(line1, sizeof line1, "critical %d", critical);
-        if (std::isnan(snap.hud.criticalStep))
-            line2[0] = 0;
-        else
-            std::snprintf(line2, sizeof line2, "dt<=%.2e s", snap.hud.criticalStep);
-        const float w = std::max(ImGui::CalcTextSize(line1).x, ImGui::CalcTextSize(line2).x) + lineH + 4;
-        const float x = std::max(4.0f, std::min(r.x0, static_cast<float>(opts_.width) - w - 4.0f));
-        const float y = r.y1 + lineH + 2;
-        dl->AddRectFilled(ImVec2(x, y + 2), ImVec2(x + lineH - 4, y + lineH - 2), IM_COL32(cc[0], cc[1], cc[2], 255));
-        dl->AddText(ImVec2(x + lineH, y), text, line1);
-        if (line2[0]) dl->AddText(ImVec2(x, y + lineH), text, line2);
+        if (critical > 0) {
+            std::snprintf(line1, sizeof line1, "critical %d", critical);
+            if (std::isnan(snap.hud.criticalStep))
+                line2[0] = 0;
+            else
+                std::snprintf(line2, sizeof line2, "dt<=%.2e s", snap.hud.criticalStep);
+            swatch(opts_.criticalColour, line1, line2);
+        }
+        if (answered > 0) {
+            std::snprintf(line1, sizeof line1, "answered %d", answered);
+            swatch(opts_.answeredColour, line1, "");
+        }
     }
     ImGui::Render();
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());

@@ -33,6 +33,8 @@ struct RenderOptions {
     std::array<std::uint8_t, 3> criticalColour{0, 230, 255};   // critical elements: cyan, a colour no map, cut
                                                                // face, tool or surface uses
     std::array<std::uint8_t, 3> toolColour{176, 184, 200};
+    std::array<std::uint8_t, 3> answeredColour{255, 70, 255};  // elements a cut made critical and the step
+                                                               // policy answered: outlined in magenta
 };
 
 // Legend bar rectangle in pixels, top-left origin (x0, y0 inclusive; x1, y1 exclusive).
@@ -97,6 +99,8 @@ private:
     void drawLines(const RenderSnapshot& snap, const View& v);
     void drawFloor(const RenderSnapshot& snap, const View& v);
     void drawCriticalXray(const View& v);
+    void drawXray(const Eigen::Vector3f& face, float faceAlpha, const Eigen::Vector4f& edge, const View& v);
+    void drawAnsweredXray(const RenderSnapshot& snap, const View& v);
     void drawHudAndLegend(const RenderSnapshot& snap);
     void makeCurrent() const;
     void allocateTargets();  // framebuffers at opts_ size

@@ -610,6 +610,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.capture.wireframe = c.boolean("wireframe", false);
         s.capture.xray = c.boolean("xray", true);
         s.capture.criticalFactor = c.number("critical_factor", 1.1, 0, 100, true);
+        s.capture.answeredSeconds = c.number("answered_seconds", 0.5, 0, 1e6);
         if (c.has("range")) {
             const json& r = c.raw("range");
             if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||

@@ -85,8 +85,10 @@ struct Capture {
     int pngEvery = 1;                   // a PNG file for every n-th frame (0: none, the video has them all)
     bool hud = true;
     bool wireframe = false;
-    bool xray = true;                                            // critical elements drawn through the surface
-    double criticalFactor = 1.1;                                 // critical: element estimate < factor * dt
+    bool xray = true;              // critical elements drawn through the surface
+    double criticalFactor = 1.1;   // critical: element estimate < factor * dt
+    double answeredSeconds = 0.5;  // how long frames show the critical elements a cut made and the step
+                                   // policy answered [s]; 0: not shown
     double rangeMin = std::numeric_limits<double>::quiet_NaN();  // colour map range [map unit]; NaN: the map's
     double rangeMax = std::numeric_limits<double>::quiet_NaN();  // default (fixed for the whole run)
     bool floor = true;                                           // floor grid, for depth cues

@@ -706,6 +706,11 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
     // Local update of the estimators and the certified bound around the cut; no global solve.
     Stopwatch sw;
     ta_.update(model_, r.changedElements, r.changedNodes);
+    // What the cut made critical at the step it was taken with, before anything answers it.
+    std::vector<int> criticalAtCut;
+    const double criticalBound = sc_.capture.criticalFactor * dt();
+    for (int e : ta_.lastElements())
+        if (ta_.estimates().r1r(e) < criticalBound) criticalAtCut.push_back(e);
     // The step floor: local mass scaling around the cut, then (with the exact step) certified.
     // The hybrid instead matches what the cut made critical (no mass added).
     const double dtFloor = sc_.cutting.stepFloor * initial_.exact;
@@ -740,6 +745,12 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
     // The one after-cut rule: the scene's policy chosen again at the new limits.
     chooseAndApply(false);
     ++topologyVersion_;
+    const double keep = sc_.capture.answeredSeconds;
+    std::erase_if(answered_, [&](const Answered& a) { return a.time < state_.time - keep; });
+    if (keep > 0)
+        for (int e : criticalAtCut)
+            if (model_.isMatched(e) || !(ta_.estimates().r1r(e) < sc_.capture.criticalFactor * dt()))
+                answered_.push_back({e, state_.time});
     // The contact points and the drawn surface follow the cut.
     if (contact_ || opt_.renderSurface) {
         sw.lap();

@@ -140,6 +140,14 @@ public:
     const StepLimits& limits() const { return limits_; }          // current limits (exact NaN: unknown)
     const StepLimits& initialLimits() const { return initial_; }  // of the uncut object
     int criticalElements() const { return critical_; }
+    // Elements a cut made critical (R1R step under capture.critical_factor x the step before it)
+    // that the step floor, the hybrid or the step chosen again answered, with the time of that cut;
+    // kept capture.answered_seconds for frames to show.
+    struct Answered {
+        int element;
+        double time;  // [s]
+    };
+    const std::vector<Answered>& answered() const { return answered_; }
     RunStatus status() const { return status_; }
     const std::string& message() const { return message_; }  // why the run stopped, or ""
     bool finished() const;                                   // the scene's duration is reached
@@ -188,6 +196,7 @@ private:
     StepChoice choice_;
     Eigen::VectorXd alphaElem_;  // per-element damping (on_limit damp), else empty
     int critical_ = 0;
+    std::vector<Answered> answered_;
     std::vector<std::vector<int>> loadNodes_;    // nodes of each scene load (sc.forces order)
     std::unique_ptr<EmbeddedSurface> embedded_;  // an MI object's surface in the uncut lattice
     nlohmann::json embedding_;                   // MI set-up for the report (null: a tet mesh object)

@@ -169,6 +169,14 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
     h.cuts = info.cuts;
     h.lines.push_back(sc_.name + ": " + std::to_string(model.elements()) + " tets, " + std::to_string(model.nodes()) +
                       " nodes");
+    // The elements a recent cut made critical and the policy answered, corners at this state.
+    snap.answeredTets.resize(3, 4 * static_cast<Eigen::Index>(info.answered.size()));
+    int k = 0;
+    for (int e : info.answered)
+        if (e >= 0 && e < model.elements())
+            for (int a = 0; a < 4; ++a) snap.answeredTets.col(k++) = state.x.col(model.tets(a, e));
+    snap.answeredTets.conservativeResize(3, k);
+    h.answeredElements = k / 4;
     snap.tools = info.tools;
     if (!sc_.tools.empty()) {
         char line[96];
@@ -191,6 +199,8 @@ FrameInfo frameInfoOf(const Simulation& sim, double wall) {
     fi.wall = wall;
     fi.toolForce = sim.record().tool.force;
     fi.forceHistory = sim.record().tool.history;
+    for (const Simulation::Answered& a : sim.answered())
+        if (a.time >= fi.time - sim.scene().capture.answeredSeconds) fi.answered.push_back(a.element);
     if (sim.contact())
         for (const auto& t : sim.contact()->tools()) appendToolShapes(t, fi.time, fi.tools);
     return fi;

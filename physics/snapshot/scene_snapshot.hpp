@@ -27,6 +27,7 @@ struct FrameInfo {
     std::vector<ToolShape> tools;                         // tools to draw
     Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();  // reaction force on the tools [N]
     std::vector<float> forceHistory;                      // recent |tool force| samples, oldest first [N]
+    std::vector<int> answered;  // elements a recent cut made critical and the step policy answered
 };
 
 // What a frame of a scene shows (surface, colour map, critical elements, HUD values), built from

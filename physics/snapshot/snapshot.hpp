@@ -59,8 +59,9 @@ struct HudValues {
     double criticalStep = std::numeric_limits<double>::quiet_NaN();  // the step the drawn critical elements
                                                                      // would allow (their smallest estimate) [s]
     int cuts = 0;                                                    // cuts applied so far [-]
-    std::vector<std::string> lines;                                  // free text, one entry per line
-    std::vector<float> forcePlot;  // recent tool force magnitudes, oldest first [N]; plotted when not empty
+    int answeredElements = 0;        // elements a recent cut made critical that the step policy answered [-]
+    std::vector<std::string> lines;  // free text, one entry per line
+    std::vector<float> forcePlot;    // recent tool force magnitudes, oldest first [N]; plotted when not empty
 };
 
 // Everything one frame draws.
@@ -84,6 +85,8 @@ struct RenderSnapshot {
     Eigen::Matrix3Xd edges;         // wireframe segments, endpoints in pairs (3 x 2*nEdges) [m], or empty
     Eigen::Matrix3Xd criticalTets;  // critical elements, 4 corners each (3 x 4*nCritical) [m]; drawn
                                     // through the surface (x-ray)
+    Eigen::Matrix3Xd answeredTets;  // elements a recent cut made critical and the step policy answered,
+                                    // 4 corners each [m]; outlined through the surface
     std::vector<ToolShape> tools;
 
     Camera camera;

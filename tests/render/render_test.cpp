@@ -212,7 +212,7 @@ TEST(Render, CriticalColourIsUsedByNothingElse) {
     };
     auto arr = [](std::array<std::uint8_t, 3> c) { return std::array<int, 3>{c[0], c[1], c[2]}; };
     const auto crit = arr(o.criticalColour);
-    for (auto other : {o.cutColour, o.surfaceColour, o.toolColour, o.background})
+    for (auto other : {o.cutColour, o.surfaceColour, o.toolColour, o.background, o.answeredColour})
         EXPECT_GT(dist(crit, arr(other)), 120);
     for (ColorMapKind k : {ColorMapKind::Sequential, ColorMapKind::Diverging})
         for (int i = 0; i <= 100; ++i) {
@@ -285,6 +285,29 @@ TEST(RenderGolden, BoxWithField) {
     ASSERT_GT(ms.snap.criticalTets.cols(), 0);
     Renderer r(goldenOptions());
     test::expectGolden("box_field", r.render(ms.snap), {8, 0.01});
+}
+
+// Elements a cut made critical and the step policy answered: magenta outlines through the surface,
+// beside the critical ones (cyan), each with its swatch and count under the colour bar.
+TEST(RenderGolden, AnsweredElementsBesideCriticalOnes) {
+    MeshSnapshot ms = boxWithCritical();
+    const TetMesh m = scenebox();
+    // answered: the critical set moved 1 cm along x
+    Eigen::Matrix3Xd moved = ms.snap.criticalTets;
+    moved.row(0).array() -= 0.01;
+    ms.snap.answeredTets = moved;
+    ms.snap.hud.answeredElements = static_cast<int>(moved.cols() / 4);
+    RenderOptions o = goldenOptions();
+    o.lighting = false;
+    const Image img = Renderer(o).render(ms.snap);
+    int magenta = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x) {
+            const auto p = img.pixel(x, y);
+            magenta += p[0] == o.answeredColour[0] && p[1] == o.answeredColour[1] && p[2] == o.answeredColour[2];
+        }
+    EXPECT_GT(magenta, 20);  // the legend's swatch at least
+    test::expectGolden("answered", img, {5, 0.001});
 }
 
 // Critical elements in x-ray with their legend: the swatch under the colour bar is exactly the

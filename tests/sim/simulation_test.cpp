@@ -2,6 +2,7 @@
 // applies one step rule after every cut, and refuses or fails runs that cannot be trusted; a take
 // of it (sim/take.hpp) replays bitwise.
 #include "sim/simulation.hpp"
+#include "snapshot/scene_snapshot.hpp"
 #include "sim/take.hpp"
 
 #include "fem/forces.hpp"
@@ -321,6 +322,35 @@ TEST(CutStep, FloorHoldsWhereTheCutLostTheStep) {
                 b["mass"]["initial"].get<double>() + b["mass"]["step_floor_added"].get<double>(), 1e-12);
     EXPECT_LT(b["mass"]["step_floor_added"].get<double>() / b["mass"]["initial"].get<double>(), 5e-3);
     EXPECT_EQ(b["status"], "ok");
+}
+
+// The elements the wedge cut made critical (R1R step under 1.1 dt) are answered by the floor: listed
+// with the cut's time, no longer critical, and passed to frames for capture.answered_seconds only.
+TEST(CutStep, AnsweredElementsAreShownForAWhile) {
+    json j = wedgeScene();
+    j["capture"]["answered_seconds"] = 0.003;
+    SimulationOptions o;
+    o.threads = 1;
+    Simulation sim(parseScene(j, "bar.json"), o);
+    sim.advance(0.003);
+    ASSERT_EQ(sim.record().cutsMade, 1);
+    ASSERT_FALSE(sim.answered().empty());
+    const Eigen::VectorXd& r1r = sim.analyzer().estimates().r1r;
+    for (const Simulation::Answered& a : sim.answered()) {
+        EXPECT_NEAR(a.time, 0.002, sim.dt());
+        EXPECT_GE(r1r(a.element), 1.1 * sim.dt()) << a.element;  // answered: not critical now
+    }
+    EXPECT_EQ(sim.criticalElements(), 0);
+    EXPECT_EQ(frameInfoOf(sim, 0).answered.size(), sim.answered().size());
+    sim.advance(0.0065);
+    EXPECT_TRUE(frameInfoOf(sim, 0).answered.empty());
+    // Without the floor the step policy answers by a smaller step: the cut still made them critical.
+    json off = wedgeScene();
+    off["cutting"]["step_floor"] = 0;
+    Simulation bare(parseScene(off, "bar.json"), o);
+    bare.advance(0.003);
+    EXPECT_FALSE(bare.answered().empty());
+    EXPECT_LT(bare.dt(), sim.dt());
 }
 
 TEST(CutStep, HybridMatchesOnLoadAndAfterTheCut) {
