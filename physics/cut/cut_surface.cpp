@@ -2,6 +2,8 @@
 // element's exposed faces and cut faces, as one connected surface per piece.
 #include "cut/xfem.hpp"
 
+#include "cut/vertex_key.hpp"
+
 #include "mesh/embedding.hpp"
 
 #include <algorithm>
@@ -13,26 +15,6 @@
 
 namespace cutsim {
 
-namespace {
-
-// A surface vertex is where it is because of the nodes it rides and their weights: two vertices
-// with the same (node, weight) pairs are at the same place in every configuration, so they are
-// one vertex. Weights are rounded to 1e-7 (the cut planes' crossings, computed per element, agree
-// to round-off).
-using VertexKey = std::array<std::pair<int, long long>, 4>;
-
-VertexKey keyOf(const Eigen::Matrix4Xi& tets, int e, const Eigen::Vector4d& w) {
-    VertexKey k{};
-    for (int a = 0; a < 4; ++a) {
-        const long long q = std::llround(w[a] * 1e7);
-        k[static_cast<size_t>(a)] = q == 0 ? std::pair{-1, 0LL} : std::pair{tets(a, e), q};
-    }
-    std::sort(k.begin(), k.end());
-    return k;
-}
-
-}  // namespace
-
 EmbeddedSurface CutEngine::surface(const Model& m) const {
     if (!prepared_) return boundarySurface(m.tets, m.X);
     static const ConvexPiece whole = referenceTet();
@@ -40,10 +22,10 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
     std::vector<Eigen::Vector4d> weights;
     std::vector<Eigen::Vector3i> tris;
     std::vector<int> cutId;
-    std::map<VertexKey, int> welded;
+    std::map<VertexKey, int> welded;  // one vertex per place and node set
 
     auto vertex = [&](int e, const Eigen::Vector4d& w) {
-        auto [it, added] = welded.emplace(keyOf(m.tets, e, w), static_cast<int>(elem.size()));
+        auto [it, added] = welded.emplace(vertexKey(m.tets, e, w), static_cast<int>(elem.size()));
         if (added) {
             elem.push_back(e);
             weights.push_back(w);

@@ -4,6 +4,8 @@
 // faces inside the original surface.
 #include "cut/xfem.hpp"
 
+#include "cut/vertex_key.hpp"
+
 #include "embed/winding.hpp"
 #include "mesh/mesh.hpp"
 
@@ -92,16 +94,16 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
         return k;
     };
-    // New vertices are shared within one element (smooth shading inside a piece).
-    std::map<std::pair<int, std::array<long long, 4>>, int> welded;
+    // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
+    // elements, so a piece's cut face is connected and shades smoothly.
+    std::map<VertexKey, int> welded;
     auto vertex = [&](int e, const Eigen::Vector4d& w) {
-        std::array<long long, 4> key{};
-        for (int a = 0; a < 4; ++a) key[static_cast<size_t>(a)] = std::llround(w[a] * 1e9);
-        auto [it, added] = welded.emplace(std::make_pair(e, key), static_cast<int>(elem.size()));
+        Eigen::Vector4d c = w.cwiseMax(0.0);  // clipped inside the parent: only round-off is negative
+        c /= c.sum();
+        auto [it, added] = welded.emplace(vertexKey(m.tets, e, c), static_cast<int>(elem.size()));
         if (added) {
-            const Eigen::Vector4d c = w.cwiseMax(0.0);  // clipped inside the parent: only round-off is negative
             elem.push_back(e);
-            weights.push_back(c / c.sum());
+            weights.push_back(c);
         }
         return it->second;
     };
