@@ -49,6 +49,52 @@ Poly clipBy(const Poly& p, F&& f) {
 
 }  // namespace
 
+int CutEngine::carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes,
+                             const Eigen::Vector4d& at, int& carrierParent) const {
+    // Each plane's level set is affine in the rest position: its value at a point of another
+    // parent is the same weights' dot product, extrapolated from p.
+    auto restOf = [&](int parent, const Eigen::Vector4d& w) {
+        Eigen::Vector3d y = Eigen::Vector3d::Zero();
+        for (int a = 0; a < 4; ++a) y += w[a] * m.X.col(tets0_(a, parent));
+        return y;
+    };
+    auto inP = [&](const Eigen::Vector3d& y) {
+        return barycentric(y, m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)), m.X.col(tets0_(2, p)),
+                           m.X.col(tets0_(3, p)));
+    };
+    auto sameSide = [&](const Eigen::Vector4d& w) {
+        for (const Halfspace* h : planes)
+            if ((w.dot(h->s) >= 0) != (at.dot(h->s) >= 0)) return false;
+        return true;
+    };
+    int best = -1, bestShared = -1;
+    for (int c = 0; c < 4; ++c) {
+        const int o = tets0_(c, p);
+        for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i) {
+            const int q = ring_[static_cast<size_t>(i)];
+            if (q == p) continue;
+            int shared = 0;  // corners q shares with p: the more, the closer the extrapolation
+            for (int a = 0; a < 4; ++a)
+                for (int b = 0; b < 4; ++b) shared += tets0_(a, q) == tets0_(b, p);
+            for (int g : virtualsOf(q)) {
+                if (shared < bestShared || (shared == bestShared && g >= best)) continue;
+                const auto gv = virt_.find(g);
+                Eigen::Vector4d mid = Eigen::Vector4d::Constant(0.25);  // an uncut element: its parent's centre
+                if (gv != virt_.end()) {
+                    mid.setZero();
+                    for (const auto& xi : gv->second.piece.xi) mid += weightsOf(xi);
+                    mid /= static_cast<double>(gv->second.piece.xi.size());
+                }
+                if (!sameSide(inP(restOf(q, mid)))) continue;
+                best = g;
+                bestShared = shared;
+                carrierParent = q;
+            }
+        }
+    }
+    return best;
+}
+
 EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
     if (!prepared_) return original;
     const int nParents = static_cast<int>(tets0_.cols());
@@ -97,9 +143,12 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
     // elements, so a piece's cut face is connected and shades smoothly.
     std::map<VertexKey, int> welded;
-    auto vertex = [&](int e, const Eigen::Vector4d& w) {
-        Eigen::Vector4d c = w.cwiseMax(0.0);  // clipped inside the parent: only round-off is negative
-        c /= c.sum();
+    auto vertex = [&](int e, const Eigen::Vector4d& w, bool inside = true) {
+        Eigen::Vector4d c = w;
+        if (inside) {  // clipped inside the parent: only round-off is negative
+            c = c.cwiseMax(0.0);
+            c /= c.sum();
+        }
         auto [it, added] = welded.emplace(vertexKey(m.tets, e, c), static_cast<int>(elem.size()));
         if (added) {
             elem.push_back(e);
@@ -107,11 +156,12 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
         return it->second;
     };
-    auto emit = [&](int p, int e, const Poly& poly, int cut) {  // cut: the cut making it, or -1
+    // inside: the polygon's weights lie in e's parent (else extrapolated from it).
+    auto emit = [&](int p, int e, const Poly& poly, int cut, bool inside = true) {  // cut: the cut making it, or -1
         if (poly.size() < 3 || area(p, poly) <= tinyArea) return;
-        const int v0 = vertex(e, poly[0]);
+        const int v0 = vertex(e, poly[0], inside);
         for (size_t k = 1; k + 1 < poly.size(); ++k) {
-            const int v1 = vertex(e, poly[k]), v2 = vertex(e, poly[k + 1]);
+            const int v1 = vertex(e, poly[k], inside), v2 = vertex(e, poly[k + 1], inside);
             if (v0 == v1 || v1 == v2 || v0 == v2) continue;
             tris.emplace_back(v0, v1, v2);
             cutId.push_back(cut);
@@ -150,7 +200,21 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                     best = e;
                 }
             }
-            emit(p, best, c, -1);
+            // A cell on a side p dropped (a sliver below minFraction) has no element of p on its
+            // side: riding the other side, it would stretch across the opening cut as a shard.
+            // It rides an element of a neighbouring parent on its side instead, its weights
+            // extrapolated from that parent (the sliver is a few percent of an element).
+            int q = -1;
+            const int g = fewest > 0 ? carrierOnSide(m, p, planes, mid, q) : -1;
+            if (g < 0) {
+                emit(p, best, c, -1);
+                continue;
+            }
+            Poly inQ;
+            for (const auto& w : c)
+                inQ.push_back(barycentric(rest(p, w), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
+                                          m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q))));
+            emit(q, g, inQ, -1, false);
         }
     };
 

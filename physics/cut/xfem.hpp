@@ -192,6 +192,11 @@ private:
     void markLightNodes(Model& m) const;
     void setMassShare(Model& m, int e) const;
     const std::vector<int>& virtualsOf(int parent) const;
+    // An element of a parent around p (sharing a corner; most shared corners, then lowest index)
+    // whose piece lies on the same side of each of p's cut planes as the point at weights `at` of
+    // p, or -1; its parent in carrierParent. For surface cells on a side p dropped.
+    int carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes, const Eigen::Vector4d& at,
+                      int& carrierParent) const;
 
     CutOptions opts_;
     bool prepared_ = false;
