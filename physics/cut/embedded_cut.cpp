@@ -94,12 +94,16 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     };
     // New vertices are shared within one element (smooth shading inside a piece).
     std::map<std::pair<int, std::array<long long, 4>>, int> welded;
-    auto vertex = [&](int e, const Eigen::Vector4d& w) {
+    auto vertex = [&](int p, int e, const Eigen::Vector4d& w) {
         std::array<long long, 4> key{};
         for (int a = 0; a < 4; ++a) key[static_cast<size_t>(a)] = std::llround(w[a] * 1e9);
         auto [it, added] = welded.emplace(std::make_pair(e, key), static_cast<int>(elem.size()));
         if (added) {
-            const Eigen::Vector4d c = w.cwiseMax(0.0);  // clipped inside the parent: only round-off is negative
+            // clipped to the parent's inner faces: only round-off is negative there; beyond a
+            // boundary face a visual surface's weights are extrapolated
+            Eigen::Vector4d c = w;
+            for (int a = 0; a < 4; ++a)
+                if (adj_(a, p) >= 0) c[a] = std::max(c[a], 0.0);
             elem.push_back(e);
             weights.push_back(c / c.sum());
         }
@@ -107,9 +111,9 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     };
     auto emit = [&](int p, int e, const Poly& poly, int cut) {  // cut: the cut making it, or -1
         if (poly.size() < 3 || area(p, poly) <= tinyArea) return;
-        const int v0 = vertex(e, poly[0]);
+        const int v0 = vertex(p, e, poly[0]);
         for (size_t k = 1; k + 1 < poly.size(); ++k) {
-            const int v1 = vertex(e, poly[k]), v2 = vertex(e, poly[k + 1]);
+            const int v1 = vertex(p, e, poly[k]), v2 = vertex(p, e, poly[k + 1]);
             if (v0 == v1 || v1 == v2 || v0 == v2) continue;
             tris.emplace_back(v0, v1, v2);
             cutId.push_back(cut);
@@ -183,8 +187,10 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             for (size_t i = 0; i < 3; ++i)
                 poly[i] = barycentric(restSurface.V.col(v[i]), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
                                       m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q)));
+            // not at boundary faces: a visual surface on a tet mesh crosses them (the MI lattice's
+            // boundary lies outside its surface)
             for (int a = 0; a < 4 && !poly.empty(); ++a)
-                poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
+                if (adj_(a, q) >= 0) poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
             if (poly.empty()) continue;
             for (int k = 0; k < 4; ++k) {
                 const int n = adj_(k, q);
@@ -225,8 +231,24 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     std::vector<Eigen::Vector4d> grid;
     std::vector<double> wind;
     auto at = [n](int i, int j) { return static_cast<size_t>(i * (n + 1) - i * (i - 1) / 2 + j); };  // i + j <= n
+    // A whole element (share 1) may still reach past the surface when it is a tet mesh's and the
+    // surface a visual one: then a corner lies outside the surface or a surface vertex inside it.
+    std::vector<char> holdsVertex(static_cast<size_t>(nParents), 0);
+    for (int v = 0; v < nv; ++v)
+        if (original.weights.col(v).minCoeff() >= 0)
+            holdsVertex[static_cast<size_t>(original.element[static_cast<size_t>(v)])] = 1;
+    std::vector<double> cornerWinding(static_cast<size_t>(m.X.cols()), std::nan(""));
+    auto cornerOutside = [&](int p) {
+        for (int a = 0; a < 4; ++a) {
+            double& w = cornerWinding[static_cast<size_t>(tets0_(a, p))];
+            if (std::isnan(w)) w = windingNumber(tree, m.X.col(tets0_(a, p)));
+            if (w < 0.5) return true;
+        }
+        return false;
+    };
     for (int p : cutParents) {
-        const bool inside = fraction0_[p] >= 1.0 || nv == 0;
+        const bool inside =
+            nv == 0 || (fraction0_[p] >= 1.0 && !holdsVertex[static_cast<size_t>(p)] && !cornerOutside(p));
         const std::vector<int> ves = virtualsOf(p);
         for (int e : ves) {
             const ConvexPiece& piece = virt_.at(e).piece;
@@ -248,6 +270,11 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                             grid[at(i, j)] = w;
                             wind[at(i, j)] = windingNumber(tree, rest(p, w)) - 0.5;
                         }
+                    // inside at every sample: the triangle whole (the same area, 4^capLevels times fewer triangles)
+                    if (std::all_of(wind.begin(), wind.end(), [](double x) { return x >= 0; })) {
+                        emit(p, e, {A, B, C}, f.tag - 4);
+                        continue;
+                    }
                     auto sub = [&](size_t a, size_t b, size_t c) {
                         const double fa = wind[a], fb = wind[b], fc = wind[c];
                         if (fa < 0 && fb < 0 && fc < 0) return;
