@@ -143,12 +143,13 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
     // elements, so a piece's cut face is connected and shades smoothly.
     std::map<VertexKey, int> welded;
-    auto vertex = [&](int e, const Eigen::Vector4d& w, bool inside = true) {
+    auto vertex = [&](int p, int e, const Eigen::Vector4d& w, bool inside) {
+        // Clipped to the parent's inner faces: only round-off is negative there; beyond a boundary
+        // face a visual surface's weights are extrapolated, as are a carrier's (inside false).
         Eigen::Vector4d c = w;
-        if (inside) {  // clipped inside the parent: only round-off is negative
-            c = c.cwiseMax(0.0);
-            c /= c.sum();
-        }
+        if (inside)
+            for (int a = 0; a < 4; ++a)
+                if (adj_(a, p) >= 0) c[a] = std::max(c[a], 0.0);
         auto [it, added] = welded.emplace(vertexKey(m.tets, e, c), static_cast<int>(elem.size()));
         if (added) {
             elem.push_back(e);
@@ -159,9 +160,9 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     // inside: the polygon's weights lie in e's parent (else extrapolated from it).
     auto emit = [&](int p, int e, const Poly& poly, int cut, bool inside = true) {  // cut: the cut making it, or -1
         if (poly.size() < 3 || area(p, poly) <= tinyArea) return;
-        const int v0 = vertex(e, poly[0], inside);
+        const int v0 = vertex(p, e, poly[0], inside);
         for (size_t k = 1; k + 1 < poly.size(); ++k) {
-            const int v1 = vertex(e, poly[k], inside), v2 = vertex(e, poly[k + 1], inside);
+            const int v1 = vertex(p, e, poly[k], inside), v2 = vertex(p, e, poly[k + 1], inside);
             if (v0 == v1 || v1 == v2 || v0 == v2) continue;
             tris.emplace_back(v0, v1, v2);
             cutId.push_back(cut);
@@ -249,8 +250,10 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             for (size_t i = 0; i < 3; ++i)
                 poly[i] = barycentric(restSurface.V.col(v[i]), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
                                       m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q)));
+            // not at boundary faces: a visual surface on a tet mesh crosses them (the MI lattice's
+            // boundary lies outside its surface)
             for (int a = 0; a < 4 && !poly.empty(); ++a)
-                poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
+                if (adj_(a, q) >= 0) poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
             if (poly.empty()) continue;
             for (int k = 0; k < 4; ++k) {
                 const int n = adj_(k, q);
@@ -291,8 +294,24 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     std::vector<Eigen::Vector4d> grid;
     std::vector<double> wind;
     auto at = [n](int i, int j) { return static_cast<size_t>(i * (n + 1) - i * (i - 1) / 2 + j); };  // i + j <= n
+    // A whole element (share 1) may still reach past the surface when it is a tet mesh's and the
+    // surface a visual one: then a corner lies outside the surface or a surface vertex inside it.
+    std::vector<char> holdsVertex(static_cast<size_t>(nParents), 0);
+    for (int v = 0; v < nv; ++v)
+        if (original.weights.col(v).minCoeff() >= 0)
+            holdsVertex[static_cast<size_t>(original.element[static_cast<size_t>(v)])] = 1;
+    std::vector<double> cornerWinding(static_cast<size_t>(m.X.cols()), std::nan(""));
+    auto cornerOutside = [&](int p) {
+        for (int a = 0; a < 4; ++a) {
+            double& w = cornerWinding[static_cast<size_t>(tets0_(a, p))];
+            if (std::isnan(w)) w = windingNumber(tree, m.X.col(tets0_(a, p)));
+            if (w < 0.5) return true;
+        }
+        return false;
+    };
     for (int p : cutParents) {
-        const bool inside = fraction0_[p] >= 1.0 || nv == 0;
+        const bool inside =
+            nv == 0 || (fraction0_[p] >= 1.0 && !holdsVertex[static_cast<size_t>(p)] && !cornerOutside(p));
         const std::vector<int> ves = virtualsOf(p);
         for (int e : ves) {
             const ConvexPiece& piece = virt_.at(e).piece;
@@ -314,6 +333,11 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                             grid[at(i, j)] = w;
                             wind[at(i, j)] = windingNumber(tree, rest(p, w)) - 0.5;
                         }
+                    // inside at every sample: the triangle whole (the same area, 4^capLevels times fewer triangles)
+                    if (std::all_of(wind.begin(), wind.end(), [](double x) { return x >= 0; })) {
+                        emit(p, e, {A, B, C}, f.tag - 4);
+                        continue;
+                    }
                     auto sub = [&](size_t a, size_t b, size_t c) {
                         const double fa = wind[a], fb = wind[b], fc = wind[c];
                         if (fa < 0 && fb < 0 && fc < 0) return;

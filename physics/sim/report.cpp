@@ -146,6 +146,7 @@ json Simulation::report(const json& extra) const {
                       {"nodes_final", model_.nodes()},
                       {"elements_final", model_.elements()}};
     if (!embedding_.is_null()) report["embedding"] = embedding_;
+    if (!visualReport_.is_null()) report["visual"] = visualReport_;
     if (!improvement_.is_null()) report["improve"] = improvement_;
     if (!hybrid_.is_null()) {
         report["hybrid"] = hybrid_;

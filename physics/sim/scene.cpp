@@ -40,6 +40,15 @@ std::string missingFile(const fs::path& p) {
     return (ec ? "cannot read " + p.string() + ": " + ec.message() : "file not found: " + p.string());
 }
 
+// The file named by r's key, relative to the scene's folder dir, as a normal path; the key fails
+// when the file is missing.
+std::string existingPath(ObjectReader& r, const std::string& key, const std::string& dir) {
+    fs::path p(r.requiredString(key));
+    if (p.is_relative()) p = fs::path(dir) / p;
+    if (const std::string why = missingFile(p); !why.empty()) r.fail(key, why);
+    return p.lexically_normal().string();
+}
+
 Region readRegion(ObjectReader& r) {
     Region g;
     g.path = r.path();
@@ -115,11 +124,9 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
         if ((t.size.array() <= 0).any()) r.fail("size", "must be positive in every axis");
     }
     if (t.kind == ToolDef::Kind::Hull) {
-        fs::path p(r.requiredString("obj"));
-        if (p.is_relative()) p = fs::path(dir) / p;
-        if (const std::string why = missingFile(p); !why.empty()) r.fail("obj", why);
+        const std::string path = existingPath(r, "obj", dir);
         const double scale = r.number("scale", 1, 0, 1e300, true);
-        t.hull = readSurfaceMesh(p.lexically_normal().string(), scale).V;
+        t.hull = readSurfaceMesh(path, scale).V;
         if (t.hull.cols() < 4) r.fail("obj", "needs at least 4 vertices for a convex hull");
         const Eigen::Vector3d ext = t.hull.rowwise().maxCoeff() - t.hull.rowwise().minCoeff();
         if ((ext.array() <= 0).any()) r.fail("obj", "is flat: a hull needs volume");
@@ -194,11 +201,9 @@ ColliderDef readCollider(ObjectReader& r, const std::string& dir, int index) {
         if (!(c.size.x() > 0)) r.fail("radius", "must be > 0");
     } else {
         c.kind = ColliderDef::Kind::Mesh;
-        fs::path p(r.requiredString("obj"));
-        if (p.is_relative()) p = fs::path(dir) / p;
-        if (const std::string why = missingFile(p); !why.empty()) r.fail("obj", why);
+        const std::string path = existingPath(r, "obj", dir);
         const double scale = r.number("scale", 1, 0, 1e300, true);
-        const SurfaceMesh sm = readSurfaceMesh(p.lexically_normal().string(), scale);
+        const SurfaceMesh sm = readSurfaceMesh(path, scale);
         c.vertices = sm.V;
         c.triangles = sm.F;
         if (c.vertices.cols() < 4) r.fail("obj", "needs at least 4 vertices (a mesh collider is its convex hull)");
@@ -370,17 +375,11 @@ SceneDef parseScene(const json& j, const std::string& file) {
         if (o.has("mesh") && o.raw("mesh").is_object()) {
             s.meshData = std::make_shared<const TetMesh>(readInlineMesh(o.object("mesh")));
         } else if (o.has("mesh")) {
-            fs::path p(o.requiredString("mesh"));
-            if (p.is_relative()) p = fs::path(s.dir) / p;
-            if (const std::string why = missingFile(p); !why.empty()) o.fail("mesh", why);
-            s.mesh = p.lexically_normal().string();
+            s.mesh = existingPath(o, "mesh", s.dir);
         } else if (o.has("surface")) {
             // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.
             ObjectReader su = o.object("surface");
-            fs::path p(su.requiredString("path"));
-            if (p.is_relative()) p = fs::path(s.dir) / p;
-            if (const std::string why = missingFile(p); !why.empty()) su.fail("path", why);
-            s.surface = p.lexically_normal().string();
+            s.surface = existingPath(su, "path", s.dir);
             if (su.has("cells") == su.has("h")) su.fail("cells", "give exactly one of cells and h");
             s.surfaceCells = su.has("cells") ? su.integer("cells", 16, 1, 1000) : 0;
             s.surfaceH = su.has("h") ? su.number("h", 0, 0, 1e300, true) : 0;
@@ -419,6 +418,19 @@ SceneDef parseScene(const json& j, const std::string& file) {
                 io.maxBoundaryDistance = im.number("max_boundary_distance", io.maxBoundaryDistance, 0, 0.5);
                 io.moveBoundary = im.boolean("move_boundary", io.moveBoundary);
                 im.finish();
+            }
+        }
+        if (o.has("visual")) {
+            // A fine surface drawn in place of the tet boundary, riding the elements (embed/visual.hpp).
+            if (o.has("surface")) o.fail("visual", "applies to a tet mesh object (mesh or box); surface draws itself");
+            s.visualScale = s.scale;
+            if (o.raw("visual").is_object()) {
+                ObjectReader v = o.object("visual");
+                s.visual = existingPath(v, "path", s.dir);
+                s.visualScale = v.number("scale", s.scale, 0, 1e9, true);
+                v.finish();
+            } else {
+                s.visual = existingPath(o, "visual", s.dir);
             }
         }
         s.anySize = o.boolean("any_size", false);

@@ -142,6 +142,8 @@ struct SceneDef {
     double surfaceH = 0;                      // MI lattice cell edge [m] (after scale); > 0 takes precedence
     bool surfaceFixOutside = false;           // MI: fix the outside corners of interface tets (thesis sec. 6.3)
     bool surfaceKeepStep = true;              // MI: add mass where needed so the step is at least the lattice's
+    std::string visual;      // object.visual: surface path (resolved) drawn on a tet mesh object; empty: none
+    double visualScale = 1;  // its coordinates times this give meters (default: scale)
     Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();    // generated box [0,size] (before scale) [m]
     Eigen::Vector3i boxCells = Eigen::Vector3i::Zero();   // cubes along each axis, 6 tets each
     double scale = 1;                                     // coordinates times scale give meters

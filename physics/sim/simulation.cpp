@@ -1,6 +1,7 @@
 #include "sim/simulation.hpp"
 
 #include "embed/mi.hpp"
+#include "embed/visual.hpp"
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
@@ -30,6 +31,8 @@ constexpr double kMaxObjectSize = 10;
 constexpr long kBoundsEvery = 4;           // steps between the speed and displacement checks
 constexpr double kBytesPerTet = 1000;      // a run's peak memory per element: 870 B measured on boxes, plus margin
 constexpr double kMaxContactPoints = 5e6;  // docs/scene-format.md, contact.spacing
+constexpr double kMaxVisualOutside = 0.1;  // object.visual: farthest vertex outside, of the object's size
+constexpr int kVisualCapLevels = 2;        // object.visual: cut faces clipped to it on 16 sub-triangles each
 constexpr double kOneCoreTetSteps = 3e7;   // tet-steps per second of one core (BENCHMARKS.md, step)
 
 std::string fmt(const char* f, auto... args) {
@@ -322,6 +325,11 @@ void Simulation::buildObject() {
         if (!box) checkMemory(mesh.source, mesh.elements() * kBytesPerTet);
         if (sc.improve) improveOnLoad(mesh);
         model_ = buildModel(mesh, sc.material, sc.element);
+        if (!sc.visual.empty()) {
+            SurfaceMesh vis = readSurfaceMesh(sc.visual, sc.visualScale);
+            vis.V = (R * vis.V).colwise() + sc.translate;
+            embedVisualSurface(vis);
+        }
     }
     model_.gravity = sc.gravity;
     model_.massDamping = sc.damping;
@@ -344,6 +352,33 @@ void Simulation::buildObject() {
                     {"fixed_nodes", model_.nodes() - model_.freeDofs() / 3},
                     {"mass", model_.mass.sum()}};
     if (!sc.cutting.compare.empty()) rest_ = restMesh(model_);
+}
+
+// object.visual: the surface rides the rest mesh's elements. A vertex far outside every element
+// means the surface does not belong to this mesh or has the wrong scale: refused.
+void Simulation::embedVisualSurface(const SurfaceMesh& vis) {
+    Stopwatch sw;
+    VisualEmbedding ve = embedVisual(vis, model_.tets, model_.X);
+    const double size = boxDiagonal(model_.X);
+    if (ve.maxOutside > kMaxVisualOutside * size)
+        throw InputError(sc_.file + ": object.visual: " +
+                         fmt("vertex %d of %s lies %.3g m outside the tet mesh, %.0f%% of its size %.3g m "
+                             "(at most %.0f%%): a wrong scale or another object's surface?",
+                             ve.farthest, sc_.visual.c_str(), ve.maxOutside, 100 * ve.maxOutside / size, size,
+                             100 * kMaxVisualOutside));
+    visualReport_ = {
+        {"file", sc_.visual},     {"vertices", ve.surface.vertices()}, {"triangles", ve.surface.faces()},
+        {"outside", ve.outside},  {"max_outside", ve.maxOutside},      {"max_outside_fraction", ve.maxOutside / size},
+        {"seconds", sw.seconds()}};
+    visual_ = std::make_unique<EmbeddedSurface>(std::move(ve.surface));
+}
+
+const EmbeddedSurface* Simulation::surface() const {
+    if (visualStale_) {
+        surface_ = std::make_unique<EmbeddedSurface>(cutter_->surface(model_, *visual_, kVisualCapLevels));
+        visualStale_ = false;
+    }
+    return surface_ ? surface_.get() : embedded_ ? embedded_.get() : visual_.get();
 }
 
 // object.improve: a larger step from the mesh itself (thesis sec. 5.1); the fixed regions' nodes
@@ -754,16 +789,20 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
     // The contact points and the drawn surface follow the cut.
     if (contact_ || opt_.renderSurface) {
         sw.lap();
-        // an MI object keeps its own surface, split by the cuts, with cut faces only inside it
-        auto cutSurface = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
-                                                                      : cutter_->surface(model_));
+        // an MI object keeps its own surface, split by the cuts, with cut faces only inside it; a
+        // visual surface is drawn the same way but touched on the mesh's boundary
+        std::unique_ptr<EmbeddedSurface> touched;
+        if (contact_ || !visual_)
+            touched = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
+                                                                  : cutter_->surface(model_));
+        visualStale_ = visual_ && opt_.renderSurface;
         sw.lap();  // the surface is the cut's work (stage cuts); its contact points are contact's
         if (contact_) {
-            ContactPoints pts = contactPoints(*cutSurface, model_.tets, model_.X, contactSettings_.spacing);
+            ContactPoints pts = contactPoints(*touched, model_.tets, model_.X, contactSettings_.spacing);
             scaleByMass(pts, model_.invMass, contactSettings_.massRef);
             contact_->setSurface(std::move(pts), &model_.X);
         }
-        if (opt_.renderSurface) surface_ = std::move(cutSurface);
+        if (opt_.renderSurface && !visual_) surface_ = std::move(touched);
         rec_.stages[Stage::Contact] += sw.lap();
     }
     if (energyChecked_) energyRef_ = totalEnergy(model_, state_);  // a cut releases energy, never adds it

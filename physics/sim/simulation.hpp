@@ -158,10 +158,13 @@ public:
     const ContactWorld* contact() const { return contact_.get(); }
     const ContactSettings& contactSettings() const { return contactSettings_; }
     const CutEngine* cutter() const { return cutter_.get(); }
-    // The surface to draw: the MI object's embedded surface or the mesh boundary, split by the cuts
-    // so far; null for a tet-mesh object before any cut (draw its boundary). Current after every
+    // The surface to draw: the MI object's embedded surface, the object.visual surface or the mesh
+    // boundary, split by the cuts so far; null for a tet-mesh object without object.visual before
+    // any cut (draw its boundary). Current after every
     // topology change when Options::renderSurface is set; topologyVersion() counts the changes.
-    const EmbeddedSurface* surface() const { return surface_ ? surface_.get() : embedded_.get(); }
+    // The visual surface is split when asked for, once for all the cuts since (a blade cuts in
+    // many steps between two frames).
+    const EmbeddedSurface* surface() const;
     int topologyVersion() const { return topologyVersion_; }
     size_t scriptedCutsDone() const { return nextCut_; }
     int threads() const;
@@ -172,6 +175,7 @@ public:
 private:
     void buildObject();
     void improveOnLoad(TetMesh& mesh);
+    void embedVisualSurface(const SurfaceMesh& vis);
     void chooseAndApply(bool initial);
     void setupContact();
     void ensureCutter();
@@ -197,14 +201,17 @@ private:
     Eigen::VectorXd alphaElem_;  // per-element damping (on_limit damp), else empty
     int critical_ = 0;
     std::vector<Answered> answered_;
-    std::vector<std::vector<int>> loadNodes_;    // nodes of each scene load (sc.forces order)
-    std::unique_ptr<EmbeddedSurface> embedded_;  // an MI object's surface in the uncut lattice
-    nlohmann::json embedding_;                   // MI set-up for the report (null: a tet mesh object)
-    nlohmann::json improvement_;                 // object.improve for the report (null: not asked)
-    nlohmann::json hybrid_;                      // object.element "hybrid" on load, for the report (null: not)
-    double hybridDtSim_ = 0;                     // the hybrid's dt_sim: 0.95 of the FEM object's exact step [s]
-    TetMesh rest_;                               // the uncut rest mesh, for cutting.compare
-    std::unique_ptr<EmbeddedSurface> surface_;   // drawn surface after cuts (see surface())
+    std::vector<std::vector<int>> loadNodes_;           // nodes of each scene load (sc.forces order)
+    std::unique_ptr<EmbeddedSurface> embedded_;         // an MI object's surface in the uncut lattice
+    nlohmann::json embedding_;                          // MI set-up for the report (null: a tet mesh object)
+    std::unique_ptr<EmbeddedSurface> visual_;           // object.visual in the uncut mesh, else null
+    nlohmann::json visualReport_;                       // object.visual for the report (null: none)
+    nlohmann::json improvement_;                        // object.improve for the report (null: not asked)
+    nlohmann::json hybrid_;                             // object.element "hybrid" on load, for the report (null: not)
+    double hybridDtSim_ = 0;                            // the hybrid's dt_sim: 0.95 of the FEM object's exact step [s]
+    TetMesh rest_;                                      // the uncut rest mesh, for cutting.compare
+    mutable std::unique_ptr<EmbeddedSurface> surface_;  // drawn surface after cuts (see surface())
+    mutable bool visualStale_ = false;                  // surface_ lags the cuts of visual_
     int topologyVersion_ = 0;
     std::function<void()> beforeTopologyChange_;
 

@@ -43,6 +43,10 @@ json takeScene(const Simulation& sim, const std::string& outFile, const std::vec
             o["mesh"] = relocate(o["mesh"].get<std::string>(), sc.dir, outDir);
         if (o.contains("surface") && o["surface"].is_object() && o["surface"].contains("path"))
             o["surface"]["path"] = relocate(o["surface"]["path"].get<std::string>(), sc.dir, outDir);
+        if (o.contains("visual") && o["visual"].is_string())
+            o["visual"] = relocate(o["visual"].get<std::string>(), sc.dir, outDir);
+        if (o.contains("visual") && o["visual"].is_object() && o["visual"].contains("path"))
+            o["visual"]["path"] = relocate(o["visual"]["path"].get<std::string>(), sc.dir, outDir);
     }
     if (sim.contact() && j.contains("tools")) {
         const auto& tools = sim.contact()->tools();

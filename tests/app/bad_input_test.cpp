@@ -190,6 +190,7 @@ TEST(BadInput, ContactPointsAreBoundedUpFront) {
     json j = json::parse(test::readText(probe));
     j["tools"][0]["radius"] = 1e-9;
     j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    j["object"]["visual"] = test::source("assets/meshes/sofa_liver-smooth.obj");
     expectBadInput("run " + writeScene(dir + "/tiny_tool.json", j) + " --out " + dir + "/o --no-render --quiet",
                    "the smallest size");
     EXPECT_FALSE(fs::exists(dir + "/o"));

@@ -606,6 +606,7 @@ TEST(Run, CuttingOptionsReachTheEngine) {
              {"light_share", 0.6}, {"relax_iterations", -1}, {"merge_debris", "yes"}}) {
         json j = j0;
         j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+        j["object"]["visual"] = test::source("assets/meshes/sofa_liver-smooth.obj");
         j["cutting"][key] = bad;
         expectRefused(writeScene(workDir(), "opt_" + key + ".json", j), "", "cutting." + key);
     }
@@ -615,6 +616,7 @@ TEST(Run, RefusesCompareWithABoundedCut) {
     std::ifstream in(test::source("assets/scenes/liver_cuts.json"));
     json j = json::parse(in);
     j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    j["object"]["visual"] = test::source("assets/meshes/sofa_liver-smooth.obj");
     j["cutting"]["cuts"][0]["polygon"] = json::parse("[[-0.085, 0, 0], [-0.085, 1, 0], [-0.235, 0, 1]]");
     std::string err;
     expectRefused(writeScene(workDir(), "bounded.json", j), "", "cutting.compare", &err);
@@ -625,6 +627,7 @@ TEST(Run, RefusesACutWithAZeroNormal) {
     json j = json::parse(in);
     j["cutting"]["cuts"][1]["normal"] = {0, 0, 0};
     j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    j["object"]["visual"] = test::source("assets/meshes/sofa_liver-smooth.obj");
     std::string err;
     expectRefused(writeScene(workDir(), "zero.json", j), "", "cutting.cuts[1].normal", &err);
 }

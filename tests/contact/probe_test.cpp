@@ -87,6 +87,7 @@ TEST(Probe, TooStiffPenaltyIsLoweredToTheStableLimit) {
     std::ifstream in(test::source("assets/scenes/probe.json"));
     json j = json::parse(in);
     j["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    j["object"]["visual"] = test::source("assets/meshes/sofa_liver-smooth.obj");
     j["duration"] = 0.01;
     j["tools"][0]["stiffness"] = 1e9;
     j["contact"]["model"] = "penalty";  // the projection model has no stiffness
@@ -110,6 +111,7 @@ TEST(Probe, BadToolKeysAreRefusedWithTheirPath) {
     std::ifstream in(scene);
     json base = json::parse(in);
     base["object"]["mesh"] = test::source("assets/meshes/liver.msh");
+    base["object"]["visual"] = test::source("assets/meshes/sofa_liver-smooth.obj");
     auto expectRefused = [&](json j, const std::string& key) {
         const std::string p = dir + "/s.json";
         std::ofstream(p) << j.dump();

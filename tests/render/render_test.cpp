@@ -553,5 +553,26 @@ TEST(RenderGolden, LiverSaggingWithHud) {
     test::expectGolden("liver_sag", r.render(ms.snap), {8, 0.02});
 }
 
+// liver_cuts.json's smooth visual surface (4384 triangles) on the 596-tet liver after its first two
+// cuts at 0.2 and 0.4 s, sagging at 0.5 s: smooth shading, the time-step map of the tets it rides,
+// the cut faces split in it.
+TEST(RenderGolden, LiverVisualSurfaceCut) {
+    const SceneDef sc = loadScene(test::source("assets/scenes/liver_cuts.json"));
+    ASSERT_FALSE(sc.visual.empty());
+    SimulationOptions so;
+    so.threads = 1;
+    so.renderSurface = true;
+    Simulation sim(sc, so);
+    ASSERT_EQ(sim.advance(0.5), RunStatus::Running);
+    ASSERT_EQ(sim.scriptedCutsDone(), 2u);
+    SceneSnapshot scene(sc, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+    FrameInfo fi;
+    fi.time = sim.state().time;
+    RenderSnapshot& snap = scene.update(sim.model(), sim.state(), fi);
+    EXPECT_GT(snap.vertices(), 2194);
+    Renderer r(goldenOptions());
+    test::expectGolden("liver_visual_cut", r.render(snap), {8, 0.01});
+}
+
 }  // namespace
 }  // namespace cutsim
