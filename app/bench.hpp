@@ -193,6 +193,7 @@ void addMiBarBench();
 void addStabilityBench();  // cmd_bench_stability.cpp
 void addStepCostBench();   // cmd_bench_step.cpp
 void addContactBench();    // cmd_bench_contact.cpp
+void addHapticBench();     // cmd_bench_haptic.cpp
 void addCaptureBench();    // cmd_bench_capture.cpp
 void addImproveBench();    // cmd_bench_improve.cpp
 void addCutStepBench();    // cmd_bench_cutstep.cpp

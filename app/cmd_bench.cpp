@@ -747,6 +747,7 @@ void registerBenchExtensions() {
     addStepCostBench();       // cmd_bench_step.cpp: step throughput, per-scene cost
     addMiBarBench();          // cmd_bench_mibar.cpp: Table 6.1
     addContactBench();        // cmd_bench_contact.cpp: contact cost and penetration
+    addHapticBench();         // cmd_bench_haptic.cpp: a 20k-tet liver and a probe at a haptic rate
     addCaptureBench();        // cmd_bench_capture.cpp: capture frames per second
     addImproveBench();        // cmd_bench_improve.cpp: mesh improvement against TetGen and Gmsh
     addCutStepBench();        // cmd_bench_cutstep.cpp: Tables 5.5 and 5.6, the step through cuts

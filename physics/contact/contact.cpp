@@ -1,11 +1,8 @@
-#include "contact/contact.hpp"
-#include "contact/shapes.hpp"
+#include "contact/world.hpp"
 
 #include "util/union_find.hpp"
 
-#include <BulletCollision/BroadphaseCollision/btDbvt.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpa2.h>
-#include <btBulletCollisionCommon.h>
 
 #include <algorithm>
 #include <atomic>
@@ -15,167 +12,13 @@
 #include <utility>
 
 namespace cutsim {
-
 namespace {
 
 std::atomic<int> gLiveWorlds{0};
 
-// Steps of motion a moved leaf is grown by along its velocity (at most 4 fat).
-constexpr double kLookahead = 16;
-// Depth in the rest shape, as a fraction of the leaf margin, beyond which a point behind a triangle
-// of another piece is overlap the cut made (an embedded surface is not split at the cut, so
-// triangles of one side reach over the other's), not contact.
-constexpr double kMadeOverlap = 0.1;
-// Depth below which two pieces touch without pressing: faces a cut made coincide to rounding [m].
-constexpr double kSlop = 1e-7;
-// Distance outside a shape, as a fraction of the leaf margin, within which a point is a
-// speculative contact of the projection.
-constexpr double kSpeculative = 0.1;
 // Least sum of |w_i| over the free nodes of a contact the projection moves.
 constexpr double kMinFreeWeight = 0.1;
 
-struct Collect : btDbvt::ICollide {
-    std::vector<int>* out = nullptr;
-    void Process(const btDbvtNode* leaf) override { out->push_back(leaf->dataAsInt); }
-};
-
-}  // namespace
-
-// ---- ContactWorld ----
-
-// One shape the surface can touch: a part of a tool (moving on its keyframes) or a static collider.
-struct Shape {
-    int tool = -1;       // owning tool, or -1
-    int collider = -1;   // owning collider, or -1
-    ToolPart part;       // sphere, capsule, box or hull (a collider's too)
-    bool plane = false;  // a collider's half-space: no collision object, its own tree traversal
-    double radius = 0;   // of a sphere about the part origin holding the part [m] (not for planes)
-    double friction = 0;
-};
-
-// One node's share in a contact: the contact's velocity is sum_i w_i v_i (minus a wall's).
-struct Term {
-    int node = 0;
-    double w = 0;
-    double im = 0;  // inverse mass the projection moves the node with [1/kg]
-};
-
-// A surface point inside a shape, or inside another piece of the object, at the query time.
-struct Touch {
-    int point = 0;
-    int shape = -1;         // the tool part or collider, or -1 for another piece
-    int first = 0, n = 0;   // its terms: the point's nodes, then minus the other piece's triangle's
-    Eigen::Vector3d n_;     // the way out of the shape
-    double depth = 0;       // how far inside [m] (> 0)
-    Eigen::Vector3d c0;     // sum_i w_i x_i when detected [m]
-    Eigen::Vector3d vWall;  // velocity of the shape's material point there [m/s]
-    double mass = 0;        // effective mass, 1 / (sum_i w_i^2 / m_i) [kg]
-    double lambda = 0;      // normal impulse accumulated by the projection [N s]
-    Eigen::Vector3d tangent = Eigen::Vector3d::Zero();  // friction impulse accumulated [N s]
-    double push = 0;                                    // position correction accumulated, as mass x length [kg m]
-    double friction = 0;
-};
-
-// A connected part of the surface (triangles joined by shared nodes: a piece of the object once
-// cuts have separated it). Each has its own tree and drift, so a piece far from every shape (one
-// falling away) costs one pass over its nodes and no refit.
-struct Piece {
-    btDbvt tree;
-    std::vector<int> nodes;  // indices into surfNodes
-    double drift = 0;        // how far any of its points may be outside its leaf [m]
-    bool refitted = false;   // this step
-    btDbvtVolume around;     // its root grown by drift
-    int facing = 1;          // +1: triangles counter-clockwise from outside; -1: from inside; 0: encloses nothing
-};
-
-struct ContactWorld::Impl {
-    std::vector<ToolDef> tools;
-    std::vector<ColliderDef> colliders;
-    // the collision world holds the tool parts and the colliders; its broad phase keeps their boxes
-    btDefaultCollisionConfiguration config;
-    btCollisionDispatcher dispatcher{&config};
-    btDbvtBroadphase broadphase;
-    btCollisionWorld world{&dispatcher, &broadphase, &config};
-    std::vector<Shape> shapes;
-    std::vector<std::unique_ptr<btConvexShape>> btShapes;     // per shape (null for a plane)
-    std::vector<std::unique_ptr<btCollisionObject>> objects;  // per shape (null for a plane)
-    std::vector<double> colliderStiffness, colliderDamping;   // penalty on colliders [N/m], [N s/m]
-    bool pieceContact = false;
-    double pieceFriction = 0.3;
-
-    ContactPoints pts;
-    std::vector<int> ignoredCut;  // per tool: the cut whose faces it does not touch, or -1
-    std::vector<std::unique_ptr<Piece>> pieces;
-    std::vector<int> triPiece;   // piece of each triangle (nTris)
-    std::vector<int> nodePiece;  // piece of each surface node (surfNodes)
-    std::vector<btDbvtNode*>
-        leaves;            // (nTris): each triangle's box in its piece's tree, grown by `margin` at the last refit
-    double fat = 1e-3;     // a leaf moved is grown by this [m]
-    double margin = 5e-4;  // and kept while its triangle stays `margin` inside it (fat / 2) [m]
-    std::vector<int> surfNodes;     // nodes the surface's vertices follow
-    Eigen::Matrix3Xd xRef;          // their positions when their triangles were last refitted (3 x surfNodes) [m]
-    std::vector<double> moved;      // how far each moved from there, per axis (surfNodes) [m]
-    std::vector<int> nodeTriStart;  // CSR: triangles following surface node k (surfNodes + 1)
-    std::vector<int> nodeTris;
-    double wSum = 1;             // largest sum_i |w_i| of a vertex: it moves at most this x its nodes
-    std::vector<int> dirty;      // triangles to refit this step
-    std::vector<int> triStamp;   // last refit that queued each triangle (nTris)
-    std::vector<int> vertStamp;  // last refit that placed each vertex (nPoints)
-    int refits = 0;
-    Eigen::Matrix3Xd xp;     // point positions (3 x nPoints) [m], computed for candidates only
-    std::vector<int> stamp;  // last query that visited each point (nPoints)
-    int query = 0;
-    std::vector<int> candidates;  // triangles, then points
-    btNodeStack stack;
-    std::vector<const btDbvtNode*> walk;     // the plane traversal's stack
-    std::vector<std::pair<int, int>> pairs;  // triangles of two pieces whose boxes overlap
-    std::vector<btTransform> now, other;     // shape transforms at the query time and at the step's other end
-    std::vector<Touch> touches;
-    std::vector<Term> terms;
-    std::vector<int> interpolateNow;  // points to place for the piece test
-    Eigen::Matrix3Xd restPts;         // point positions in the rest shape (3 x nPoints) [m]; empty: no piece contact
-    const Eigen::Matrix3Xd* xNow = nullptr;  // positions of this step's query
-    ContactStep last;
-
-    void clearTree() {
-        for (auto& p : pieces) p->tree.clear();
-        leaves.clear();
-    }
-    void interpolate(const Eigen::Matrix3Xd& x, int p) {
-        Eigen::Vector3d s = Eigen::Vector3d::Zero();
-        for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i) s += pts.weights(i, p) * x.col(pts.nodes(i, p));
-        xp.col(p) = s;
-    }
-    Eigen::Vector3d pointVelocity(const Eigen::Matrix3Xd& v, int p) const {
-        Eigen::Vector3d s = Eigen::Vector3d::Zero();
-        for (int i = 0; i < pts.count[static_cast<size_t>(p)]; ++i) s += pts.weights(i, p) * v.col(pts.nodes(i, p));
-        return s;
-    }
-    Eigen::Vector3d combine(const Eigen::Matrix3Xd& y, const Touch& tc) const {
-        Eigen::Vector3d s = Eigen::Vector3d::Zero();
-        for (int i = tc.first; i < tc.first + tc.n; ++i)
-            s += terms[static_cast<size_t>(i)].w * y.col(terms[static_cast<size_t>(i)].node);
-        return s;
-    }
-    void refitMoved(Piece& piece, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt);
-    void build(const Eigen::Matrix3Xd& x);
-    void touchPieces();
-    void pointsInTriangle(int source, int target);
-    void gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double tq, double tOther, bool withPieces);
-};
-
-namespace {
-// Bounds of the triangle of points a, b, c (3 x nPoints columns of xp).
-btDbvtVolume triangleBox(const Eigen::Matrix3Xd& xp, const Eigen::Matrix3Xi& tris, int t) {
-    const Eigen::Vector3d a = xp.col(tris(0, t)), b = xp.col(tris(1, t)), c = xp.col(tris(2, t));
-    return btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))),
-                                bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
-}
-// Smallest n . (x - o) over a box: how far the box reaches below the plane through o.
-double belowPlane(const btDbvtVolume& box, const Eigen::Vector3d& n, const Eigen::Vector3d& o) {
-    const Eigen::Vector3d c = eig(box.Center()), h = eig(box.Extents());
-    return n.dot(c - o) - n.cwiseAbs().dot(h);
-}
 }  // namespace
 
 ContactWorld::ContactWorld(std::vector<ToolDef> tools, std::vector<ColliderDef> colliders)
@@ -238,8 +81,8 @@ ContactWorld::ContactWorld(std::vector<ToolDef> tools, std::vector<ColliderDef> 
     m.colliderStiffness.assign(m.colliders.size(), 0);
     m.colliderDamping.assign(m.colliders.size(), 0);
     // leaves move only when a point leaves a box this much bigger than itself
-    m.fat = std::clamp(0.5 * smallest, 1e-5, 1e-2);
-    m.margin = 0.5 * m.fat;
+    m.minFat = std::clamp(0.5 * smallest, 1e-5, 1e-2);
+    m.margin = 0.5 * m.minFat;
     m.last.reaction.assign(m.tools.size(), Eigen::Vector3d::Zero());
 }
 
@@ -321,10 +164,23 @@ void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
         m.nodeTris[i] = pairs[i].second;
     }
     for (size_t k = 0; k < m.surfNodes.size(); ++k) m.nodeTriStart[k + 1] += m.nodeTriStart[k];
+    // and the other way: the surface nodes of each triangle
+    m.triNodeStart.assign(nt + 1, 0);
+    m.triNodes.resize(pairs.size());
+    for (const auto& pr : pairs) ++m.triNodeStart[static_cast<size_t>(pr.second) + 1];
+    for (size_t t = 0; t < nt; ++t) m.triNodeStart[t + 1] += m.triNodeStart[t];
+    {
+        std::vector<int> fill(m.triNodeStart.begin(), m.triNodeStart.end() - 1);
+        for (const auto& pr : pairs) m.triNodes[static_cast<size_t>(fill[static_cast<size_t>(pr.second)]++)] = pr.first;
+    }
+    m.nodeSlot.assign(slot.size(), -1);
+    for (size_t k = 0; k < m.surfNodes.size(); ++k)
+        m.nodeSlot[static_cast<size_t>(m.surfNodes[k])] = static_cast<int>(k);
     m.xRef.resize(3, static_cast<Eigen::Index>(m.surfNodes.size()));
     m.moved.assign(m.surfNodes.size(), 0);
     m.triStamp.assign(nt, -1);
-    m.vertStamp.assign(static_cast<size_t>(m.pts.points()), -1);
+    m.placed.assign(static_cast<size_t>(m.pts.points()), -1);
+    m.placing = 0;
     m.refits = 0;
     m.restPts.resize(3, 0);
     if (rest) {
@@ -372,201 +228,6 @@ void ContactWorld::setPieceContact(bool on, double friction) {
     impl_->pieceFriction = friction;
 }
 
-// Leaves hold their triangle grown by `margin` when refitted, and a triangle is refitted as soon as
-// one of its nodes moved more than margin / (2 wSum) from where it was at its last refit (then each
-// vertex moved at most `margin` since, the reference of a node being reset when all its triangles
-// are refitted). So the tree is exact where it is used.
-void ContactWorld::Impl::build(const Eigen::Matrix3Xd& x) {
-    const int nt = static_cast<int>(pts.triangles.cols());
-    const int nv = pts.triangles.maxCoeff() + 1;
-    for (int p = 0; p < nv; ++p) interpolate(x, p);
-    clearTree();
-    leaves.resize(static_cast<size_t>(nt));
-    for (int t = 0; t < nt; ++t) {
-        btDbvtVolume vol = triangleBox(xp, pts.triangles, t);
-        vol.Expand(btVector3(fat, fat, fat));
-        leaves[static_cast<size_t>(t)] =
-            pieces[static_cast<size_t>(triPiece[static_cast<size_t>(t)])]->tree.insert(vol, nullptr);
-        leaves[static_cast<size_t>(t)]->dataAsInt = t;
-    }
-    for (size_t k = 0; k < surfNodes.size(); ++k) xRef.col(static_cast<Eigen::Index>(k)) = x.col(surfNodes[k]);
-    std::fill(moved.begin(), moved.end(), 0.0);
-    // which way each piece's triangles face: out when its enclosed (signed) volume is positive;
-    // a surface that encloses nothing (open, or flat) takes no part in piece contact
-    std::vector<double> volume(pieces.size(), 0.0), scale(pieces.size(), 0.0);
-    for (int t = 0; t < nt; ++t) {
-        const Eigen::Vector3d a = xp.col(pts.triangles(0, t)), b = xp.col(pts.triangles(1, t)),
-                              c = xp.col(pts.triangles(2, t));
-        const auto k = static_cast<size_t>(triPiece[static_cast<size_t>(t)]);
-        volume[k] += a.dot(b.cross(c)) / 6;
-        scale[k] += (b - a).cross(c - a).norm() * (a.norm() + b.norm() + c.norm()) / 18;
-    }
-    for (size_t k = 0; k < pieces.size(); ++k)
-        pieces[k]->facing = std::abs(volume[k]) > 1e-3 * scale[k] ? (volume[k] > 0 ? 1 : -1) : 0;
-}
-
-void ContactWorld::Impl::refitMoved(Piece& piece, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt) {
-    piece.refitted = true;
-    const double trigger = margin / (2 * std::max(wSum, 1e-300));
-    const int stampNow = ++refits;
-    dirty.clear();
-    for (const int k : piece.nodes) {
-        if (!(moved[static_cast<size_t>(k)] > trigger)) continue;
-        for (int i = nodeTriStart[static_cast<size_t>(k)]; i < nodeTriStart[static_cast<size_t>(k) + 1]; ++i) {
-            const int t = nodeTris[static_cast<size_t>(i)];
-            if (triStamp[static_cast<size_t>(t)] == stampNow) continue;
-            triStamp[static_cast<size_t>(t)] = stampNow;
-            dirty.push_back(t);
-        }
-        xRef.col(k) = x.col(surfNodes[static_cast<size_t>(k)]);
-        moved[static_cast<size_t>(k)] = 0;
-    }
-    const btVector3 grow(margin, margin, margin);
-    for (int t : dirty) {
-        for (int c = 0; c < 3; ++c) {
-            const int p = pts.triangles(c, t);
-            if (vertStamp[static_cast<size_t>(p)] == stampNow) continue;
-            vertStamp[static_cast<size_t>(p)] = stampNow;
-            interpolate(x, p);
-        }
-        btDbvtNode* leaf = leaves[static_cast<size_t>(t)];
-        btDbvtVolume vol = triangleBox(xp, pts.triangles, t);
-        vol.Expand(grow);
-        if (leaf->volume.Contain(vol)) continue;
-        vol.Expand(grow);  // margin + margin = fat
-        // grown along the triangle's velocity too, so a piece in steady motion (falling, dragged)
-        // leaves its boxes less often (as Bullet's broad phase predicts its proxies)
-        Eigen::Vector3d vt = Eigen::Vector3d::Zero();
-        for (int c = 0; c < 3; ++c) vt += pointVelocity(v, pts.triangles(c, t));
-        Eigen::Vector3d ahead = vt * (kLookahead * dt / 3);
-        if (const double len = ahead.norm(); len > 4 * fat) ahead *= 4 * fat / len;
-        if (ahead.allFinite()) vol.SignedExpand(bt(ahead));
-        // in place, the ancestors' boxes refitted up to the first that still holds it: the surface
-        // moves continuously, so neighbours stay neighbours and the tree keeps its shape without
-        // Bullet's remove and insert per moved leaf
-        leaf->volume = vol;
-        for (btDbvtNode* n = leaf->parent; n; n = n->parent) {
-            const btDbvtVolume before = n->volume;
-            Merge(n->childs[0]->volume, n->childs[1]->volume, n->volume);
-            if (before.Mins() == n->volume.Mins() && before.Maxs() == n->volume.Maxs()) break;
-        }
-    }
-}
-
-namespace {
-struct CollidePairs : btDbvt::ICollide {
-    std::vector<std::pair<int, int>>* out = nullptr;
-    void Process(const btDbvtNode* a, const btDbvtNode* b) override { out->emplace_back(a->dataAsInt, b->dataAsInt); }
-};
-}  // namespace
-
-// The points of triangle `source` just inside triangle `target` of another piece: behind its
-// plane by less than `margin`, over the triangle. Each becomes a contact of the two pieces whose
-// terms are the point's nodes and, negated, the target point's (barycentric in its triangle).
-void ContactWorld::Impl::pointsInTriangle(int source, int target) {
-    const ContactPoints& P = pts;
-    const int ia = P.triangles(0, target), ib = P.triangles(1, target), ic = P.triangles(2, target);
-    const Eigen::Vector3d a = xp.col(ia), b = xp.col(ib), c = xp.col(ic);
-    const Eigen::Vector3d e1 = b - a, e2 = c - a;
-    const int facing = pieces[static_cast<size_t>(triPiece[static_cast<size_t>(target)])]->facing;
-    Eigen::Vector3d n = e1.cross(e2);  // counter-clockwise from outside when facing is +1
-    const double area2 = n.norm();
-    if (!(area2 > 0) || facing == 0) return;
-    n *= facing / area2;  // out of the target's piece
-    // only faces that face each other press: a source face across the target's (normals within
-    // 60 degrees of opposite), which leaves out the side faces met at a cut's rim
-    {
-        const Eigen::Vector3d sa = xp.col(P.triangles(0, source));
-        const Eigen::Vector3d ns = (xp.col(P.triangles(1, source)) - sa).cross(xp.col(P.triangles(2, source)) - sa);
-        const int fs = pieces[static_cast<size_t>(triPiece[static_cast<size_t>(source)])]->facing;
-        if (!(fs * ns.dot(n) < -0.5 * ns.norm())) return;
-    }
-    const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), den = d11 * d22 - d12 * d12;
-    for (int k = P.triStart[static_cast<size_t>(source)]; k < P.triStart[static_cast<size_t>(source) + 1]; ++k) {
-        const int p = P.triPoints[static_cast<size_t>(k)];
-        const Eigen::Vector3d r = xp.col(p) - a;
-        const double d = n.dot(r);
-        if (!(d < -kSlop) || !(d > -margin)) continue;
-        const double r1 = r.dot(e1), r2 = r.dot(e2);
-        const double u = (d22 * r1 - d12 * r2) / den, w = (d11 * r2 - d12 * r1) / den;
-        if (u < 0 || w < 0 || u + w > 1) continue;
-        // behind the triangle already in the rest shape: overlap the cut made, not contact
-        const Eigen::Vector3d ra = restPts.col(ia), rn = (restPts.col(ib) - ra).cross(restPts.col(ic) - ra);
-        if (facing * rn.dot(restPts.col(p) - ra) < -kMadeOverlap * margin * rn.norm()) continue;
-        Touch tc;
-        tc.point = p;
-        tc.n_ = n;
-        tc.depth = -d;
-        tc.vWall.setZero();
-        tc.friction = pieceFriction;
-        tc.first = static_cast<int>(terms.size());
-        auto add = [&](int q, double scale) {
-            for (int i = 0; i < P.count[static_cast<size_t>(q)]; ++i) {
-                const int node = P.nodes(i, q);
-                const double wq = scale * P.weights(i, q);
-                int j = tc.first;
-                while (j < static_cast<int>(terms.size()) && terms[static_cast<size_t>(j)].node != node) ++j;
-                if (j == static_cast<int>(terms.size()))
-                    terms.push_back({node, wq});
-                else
-                    terms[static_cast<size_t>(j)].w += wq;
-            }
-        };
-        add(p, 1.0);
-        add(ia, -(1 - u - w));
-        add(ib, -u);
-        add(ic, -w);
-        tc.n = static_cast<int>(terms.size()) - tc.first;
-        tc.c0 = xp.col(p) - ((1 - u - w) * a + u * b + w * c);
-        touches.push_back(tc);
-    }
-}
-
-// Contacts between separated pieces: triangle pairs of two pieces whose leaves overlap.
-void ContactWorld::Impl::touchPieces() {
-    for (size_t A = 0; A < pieces.size(); ++A)
-        for (size_t B = A + 1; B < pieces.size(); ++B) {
-            Piece &pa = *pieces[A], &pb = *pieces[B];
-            if (!pa.tree.m_root || !pb.tree.m_root || !Intersect(pa.around, pb.around)) continue;
-            pairs.clear();
-            CollidePairs collide;
-            collide.out = &pairs;
-            pa.tree.collideTT(pa.tree.m_root, pb.tree.m_root, collide);
-            if (pairs.empty()) continue;
-            // the vertices of both triangles of each pair, placed now
-            if (++query == std::numeric_limits<int>::max()) {
-                std::fill(stamp.begin(), stamp.end(), -1);
-                query = 0;
-            }
-            for (const auto& [ta, tb] : pairs)
-                for (const int t : {ta, tb})
-                    for (int k = pts.triStart[static_cast<size_t>(t)]; k < pts.triStart[static_cast<size_t>(t) + 1];
-                         ++k) {
-                        const int p = pts.triPoints[static_cast<size_t>(k)];
-                        if (stamp[static_cast<size_t>(p)] == query) continue;
-                        stamp[static_cast<size_t>(p)] = query;
-                        interpolateNow.push_back(p);
-                    }
-            for (const int p : interpolateNow) interpolate(*xNow, p);
-            interpolateNow.clear();
-            const size_t first = touches.size();
-            for (const auto& [ta, tb] : pairs) {
-                pointsInTriangle(ta, tb);
-                pointsInTriangle(tb, ta);
-            }
-            // a point behind several faces of the other piece (at an edge) keeps the shallowest
-            std::sort(touches.begin() + static_cast<std::ptrdiff_t>(first), touches.end(),
-                      [](const Touch& l, const Touch& r) {
-                          return l.point != r.point ? l.point < r.point : l.depth < r.depth;
-                      });
-            size_t out = first;
-            for (size_t i = first; i < touches.size(); ++i)
-                if (i == first || touches[i].point != touches[i - 1].point) touches[out++] = touches[i];
-            touches.resize(out);
-            last.pieceContacts += static_cast<int>(out - first);
-        }
-}
-
 // The surface points inside any shape at time tq (tools posed at tq), into `touches`; a tool's
 // material velocity is taken over [tOther, tq] (either order). With withPieces, also the points of
 // one piece inside another.
@@ -587,7 +248,11 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
     if (nt == 0) return;
     xNow = &x;
     const double dt = std::abs(tq - tOther);
-    // 1. how far each surface node moved since its triangles were refitted; each piece lies in its
+    if (++placing == std::numeric_limits<int>::max()) {
+        std::fill(placed.begin(), placed.end(), -1);
+        placing = 0;
+    }
+    // 1. how far each surface node moved from its reference; each piece lies in its
     // tree's root box grown by wSum times its farthest (one pass over the surface's nodes)
     if (static_cast<int>(leaves.size()) != nt) {
         build(x);
@@ -625,8 +290,6 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
     // keeps resting contact): they may close the gap in this step but not pass it, so a point
     // resting on a surface keeps its contact, and its friction, from step to step.
     const double speculative = withPieces ? kSpeculative * margin : 0.0;
-    Collect collect;
-    collect.out = &candidates;
     for (size_t o = 0; o < shapes.size(); ++o) {
         const Shape& sh = shapes[o];
         candidates.clear();
@@ -640,26 +303,44 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             const btBroadphaseProxy* proxy = objects[o]->getBroadphaseHandle();
             box = btDbvtVolume::FromMM(proxy->m_aabbMin, proxy->m_aabbMax);
         }
+        // a piece away from the shape costs one box test; near it, the leaves within the piece's
+        // drift of the shape's box are visited, their moved nodes reset (surface_tree.cpp), and
+        // those that reach the box are the candidates
         for (auto& pc : pieces) {
             if (!pc->tree.m_root) continue;
             if (sh.plane ? !(belowPlane(pc->around, planeN, planeO) < 0) : !Intersect(pc->around, box)) continue;
-            if (!pc->refitted) refitMoved(*pc, x, v, dt);
-            if (!sh.plane) {
-                pc->tree.collideTVNoStackAlloc(pc->tree.m_root, box, stack, collect);
-                continue;
-            }
-            // the leaves whose box reaches below the plane
+            // a piece that moved far as a whole (sagging, falling) is refitted in one pass, which
+            // brings its drift back down; else only where the shape may reach
+            if (!pc->refitted && pc->drift > kRefitAll * fat) refitMoved(*pc, x, v, dt);
+            const double reach = pc->refitted ? 0.0 : pc->drift;
+            btDbvtVolume region = box;
+            region.Expand(btVector3(reach, reach, reach));
+            auto reaches = [&](const btDbvtVolume& vol, double by, const btDbvtVolume& b) {
+                return sh.plane ? belowPlane(vol, planeN, planeO) < by : Intersect(vol, b);
+            };
+            visited.clear();
+            resetting.clear();
             walk.assign(1, pc->tree.m_root);
             while (!walk.empty()) {
                 const btDbvtNode* n = walk.back();
                 walk.pop_back();
-                if (!(belowPlane(n->volume, planeN, planeO) < 0)) continue;
-                if (n->isleaf())
-                    candidates.push_back(n->dataAsInt);
-                else
+                if (!reaches(n->volume, reach, region)) continue;
+                if (!n->isleaf()) {
                     walk.push_back(n->childs[0]), walk.push_back(n->childs[1]);
+                    continue;
+                }
+                const auto t = static_cast<size_t>(n->dataAsInt);
+                visited.push_back(n->dataAsInt);
+                if (!pc->refitted)
+                    for (int i = triNodeStart[t]; i < triNodeStart[t + 1]; ++i)
+                        if (moved[static_cast<size_t>(triNodes[static_cast<size_t>(i)])] > trigger)
+                            resetting.push_back(triNodes[static_cast<size_t>(i)]);
             }
+            resetNodes(resetting.data(), resetting.data() + resetting.size(), x, v, dt);
+            for (const int t : visited)
+                if (reaches(leaves[static_cast<size_t>(t)]->volume, 0, box)) candidates.push_back(t);
         }
+
         if (candidates.empty()) continue;
         // faces of a cut this tool does not touch: dropped here, their points reached through
         // other candidate faces only
@@ -675,8 +356,23 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             std::fill(stamp.begin(), stamp.end(), -1);
             query = 0;
         }
+        const btTransform frame = sh.tool >= 0 ? now[o]
+                                  : sh.plane   ? btTransform::getIdentity()
+                                               : objects[o]->getWorldTransform();
+        const btTransform back = sh.tool >= 0 ? other[o] * now[o].inverse() : btTransform::getIdentity();
+        const btVector3 bc = frame.getOrigin();
+        const double br = sh.radius;
+        btDbvtVolume near = box;  // what a point must reach to be tested
+        near.Expand(btVector3(speculative, speculative, speculative));
         for (size_t c = 0; c < ntri; ++c) {
             const int t = candidates[c];
+            // the triangle's points lie in the box of its vertices: a box away from the shape's
+            // box, or from its bounding sphere, leaves them all out (as the test per point would)
+            for (int k = 0; k < 3; ++k) place(x, P.triangles(k, t));
+            const btDbvtVolume tb = triangleBox(xp, P.triangles, t);
+            if (sh.plane ? !(belowPlane(tb, planeN, planeO) < speculative)
+                         : !Intersect(tb, near) || boxDistance2(tb, bc) > br * br * (1 + 1e-9))
+                continue;
             for (int k = P.triStart[static_cast<size_t>(t)]; k < P.triStart[static_cast<size_t>(t) + 1]; ++k) {
                 const int p = P.triPoints[static_cast<size_t>(k)];
                 if (stamp[static_cast<size_t>(p)] == query) continue;
@@ -685,14 +381,11 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             }
         }
         candidates.erase(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(ntri));
-        const btTransform frame = sh.tool >= 0 ? now[o]
-                                  : sh.plane   ? btTransform::getIdentity()
-                                               : objects[o]->getWorldTransform();
-        const btTransform back = sh.tool >= 0 ? other[o] * now[o].inverse() : btTransform::getIdentity();
-        const btVector3 bc = frame.getOrigin();
-        const double br = sh.radius;
+        // in point order: the contacts, and the projection's sweeps over them, do not depend on
+        // the trees' state
+        std::sort(candidates.begin(), candidates.end());
         for (int p : candidates) {
-            interpolate(x, p);
+            place(x, p);
             const btVector3 q = bt(Eigen::Vector3d(xp.col(p)));
             double d = 0;
             Eigen::Vector3d n;  // the way out of the shape

@@ -6,11 +6,12 @@
 // part's box (from the btCollisionWorld's broad phase); the candidate triangles' points get their
 // signed distance to the tool, in closed form for spheres, capsules and boxes and from Bullet's
 // GJK/EPA for hulls (btGjkEpaSolver2::SignedDistance, as Bullet's soft-body nodes do).
-// The cost follows what touches: each step bounds how far any point moved since the tree was last
-// refitted (the farthest surface node times the largest weight sum, one pass over the surface's
-// nodes, not its points); a tool whose box misses the tree's root grown by that bound costs
-// nothing more; with a tool near, only the triangles one of whose nodes moved more than
-// margin / (2 x weight sum) are refitted, in place.
+// The cost follows what touches: each step bounds how far any point drifted from where the tree
+// holds it (the farthest surface node from its reference times the largest weight sum, one pass
+// over the surface's nodes, not its points); a tool whose box misses the tree's root grown by that
+// bound costs nothing more; with a tool near, only the leaves within that bound of its box are
+// visited and their moved nodes' triangles refitted, in place (contact/surface_tree.cpp), and a
+// candidate triangle whose own box misses the tool's leaves its points untested.
 // Points are interpolated only when their triangle is a candidate.
 // This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.

@@ -418,6 +418,24 @@ TEST(BenchContact, TinyRunContract) {
     EXPECT_GT(j["runs"][2]["max_depth"].get<double>(), j["runs"][5]["max_depth"].get<double>());  // k 0.1 vs 1.0
 }
 
+// `bench haptic --tiny`: a small remeshed liver pressed by the probe, one run per thread count,
+// each touching it with a positive rate and a contact share within the loop.
+TEST(BenchHaptic, TinyRunContract) {
+    const json j = runJson("bench haptic --tiny --json --mesh " + test::source("assets/meshes/liver.msh"));
+    ASSERT_EQ(j["runs"].size(), 2u);  // 1 and 2 threads
+    for (const auto& r : j["runs"]) {
+        EXPECT_EQ(r["status"], "ok");
+        EXPECT_GT(r["tets"].get<int>(), 500);
+        EXPECT_GT(r["steps"].get<long>(), 10);
+        EXPECT_GT(r["steps_per_second"].get<double>(), 0);
+        EXPECT_GE(r["contact_share"].get<double>(), 0);
+        EXPECT_LT(r["contact_share"].get<double>(), 1);
+        EXPECT_GT(r["final_contacts"].get<int>(), 0);
+        EXPECT_GT(r["final_force"].get<double>(), 0);
+    }
+    EXPECT_EQ(j["runs"][0]["steps"], j["runs"][1]["steps"]);
+}
+
 TEST(BenchStep, TinyRunContract) {
     const json j = runJson("bench step --tiny --json --seconds 0.02");
     ASSERT_EQ(j["runs"].size(), 4u);  // 1 and 2 threads, each in double and single precision
