@@ -116,11 +116,6 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
                 if (tets0_(cq, q) == tets0_(c, p)) return m.tets(cq, g) != m.tets(c, sl.element);
         return false;
     };
-    const auto restOf = [&](int parent, const Eigen::Vector4d& w) {
-        Eigen::Vector3d y = Eigen::Vector3d::Zero();
-        for (int a = 0; a < 4; ++a) y += w[a] * m.X.col(tets0_(a, parent));
-        return y;
-    };
     for (const Sliver& sl : slivers_) {
         const int e = sl.element;
         if (e < 0 || e >= m.elements()) continue;
@@ -168,7 +163,7 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
                 }
                 if (best < 0) continue;
                 const int q = bestParent;
-                return vertex(best, barycentric(restOf(p, w), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
+                return vertex(best, barycentric(restOf(m, p, w), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
                                                 m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q))));
             }
             return -1;

@@ -53,11 +53,6 @@ int CutEngine::carrierOnSide(const Model& m, int p, const std::vector<const Half
                              const Eigen::Vector4d& at, int& carrierParent) const {
     // Each plane's level set is affine in the rest position: its value at a point of another
     // parent is the same weights' dot product, extrapolated from p.
-    auto restOf = [&](int parent, const Eigen::Vector4d& w) {
-        Eigen::Vector3d y = Eigen::Vector3d::Zero();
-        for (int a = 0; a < 4; ++a) y += w[a] * m.X.col(tets0_(a, parent));
-        return y;
-    };
     auto inP = [&](const Eigen::Vector3d& y) {
         return barycentric(y, m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)), m.X.col(tets0_(2, p)),
                            m.X.col(tets0_(3, p)));
@@ -85,7 +80,7 @@ int CutEngine::carrierOnSide(const Model& m, int p, const std::vector<const Half
                     for (const auto& xi : gv->second.piece.xi) mid += weightsOf(xi);
                     mid /= static_cast<double>(gv->second.piece.xi.size());
                 }
-                if (!sameSide(inP(restOf(q, mid)))) continue;
+                if (!sameSide(inP(restOf(m, q, mid)))) continue;
                 best = g;
                 bestShared = shared;
                 carrierParent = q;
@@ -100,11 +95,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     const int nParents = static_cast<int>(tets0_.cols());
     const int nv = original.vertices();
     // Rest position of parent weights: the parent's original corners (their rest positions never change).
-    auto rest = [&](int p, const Eigen::Vector4d& w) {
-        Eigen::Vector3d y = Eigen::Vector3d::Zero();
-        for (int a = 0; a < 4; ++a) y += w[a] * m.X.col(tets0_(a, p));
-        return y;
-    };
+    auto rest = [&](int p, const Eigen::Vector4d& w) { return restOf(m, p, w); };
     SurfaceMesh restSurface;
     restSurface.V.resize(3, nv);
     restSurface.F = original.triangles;

@@ -192,6 +192,12 @@ private:
     void markLightNodes(Model& m) const;
     void setMassShare(Model& m, int e) const;
     const std::vector<int>& virtualsOf(int parent) const;
+    // Rest position of weights w in parent p's original corners [m].
+    Eigen::Vector3d restOf(const Model& m, int parent, const Eigen::Vector4d& w) const {
+        Eigen::Vector3d y = Eigen::Vector3d::Zero();
+        for (int a = 0; a < 4; ++a) y += w[a] * m.X.col(tets0_(a, parent));
+        return y;
+    }
     // An element of a parent around p (sharing a corner; most shared corners, then lowest index)
     // whose piece lies on the same side of each of p's cut planes as the point at weights `at` of
     // p, or -1; its parent in carrierParent. For surface cells on a side p dropped.
