@@ -124,6 +124,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     int vtuFrames = 0;
     const bool vtu = sc.capture.enabled && sc.capture.vtu;
     if (vtu) fs::create_directories(out / "vtu");
+    int drawnVersion = sim.topologyVersion();
     auto frame = [&] {
         if (vtu) {
             char name[40];
@@ -135,6 +136,11 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             pvd += entry;
         }
         if (!sink) return;
+        if (sim.topologyVersion() != drawnVersion) {
+            // the cut surface and the new per-element limits, once per frame however many steps cut
+            drawnVersion = sim.topologyVersion();
+            sink->topologyChanged(sim.model(), *sim.surface(), sim.analyzer().estimates().r1r, sim.dt());
+        }
         // no wall-clock rates in captured frames: they would make every run's frames differ (report.json has them)
         const FrameInfo fi = frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN());
         const Stopwatch tr;
@@ -146,7 +152,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Progress progress(sc.duration, opt.quiet);
     const double frameDt = 1.0 / sc.capture.fps;
     double nextFrame = 0;
-    int drawnVersion = sim.topologyVersion();
     const InterruptGuard interrupt;
     while (sim.status() == RunStatus::Running && !sim.finished() && !interrupt.signal()) {
         if (sim.state().time >= nextFrame - 1e-12) {
@@ -154,11 +159,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             nextFrame += frameDt;
         }
         sim.step();
-        if (sink && sim.topologyVersion() != drawnVersion) {
-            // the cut surface and the new per-element limits, for the next frame
-            drawnVersion = sim.topologyVersion();
-            sink->topologyChanged(sim.model(), *sim.surface(), sim.analyzer().estimates().r1r, sim.dt());
-        }
         progress.update(sim.state().time, sim.state().steps);
     }
     if (const int sig = interrupt.signal()) {

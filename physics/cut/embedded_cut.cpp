@@ -11,9 +11,11 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <map>
+#include <unordered_map>
 #include <string>
 #include <utility>
 
@@ -90,24 +92,116 @@ int CutEngine::carrierOnSide(const Model& m, int p, const std::vector<const Half
     return best;
 }
 
-EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
-    if (!prepared_) return original;
+struct CutEngine::SplitCache {
+    const EmbeddedSurface* original = nullptr;
+    int vertices = 0, faces = 0;
+    SurfaceMesh rest;  // the original at rest [m]
+    WindingTree tree;  // of rest (built on first need)
+    double tinyArea = 0;
+    // Each original triangle's parts in the parents it crosses, clipped to their inner faces (CSR by triangle).
+    std::vector<int> partStart;
+    std::vector<std::pair<int, Poly>> parts;
+    std::vector<char> holdsVertex;      // parent holds a surface vertex inside it (nParents)
+    std::vector<double> cornerWinding;  // winding number at each original node, NaN until needed
+    struct Sample {
+        int parent;
+        std::array<double, 4> w;
+        bool operator==(const Sample&) const = default;
+    };
+    struct SampleHash {
+        size_t operator()(const Sample& s) const {
+            std::uint64_t h = static_cast<std::uint64_t>(s.parent) * 0x9E3779B97F4A7C15ull;
+            for (double x : s.w) h = (h ^ std::bit_cast<std::uint64_t>(x)) * 0x100000001B3ull;
+            return static_cast<size_t>(h ^ (h >> 29));
+        }
+    };
+    std::unordered_map<Sample, double, SampleHash>
+        winding;  // cap samples: a parent's pieces change only when it is cut again
+};
+
+CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurface& original) const {
+    constexpr size_t kKept = 4;  // surfaces an engine serves: an MI object's own and a visual one
+    auto& caches = split_.caches;
+    for (auto& k : caches)
+        if (k->original == &original && k->vertices == original.vertices() && k->faces == original.faces()) return *k;
+    if (caches.size() >= kKept) caches.erase(caches.begin());
+    caches.push_back(std::make_shared<SplitCache>());
+    SplitCache* c = caches.back().get();
+    c->original = &original;
+    c->vertices = original.vertices();
+    c->faces = original.faces();
     const int nParents = static_cast<int>(tets0_.cols());
     const int nv = original.vertices();
-    // Rest position of parent weights: the parent's original corners (their rest positions never change).
-    auto rest = [&](int p, const Eigen::Vector4d& w) { return restOf(m, p, w); };
-    SurfaceMesh restSurface;
-    restSurface.V.resize(3, nv);
-    restSurface.F = original.triangles;
+    SurfaceMesh& rs = c->rest;
+    rs.V.resize(3, nv);
+    rs.F = original.triangles;
     for (int v = 0; v < nv; ++v) {
         const int p = original.element[static_cast<size_t>(v)];
         if (p < 0 || p >= nParents)
             throw InputError("embedded surface: vertex " + std::to_string(v) + " rides element " + std::to_string(p) +
                              ", not an element of the uncut model");
-        restSurface.V.col(v) = rest(p, original.weights.col(v));
+        rs.V.col(v) = restOf(m, p, original.weights.col(v));
     }
-    const double diag = nv > 0 ? (restSurface.V.rowwise().maxCoeff() - restSurface.V.rowwise().minCoeff()).norm() : 0;
-    const double tinyArea = 1e-14 * diag * diag;  // [m^2] parts below it are slivers of round-off
+    const double diag = nv > 0 ? (rs.V.rowwise().maxCoeff() - rs.V.rowwise().minCoeff()).norm() : 0;
+    c->tinyArea = 1e-14 * diag * diag;  // [m^2] parts below it are slivers of round-off
+    if (nv > 0) c->tree = buildWindingTree(rs);
+    c->holdsVertex.assign(static_cast<size_t>(nParents), 0);
+    for (int v = 0; v < nv; ++v)
+        if (original.weights.col(v).minCoeff() >= 0)
+            c->holdsVertex[static_cast<size_t>(original.element[static_cast<size_t>(v)])] = 1;
+    c->cornerWinding.assign(static_cast<size_t>(m.X.cols()), std::nan(""));
+    // Each triangle is clipped to each parent it crosses (flood fill over face neighbours from its
+    // vertices' parents); not at boundary faces: a visual surface on a
+    // tet mesh crosses them (the MI lattice's boundary lies outside its surface).
+    std::vector<int> queue, visited;
+    c->partStart.assign(1, 0);
+    for (int t = 0; t < original.faces(); ++t) {
+        std::array<int, 3> v{}, p{};
+        for (size_t i = 0; i < 3; ++i) {
+            v[i] = original.triangles(static_cast<int>(i), t);
+            p[i] = original.element[static_cast<size_t>(v[i])];
+        }
+        queue.clear();
+        visited.clear();
+        for (int q : p)
+            if (std::find(visited.begin(), visited.end(), q) == visited.end()) {
+                visited.push_back(q);
+                queue.push_back(q);
+            }
+        while (!queue.empty()) {
+            const int q = queue.back();
+            queue.pop_back();
+            Poly poly(3);
+            for (size_t i = 0; i < 3; ++i)
+                poly[i] = barycentric(rs.V.col(v[i]), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
+                                      m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q)));
+            for (int a = 0; a < 4 && !poly.empty(); ++a)
+                if (adj_(a, q) >= 0) poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
+            if (poly.empty()) continue;
+            for (int k = 0; k < 4; ++k) {
+                const int n = adj_(k, q);
+                if (n < 0 || std::find(visited.begin(), visited.end(), n) != visited.end()) continue;
+                if (std::any_of(poly.begin(), poly.end(),
+                                [k](const Eigen::Vector4d& w) { return std::abs(w[k]) < 1e-9; })) {
+                    visited.push_back(n);
+                    queue.push_back(n);
+                }
+            }
+            c->parts.emplace_back(q, std::move(poly));
+        }
+        c->partStart.push_back(static_cast<int>(c->parts.size()));
+    }
+    return *c;
+}
+
+EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
+    if (!prepared_) return original;
+    const int nParents = static_cast<int>(tets0_.cols());
+    const int nv = original.vertices();
+    SplitCache& cache = splitCache(m, original);
+    // Rest position of parent weights: the parent's original corners (their rest positions never change).
+    auto rest = [&](int p, const Eigen::Vector4d& w) { return restOf(m, p, w); };
+    const double tinyArea = cache.tinyArea;
     auto area = [&](int p, const Poly& poly) {
         Eigen::Vector3d a = Eigen::Vector3d::Zero();
         const Eigen::Vector3d y0 = rest(p, poly[0]);
@@ -210,60 +304,24 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
     };
 
-    // 1. The original triangles. One inside a single uncut parent stays as it is; any other is
-    // clipped to each parent it crosses (flood fill over face neighbours from its vertices' parents).
-    std::vector<std::pair<int, Poly>> parts;
-    std::vector<int> queue, visited;
+    // 1. The original triangles. One whose parents are all uncut stays as it is; any other is
+    // split by the cuts of each parent it crosses.
     for (int t = 0; t < original.faces(); ++t) {
-        std::array<int, 3> v{}, p{};
-        for (int i = 0; i < 3; ++i) {
-            v[static_cast<size_t>(i)] = original.triangles(i, t);
-            p[static_cast<size_t>(i)] = original.element[static_cast<size_t>(v[static_cast<size_t>(i)])];
+        std::array<int, 3> v{};
+        bool touchesCut = false;
+        for (size_t i = 0; i < 3; ++i) {
+            v[i] = original.triangles(static_cast<int>(i), t);
+            touchesCut = touchesCut || isCut(original.element[static_cast<size_t>(v[i])]);
         }
-        bool touchesCut = isCut(p[0]) || isCut(p[1]) || isCut(p[2]);
-        if (!touchesCut && p[0] == p[1] && p[1] == p[2]) {
-            tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
-            cutId.push_back(-1);
-            continue;
-        }
-        parts.clear();
-        queue.clear();
-        visited.clear();
-        for (int q : p)
-            if (std::find(visited.begin(), visited.end(), q) == visited.end()) {
-                visited.push_back(q);
-                queue.push_back(q);
-            }
-        while (!queue.empty()) {
-            const int q = queue.back();
-            queue.pop_back();
-            Poly poly(3);
-            for (size_t i = 0; i < 3; ++i)
-                poly[i] = barycentric(restSurface.V.col(v[i]), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
-                                      m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q)));
-            // not at boundary faces: a visual surface on a tet mesh crosses them (the MI lattice's
-            // boundary lies outside its surface)
-            for (int a = 0; a < 4 && !poly.empty(); ++a)
-                if (adj_(a, q) >= 0) poly = clipBy(poly, [a](const Eigen::Vector4d& w) { return w[a]; });
-            if (poly.empty()) continue;
-            for (int k = 0; k < 4; ++k) {
-                const int n = adj_(k, q);
-                if (n < 0 || std::find(visited.begin(), visited.end(), n) != visited.end()) continue;
-                if (std::any_of(poly.begin(), poly.end(),
-                                [k](const Eigen::Vector4d& w) { return std::abs(w[k]) < 1e-9; })) {
-                    visited.push_back(n);
-                    queue.push_back(n);
-                }
-            }
-            touchesCut = touchesCut || isCut(q);
-            parts.emplace_back(q, std::move(poly));
-        }
+        const int b = cache.partStart[static_cast<size_t>(t)], e = cache.partStart[static_cast<size_t>(t) + 1];
+        for (int k = b; k < e && !touchesCut; ++k) touchesCut = isCut(cache.parts[static_cast<size_t>(k)].first);
         if (!touchesCut) {
             tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
             cutId.push_back(-1);
             continue;
         }
-        for (const auto& [q, poly] : parts) {
+        for (int k = b; k < e; ++k) {
+            const auto& [q, poly] = cache.parts[static_cast<size_t>(k)];
             if (isCut(q))
                 emitInCutParent(q, poly);
             else
@@ -275,8 +333,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     // it: each cap triangle is subdivided into 4^capLevels, the winding number w of the rest
     // surface sampled at their corners, and each clipped where the linear interpolant of w - 1/2
     // changes sign (Jacobson et al. 2013: w is 1 inside a closed surface, 0 outside).
-    WindingTree tree;
-    if (nv > 0) tree = buildWindingTree(restSurface);
     std::vector<int> cutParents;
     for (const auto& kv : virt_)
         if (kv.first < nParents) cutParents.push_back(kv.first);
@@ -287,59 +343,95 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     auto at = [n](int i, int j) { return static_cast<size_t>(i * (n + 1) - i * (i - 1) / 2 + j); };  // i + j <= n
     // A whole element (share 1) may still reach past the surface when it is a tet mesh's and the
     // surface a visual one: then a corner lies outside the surface or a surface vertex inside it.
-    std::vector<char> holdsVertex(static_cast<size_t>(nParents), 0);
-    for (int v = 0; v < nv; ++v)
-        if (original.weights.col(v).minCoeff() >= 0)
-            holdsVertex[static_cast<size_t>(original.element[static_cast<size_t>(v)])] = 1;
-    std::vector<double> cornerWinding(static_cast<size_t>(m.X.cols()), std::nan(""));
     auto cornerOutside = [&](int p) {
         for (int a = 0; a < 4; ++a) {
-            double& w = cornerWinding[static_cast<size_t>(tets0_(a, p))];
-            if (std::isnan(w)) w = windingNumber(tree, m.X.col(tets0_(a, p)));
+            double& w = cache.cornerWinding[static_cast<size_t>(tets0_(a, p))];
+            if (std::isnan(w)) w = windingNumber(cache.tree, m.X.col(tets0_(a, p)));
             if (w < 0.5) return true;
         }
         return false;
     };
+    auto windingAt = [&](int p, const Eigen::Vector4d& w) {
+        const auto [it, added] = cache.winding.try_emplace({p, {w[0], w[1], w[2], w[3]}}, 0.0);
+        if (added) it->second = windingNumber(cache.tree, rest(p, w));
+        return it->second;
+    };
+    // Slivers by parent: their cut faces are drawn on their side (a hole there otherwise, with
+    // the inside of the surface in view through it).
+    std::unordered_multimap<int, const Sliver*> sliversIn;
+    for (const Sliver& sl : slivers_)
+        if (sl.element >= 0 && sl.element < m.elements())
+            sliversIn.emplace(parent_[static_cast<size_t>(sl.element)], &sl);
     for (int p : cutParents) {
         const bool inside =
-            nv == 0 || (fraction0_[p] >= 1.0 && !holdsVertex[static_cast<size_t>(p)] && !cornerOutside(p));
-        const std::vector<int> ves = virtualsOf(p);
-        for (int e : ves) {
-            const ConvexPiece& piece = virt_.at(e).piece;
-            for (const PolyFace& f : piece.faces) {
-                if (f.tag < 4) continue;
-                Poly poly;
-                for (int vi : f.v) poly.push_back(weightsOf(piece.xi[static_cast<size_t>(vi)]));
-                if (inside) {
-                    emit(p, e, poly, f.tag - 4);
+            nv == 0 || (fraction0_[p] >= 1.0 && !cache.holdsVertex[static_cast<size_t>(p)] && !cornerOutside(p));
+        // Polygon `poly` (weights in p) riding element e, of parent q: p itself, or a carrier whose
+        // weights are extrapolated.
+        auto put = [&](const Poly& poly, int e, int q, int cut) {
+            if (q == p) return emit(p, e, poly, cut);
+            Poly inQ;
+            for (const auto& w : poly)
+                inQ.push_back(barycentric(rest(p, w), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
+                                          m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q))));
+            emit(q, e, inQ, cut, false);
+        };
+        auto cap = [&](const Poly& poly, int e, int q, int cut) {
+            if (inside) return put(poly, e, q, cut);
+            for (size_t k = 1; k + 1 < poly.size(); ++k) {
+                const Eigen::Vector4d A = poly[0], B = poly[k], C = poly[k + 1];
+                grid.assign(static_cast<size_t>((n + 1) * (n + 2) / 2), Eigen::Vector4d::Zero());
+                wind.assign(grid.size(), 0.0);
+                for (int i = 0; i <= n; ++i)
+                    for (int j = 0; i + j <= n; ++j) {
+                        const Eigen::Vector4d w = A + (double(i) / n) * (B - A) + (double(j) / n) * (C - A);
+                        grid[at(i, j)] = w;
+                        wind[at(i, j)] = windingAt(p, w) - 0.5;
+                    }
+                // inside at every sample: the triangle whole (the same area, 4^capLevels times fewer triangles)
+                if (std::all_of(wind.begin(), wind.end(), [](double x) { return x >= 0; })) {
+                    put({A, B, C}, e, q, cut);
                     continue;
                 }
-                for (size_t k = 1; k + 1 < poly.size(); ++k) {
-                    const Eigen::Vector4d A = poly[0], B = poly[k], C = poly[k + 1];
-                    grid.assign(static_cast<size_t>((n + 1) * (n + 2) / 2), Eigen::Vector4d::Zero());
-                    wind.assign(grid.size(), 0.0);
-                    for (int i = 0; i <= n; ++i)
-                        for (int j = 0; i + j <= n; ++j) {
-                            const Eigen::Vector4d w = A + (double(i) / n) * (B - A) + (double(j) / n) * (C - A);
-                            grid[at(i, j)] = w;
-                            wind[at(i, j)] = windingNumber(tree, rest(p, w)) - 0.5;
-                        }
-                    // inside at every sample: the triangle whole (the same area, 4^capLevels times fewer triangles)
-                    if (std::all_of(wind.begin(), wind.end(), [](double x) { return x >= 0; })) {
-                        emit(p, e, {A, B, C}, f.tag - 4);
-                        continue;
+                auto sub = [&](size_t a, size_t b, size_t c) {
+                    const double fa = wind[a], fb = wind[b], fc = wind[c];
+                    if (fa < 0 && fb < 0 && fc < 0) return;
+                    put(clipPoly({grid[a], grid[b], grid[c]}, {fa, fb, fc}), e, q, cut);
+                };
+                for (int i = 0; i < n; ++i)
+                    for (int j = 0; i + j < n; ++j) {
+                        sub(at(i, j), at(i + 1, j), at(i, j + 1));
+                        if (i + j + 1 < n) sub(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
                     }
-                    auto sub = [&](size_t a, size_t b, size_t c) {
-                        const double fa = wind[a], fb = wind[b], fc = wind[c];
-                        if (fa < 0 && fb < 0 && fc < 0) return;
-                        emit(p, e, clipPoly({grid[a], grid[b], grid[c]}, {fa, fb, fc}), f.tag - 4);
-                    };
-                    for (int i = 0; i < n; ++i)
-                        for (int j = 0; i + j < n; ++j) {
-                            sub(at(i, j), at(i + 1, j), at(i, j + 1));
-                            if (i + j + 1 < n) sub(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-                        }
-                }
+            }
+        };
+        const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
+        std::vector<const Halfspace*> planes;        // p's cut planes, for carriers
+        for (int e : ves) {
+            const Virtual& ve = virt_.at(e);
+            for (const Halfspace& h : ve.hs)
+                if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
+                    planes.push_back(&h);
+            for (const PolyFace& f : ve.piece.faces) {
+                if (f.tag < 4) continue;
+                Poly poly;
+                for (int vi : f.v) poly.push_back(weightsOf(ve.piece.xi[static_cast<size_t>(vi)]));
+                cap(poly, e, p, f.tag - 4);
+            }
+        }
+        const auto range = sliversIn.equal_range(p);
+        for (auto it = range.first; it != range.second; ++it) {
+            const Sliver& sl = *it->second;
+            Eigen::Vector4d mid = Eigen::Vector4d::Zero();
+            for (const auto& xi : sl.piece.xi) mid += weightsOf(xi);
+            mid /= static_cast<double>(std::max<size_t>(1, sl.piece.xi.size()));
+            int q = -1;
+            const int g = carrierOnSide(m, p, planes, mid, q);
+            if (g < 0) continue;  // severed alone: nothing on its side to ride
+            for (const PolyFace& f : sl.piece.faces) {
+                if (f.tag - 4 != sl.cut) continue;
+                Poly poly;
+                for (int vi : f.v) poly.push_back(weightsOf(sl.piece.xi[static_cast<size_t>(vi)]));
+                cap(poly, g, q, sl.cut);
             }
         }
     }

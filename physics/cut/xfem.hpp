@@ -21,6 +21,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -204,6 +205,24 @@ private:
     int carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes, const Eigen::Vector4d& at,
                       int& carrierParent) const;
 
+    // What surface(m, original) keeps of an original surface between calls: its rest positions,
+    // winding tree, triangle parts per parent and the winding numbers sampled so far. All of the
+    // uncut rest configuration, so never stale; a copy of the engine starts without them.
+    struct SplitCache;
+    struct SplitSlot {
+        std::vector<std::shared_ptr<SplitCache>> caches;  // one per original surface (touched, drawn)
+        SplitSlot() = default;
+        SplitSlot(const SplitSlot&) {}
+        SplitSlot& operator=(const SplitSlot&) {
+            caches.clear();
+            return *this;
+        }
+        SplitSlot(SplitSlot&&) = default;
+        SplitSlot& operator=(SplitSlot&&) = default;
+        ~SplitSlot() = default;
+    };
+    SplitCache& splitCache(const Model& m, const EmbeddedSurface& original) const;
+
     CutOptions opts_;
     bool prepared_ = false;
     int nextCut_ = 0;
@@ -223,6 +242,7 @@ private:
     std::vector<int> pieceMark_;            // scratch of mergeDebris: exploration that reached each element
     std::unordered_map<int, int> fusedTo_;  // fused debris element -> the sibling whose nodes it uses
     std::vector<Sliver> slivers_;           // dropped sides, drawn by surface() on their side
+    mutable SplitSlot split_;
 };
 
 }  // namespace cutsim

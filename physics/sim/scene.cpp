@@ -421,8 +421,8 @@ SceneDef parseScene(const json& j, const std::string& file) {
             }
         }
         if (o.has("visual")) {
-            // A fine surface drawn in place of the tet boundary, riding the elements (embed/visual.hpp).
-            if (o.has("surface")) o.fail("visual", "applies to a tet mesh object (mesh or box); surface draws itself");
+            // A fine surface drawn in place of the tet boundary or of an MI object's own (touched)
+            // surface, riding the elements (embed/visual.hpp).
             s.visualScale = s.scale;
             if (o.raw("visual").is_object()) {
                 ObjectReader v = o.object("visual");

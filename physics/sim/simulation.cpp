@@ -276,11 +276,14 @@ void Simulation::buildObject() {
                                  "scale that converts the file's units (0.001 for mm), or set object.any_size true",
                                  size, sc.scale));
     };
+    auto placed = [&](SurfaceMesh s) {  // rotated and translated as the object
+        s.V = (R * s.V).colwise() + sc.translate;
+        return s;
+    };
     if (!sc.surface.empty()) {
         // Mesh intersection: the placed surface in a regular lattice (thesis ch. 6).
         Stopwatch te;
-        SurfaceMesh surf = readSurfaceMesh(sc.surface, sc.scale);
-        surf.V = (R * surf.V).colwise() + sc.translate;
+        SurfaceMesh surf = placed(readSurfaceMesh(sc.surface, sc.scale));
         checkSize(surf.V);
         MiOptions mo;
         mo.cells = sc.surfaceCells;
@@ -313,6 +316,7 @@ void Simulation::buildObject() {
         model_ = std::move(mi.model);
         model_.elementModel = sc.element;
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
+        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
     } else {
         const bool box = sc.mesh.empty() && !sc.meshData;
         if (box) checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
@@ -325,11 +329,7 @@ void Simulation::buildObject() {
         if (!box) checkMemory(mesh.source, mesh.elements() * kBytesPerTet);
         if (sc.improve) improveOnLoad(mesh);
         model_ = buildModel(mesh, sc.material, sc.element);
-        if (!sc.visual.empty()) {
-            SurfaceMesh vis = readSurfaceMesh(sc.visual, sc.visualScale);
-            vis.V = (R * vis.V).colwise() + sc.translate;
-            embedVisualSurface(vis);
-        }
+        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
     }
     model_.gravity = sc.gravity;
     model_.massDamping = sc.damping;
@@ -378,7 +378,7 @@ const EmbeddedSurface* Simulation::surface() const {
         surface_ = std::make_unique<EmbeddedSurface>(cutter_->surface(model_, *visual_, kVisualCapLevels));
         visualStale_ = false;
     }
-    return surface_ ? surface_.get() : embedded_ ? embedded_.get() : visual_.get();
+    return surface_ ? surface_.get() : visual_ ? visual_.get() : embedded_.get();
 }
 
 // object.improve: a larger step from the mesh itself (thesis sec. 5.1); the fixed regions' nodes
