@@ -103,20 +103,24 @@ struct CutEngine::SplitCache {
     std::vector<std::pair<int, Poly>> parts;
     std::vector<char> holdsVertex;      // parent holds a surface vertex inside it (nParents)
     std::vector<double> cornerWinding;  // winding number at each original node, NaN until needed
-    struct Sample {
+    // Points (N = 4) and segments (N = 8) in a parent, by their weights' bits.
+    template <size_t N>
+    struct Key {
         int parent;
-        std::array<double, 4> w;
-        bool operator==(const Sample&) const = default;
+        std::array<double, N> w;
+        bool operator==(const Key&) const = default;
     };
-    struct SampleHash {
-        size_t operator()(const Sample& s) const {
-            std::uint64_t h = static_cast<std::uint64_t>(s.parent) * 0x9E3779B97F4A7C15ull;
-            for (double x : s.w) h = (h ^ std::bit_cast<std::uint64_t>(x)) * 0x100000001B3ull;
+    struct KeyHash {
+        template <size_t N>
+        size_t operator()(const Key<N>& k) const {
+            std::uint64_t h = static_cast<std::uint64_t>(k.parent) * 0x9E3779B97F4A7C15ull;
+            for (double x : k.w) h = (h ^ std::bit_cast<std::uint64_t>(x)) * 0x100000001B3ull;
             return static_cast<size_t>(h ^ (h >> 29));
         }
     };
-    std::unordered_map<Sample, double, SampleHash>
-        winding;  // cap samples: a parent's pieces change only when it is cut again
+    // Cap samples and rim crossings: a parent's pieces change only when it is cut again.
+    std::unordered_map<Key<4>, double, KeyHash> winding;   // winding number at a point
+    std::unordered_map<Key<8>, double, KeyHash> crossing;  // where the surface crosses a segment [0, 1]
 };
 
 CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurface& original) const {
@@ -356,6 +360,25 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         if (added) it->second = windingNumber(cache.tree, rest(p, w));
         return it->second;
     };
+    // Where the surface crosses the segment from a to b (their sides differ), as a fraction of it:
+    // bisection on the winding number to 2^-12 of the segment, so a cap's rim follows the surface
+    // instead of the staircase a linear interpolant of the (step-like) winding number draws.
+    auto crossingAt = [&](int p, const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
+        const bool flip = std::lexicographical_compare(b.data(), b.data() + 4, a.data(), a.data() + 4);
+        const Eigen::Vector4d& u = flip ? b : a;
+        const Eigen::Vector4d& v = flip ? a : b;
+        const auto [it, added] = cache.crossing.try_emplace({p, {u[0], u[1], u[2], u[3], v[0], v[1], v[2], v[3]}}, 0.0);
+        if (added) {
+            const bool in = windingAt(p, u) >= 0.5;
+            double lo = 0, hi = 1;
+            for (int i = 0; i < 12; ++i) {
+                const double mid = 0.5 * (lo + hi);
+                ((windingNumber(cache.tree, rest(p, u + mid * (v - u))) >= 0.5) == in ? lo : hi) = mid;
+            }
+            it->second = 0.5 * (lo + hi);
+        }
+        return flip ? 1 - it->second : it->second;
+    };
     // Slivers by parent: their cut faces are drawn on their side (a hole there otherwise, with
     // the inside of the surface in view through it).
     std::unordered_multimap<int, const Sliver*> sliversIn;
@@ -392,10 +415,25 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                     put({A, B, C}, e, q, cut);
                     continue;
                 }
+                // A sub-triangle the surface crosses is clipped by the line through the two
+                // crossings on its edges: values at its corners whose linear interpolant is zero
+                // exactly there (the lone corner on its side at +-1).
                 auto sub = [&](size_t a, size_t b, size_t c) {
-                    const double fa = wind[a], fb = wind[b], fc = wind[c];
-                    if (fa < 0 && fb < 0 && fc < 0) return;
-                    put(clipPoly({grid[a], grid[b], grid[c]}, {fa, fb, fc}), e, q, cut);
+                    const std::array<size_t, 3> v{a, b, c};
+                    const int nIn = (wind[a] >= 0) + (wind[b] >= 0) + (wind[c] >= 0);
+                    if (nIn == 0) return;
+                    if (nIn == 3) return put({grid[a], grid[b], grid[c]}, e, q, cut);
+                    size_t lone = 0;
+                    for (size_t i = 0; i < 3; ++i)
+                        if ((wind[v[i]] >= 0) == (nIn == 1)) lone = i;
+                    std::vector<double> f(3);
+                    f[lone] = nIn == 1 ? 1 : -1;
+                    for (size_t i = 0; i < 3; ++i) {
+                        if (i == lone) continue;
+                        const double t = std::clamp(crossingAt(p, grid[v[lone]], grid[v[i]]), 1e-6, 1 - 1e-6);
+                        f[i] = -f[lone] * (1 - t) / t;
+                    }
+                    put(clipPoly({grid[a], grid[b], grid[c]}, f), e, q, cut);
                 };
                 for (int i = 0; i < n; ++i)
                     for (int j = 0; i + j < n; ++j) {

@@ -135,7 +135,8 @@ public:
     // split by the parents it crosses and by their cuts, each part riding the virtual element whose
     // side it is on; the cut faces are kept only inside the original surface (winding number of the
     // rest surface, sampled on capLevels subdivision levels of each cap triangle of an element the
-    // surface crosses, and the cap clipped where its linear interpolant crosses 1/2). Lattice faces
+    // surface crosses, each sub-triangle clipped between the surface's crossings of its edges,
+    // found by bisection). Lattice faces
     // are never drawn: the embedded surface replaces them. Defined in cut/embedded_cut.cpp.
     EmbeddedSurface surface(const Model& m, const EmbeddedSurface& original, int capLevels = 3) const;
 
