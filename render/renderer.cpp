@@ -708,13 +708,14 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
         ImGui::End();
     };
 
-    // A new window is hidden on its first frame (auto-fit): run one frame without drawing it.
-    if (opts_.hud && !hudShown_) {
+    // An auto-resized window takes the size of its previous frame's content (and a new one is
+    // hidden on its first frame): lay it out once without drawing, so a line added this frame (a
+    // cut's answered count) is inside the panel. Costs microseconds.
+    if (opts_.hud) {
         ImGui_ImplOpenGL3_NewFrame();
         ImGui::NewFrame();
         hudWindow();
         ImGui::Render();
-        hudShown_ = true;
     }
 
     ImGui_ImplOpenGL3_NewFrame();

@@ -109,7 +109,6 @@ private:
     int samples_ = 1;
     std::unique_ptr<EglContext> ctx_;
     std::unique_ptr<Gl> gl_;
-    bool hudShown_ = false;  // ImGui hides a new window on its first frame
 };
 
 }  // namespace cutsim::render

@@ -486,6 +486,28 @@ TEST(RenderGolden, HudFrame) {
     test::expectGolden("hud", r.render(ms.snap), {8, 0.02});
 }
 
+// A line that appears in the HUD (a cut's answered count) is inside the panel in the frame it
+// appears: the frame equals one a fresh renderer draws (ImGui sizes an auto-resized window from
+// its previous frame's content unless laid out first).
+TEST(Render, HudLineAddedThisFrameIsInsideThePanel) {
+    MeshSnapshot ms = snapshotFromTetMesh(scenebox());
+    HudValues& h = ms.snap.hud;
+    h.simTime = 0.125;
+    h.dtUsed = 2.5e-5;
+    h.dtCertified = 2.4e-5;
+    RenderOptions o = goldenOptions();
+    o.hud = true;
+    Renderer before(o);
+    before.render(ms.snap);
+    h.answeredElements = 5;
+    h.lines = {"scene: golden", "a longer line that widens the panel"};
+    const Image grown = before.render(ms.snap);
+    Renderer fresh(o);
+    const Image direct = fresh.render(ms.snap);
+    ASSERT_EQ(grown.rgba.size(), direct.rgba.size());
+    EXPECT_TRUE(grown.rgba == direct.rgba);
+}
+
 // The SOFA liver as the demo scene has it: scale 0.0254, fixed at its back, gravity along -y.
 Model goldenLiver() { return randomCutLiverModel(readTetMesh(test::data("tet/sofa_liver.msh")), kSceneLiverClampZ); }
 
