@@ -102,6 +102,7 @@ struct CutEngine::SplitCache {
     std::vector<int> partStart;
     std::vector<std::pair<int, Poly>> parts;
     std::vector<char> holdsVertex;      // parent holds a surface vertex inside it (nParents)
+    bool outside = false;               // a vertex lies outside every element (a visual surface)
     std::vector<double> cornerWinding;  // winding number at each original node, NaN until needed
     // Points (N = 4) and segments (N = 8) in a parent, by their weights' bits.
     template <size_t N>
@@ -150,9 +151,12 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
     c->tinyArea = 1e-14 * diag * diag;  // [m^2] parts below it are slivers of round-off
     if (nv > 0) c->tree = buildWindingTree(rs);
     c->holdsVertex.assign(static_cast<size_t>(nParents), 0);
-    for (int v = 0; v < nv; ++v)
+    for (int v = 0; v < nv; ++v) {
         if (original.weights.col(v).minCoeff() >= 0)
             c->holdsVertex[static_cast<size_t>(original.element[static_cast<size_t>(v)])] = 1;
+        else
+            c->outside = c->outside || original.weights.col(v).minCoeff() < -1e-9;
+    }
     c->cornerWinding.assign(static_cast<size_t>(m.X.cols()), std::nan(""));
     // Each triangle is clipped to each parent it crosses (flood fill over face neighbours from its
     // vertices' parents); not at boundary faces: a visual surface on a
@@ -385,9 +389,45 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     for (const Sliver& sl : slivers_)
         if (sl.element >= 0 && sl.element < m.elements())
             sliversIn.emplace(parent_[static_cast<size_t>(sl.element)], &sl);
+    // A surface that bulges past the tet boundary (a visual one) would show its inside between its
+    // rim and a cut face that ends at the boundary: a boundary element's cut face reaches past its
+    // boundary faces, by up to kPast of the element (weights extrapolated), and the winding number
+    // clips it to the surface as it does inside.
+    constexpr double kPast = 0.5;
+    auto atBoundary = [&](int p) { return cache.outside && adj_.col(p).minCoeff() < 0; };
+    auto pastBoundary = [&](int p, const Virtual& ve, int cut, const Poly& face) {
+        // a square in the face's plane, wide enough for the grown element, clipped to it and to the
+        // element's other cuts
+        Eigen::Vector3d c = Eigen::Vector3d::Zero(), nrm = Eigen::Vector3d::Zero();
+        const Eigen::Vector3d y0 = rest(p, face[0]);
+        for (size_t k = 0; k < face.size(); ++k) {
+            c += rest(p, face[k]);
+            if (k + 2 < face.size()) nrm += (rest(p, face[k + 1]) - y0).cross(rest(p, face[k + 2]) - y0);
+        }
+        c /= static_cast<double>(face.size());
+        if (!(nrm.norm() > 0)) return face;
+        nrm.normalize();
+        const Eigen::Vector3d u = nrm.unitOrthogonal(), v = nrm.cross(u);
+        double size = 0;
+        for (int a = 0; a < 4; ++a) size = std::max(size, (m.X.col(tets0_(a, p)) - c).norm());
+        const double half = 2 * (1 + 4 * kPast) * size;
+        Poly sq;
+        for (const auto& [du, dv] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}})  // counter-clockwise about nrm
+            sq.push_back(barycentric(c + half * (du * u + dv * v), m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)),
+                                     m.X.col(tets0_(2, p)), m.X.col(tets0_(3, p))));
+        for (int a = 0; a < 4 && !sq.empty(); ++a) {
+            const double past = adj_(a, p) < 0 ? kPast : 0.0;
+            sq = clipBy(sq, [a, past](const Eigen::Vector4d& w) { return w[a] + past; });
+        }
+        for (const Halfspace& h : ve.hs) {
+            if (h.cut == cut || sq.empty()) continue;
+            sq = clipBy(sq, [&h](const Eigen::Vector4d& w) { return h.positive ? w.dot(h.s) : -w.dot(h.s); });
+        }
+        return sq.size() >= 3 ? sq : face;
+    };
     for (int p : cutParents) {
-        const bool inside =
-            nv == 0 || (fraction0_[p] >= 1.0 && !cache.holdsVertex[static_cast<size_t>(p)] && !cornerOutside(p));
+        const bool inside = nv == 0 || (fraction0_[p] >= 1.0 && !cache.holdsVertex[static_cast<size_t>(p)] &&
+                                        !atBoundary(p) && !cornerOutside(p));
         // Polygon `poly` (weights in p) riding element e, of parent q: p itself, or a carrier whose
         // weights are extrapolated.
         auto put = [&](const Poly& poly, int e, int q, int cut) {
@@ -453,6 +493,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                 if (f.tag < 4) continue;
                 Poly poly;
                 for (int vi : f.v) poly.push_back(weightsOf(ve.piece.xi[static_cast<size_t>(vi)]));
+                if (!inside && atBoundary(p)) poly = pastBoundary(p, ve, f.tag - 4, poly);
                 cap(poly, e, p, f.tag - 4);
             }
         }

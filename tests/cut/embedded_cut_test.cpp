@@ -2,9 +2,11 @@
 // cut, and cut faces only inside it, not over the lattice cells it crosses.
 #include "cut/xfem.hpp"
 #include "embed/mi.hpp"
+#include "embed/visual.hpp"
 #include "fem/state.hpp"
 #include "embed/winding.hpp"
 #include "mesh/embedding.hpp"
+#include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "test_support.hpp"
 
@@ -120,6 +122,27 @@ TEST(EmbeddedCut, DroppedSliversLeaveNoHoleInTheCutFaces) {
         if (!es.cutFace(f)) continue;
         for (int i = 0; i < 3; ++i) ASSERT_NEAR(x(0, es.triangles(i, f)), 0.51, 1e-9);
     }
+}
+
+TEST(EmbeddedCut, VisualSurfacePastTheTetBoundaryGetsWholeCutFaces) {
+    // A tet box [0,1]x[0,0.75]x[0,0.5] (cells of 0.25 m) drawn with a visual box 0.02 m larger on
+    // every side: its vertices ride boundary tets at extrapolated weights. Cut at x = 0.625, each
+    // side's cut face must cover the visual box's section (0.79 x 0.54 = 0.4266 m^2), not stop at
+    // the tets' (0.75 x 0.5 = 0.375 m^2) with the visual surface's inside in view.
+    const TetMesh mesh = boxMesh(1.0, 0.75, 0.5, 4, 3, 2);
+    Model m = buildModel(mesh, Material{});
+    const VisualEmbedding vis =
+        embedVisual(boxSurface(Eigen::Vector3d::Constant(-0.02), Eigen::Vector3d(1.02, 0.77, 0.52)), m.tets, m.X);
+    ASSERT_EQ(vis.outside, 8);
+    State s = makeState(m);
+    CutEngine eng;
+    CutSurface c;
+    c.point = Eigen::Vector3d(kC, 0, 0);
+    c.normal = Eigen::Vector3d::UnitX();
+    ASSERT_GT(eng.cut(m, s, c).split, 0);
+    const Areas a = areasOf(eng.surface(m, vis.surface, 2), m);
+    EXPECT_NEAR(a.capPlus, 0.79 * 0.54, 0.01 * 0.79 * 0.54);
+    EXPECT_NEAR(a.capMinus, 0.79 * 0.54, 0.01 * 0.79 * 0.54);
 }
 
 TEST(EmbeddedCut, EveryTriangleRidesTheElementOfItsSide) {
