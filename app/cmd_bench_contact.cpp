@@ -122,11 +122,11 @@ void plotRows(const std::vector<Row>& rows, const std::string& out) {
     std::ostringstream g;
     g << "set multiplot layout 1,2\nset grid\n"
       << "set title 'cost per step, projection contact'\nset logscale xy\nset xlabel 'contact points'\n"
-      << "set ylabel 'stage time per step [us]'\nset key top left\n"
+      << "set ylabel 'stage time per step [us]'\nset key bottom right\nset xrange [700:200000]\n"
       << "plot '" << dir << "/pressing.dat' using 1:2 with linespoints lw 2 pt 7 title 'contact, tool pressing', '"
       << dir << "/away.dat' using 1:2 with linespoints lw 2 pt 5 title 'contact, tool away', '" << dir
       << "/pressing.dat' using 1:3 with linespoints lw 2 pt 9 dt 2 title 'forces + integrate'\n"
-      << "unset logscale\nset title 'penalty model against its stiffness'\nset xlabel 'k / k_max'\n"
+      << "unset logscale\nset autoscale x\nset title 'penalty model against its stiffness'\nset xlabel 'k / k_max'\n"
       << "set ylabel 'deepest point [mm]'\nset y2label 'force [N]'\nset ytics nomirror\nset y2tics\n"
       << "set yrange [0:*]\nset y2range [0:*]\nset key top center\n"
       << "plot '" << dir << "/sweep.dat' using 1:2 with linespoints lw 2 pt 7 title 'deepest point', '" << dir
