@@ -200,6 +200,13 @@ void addCutStepBench();    // cmd_bench_cutstep.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);
+
+// Plots: gnuplot on PATH (Debian package gnuplot-nox); a fresh folder for a plot's data files;
+// the script `body` run with `terminal` into `out` (a PNG, replaced only when gnuplot succeeds),
+// the folder removed after.
+bool haveGnuplot();
+std::string plotDataDir(const std::string& tag);
+void runGnuplot(const std::string& dir, const std::string& terminal, const std::string& body, const std::string& out);
 // A measured value for JSON: null when it is not a finite non-negative number (a run that gave none).
 nlohmann::json jsonNumber(double v);
 

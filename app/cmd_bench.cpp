@@ -56,7 +56,9 @@ Registry& registry() {
     return r;
 }
 
-// gnuplot on PATH, for the plots (Debian package gnuplot-nox).
+}  // namespace
+
+// ---- registry and Pareto front ----
 bool haveGnuplot() {
     const char* path = std::getenv("PATH");
     if (!path) return false;
@@ -67,9 +69,29 @@ bool haveGnuplot() {
     return false;
 }
 
-}  // namespace
+std::string plotDataDir(const std::string& tag) {
+    const fs::path dir = fs::temp_directory_path() / ("cutsim_" + tag + "_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    return dir.string();
+}
 
-// ---- registry and Pareto front ----
+void runGnuplot(const std::string& dir, const std::string& terminal, const std::string& body, const std::string& out) {
+    const fs::path d(dir);
+    const std::string file = (d / "plot.gp").string();
+    std::ofstream(file) << terminal << "\nset output '" << out << ".tmp.png'\n" << body;
+    const int rc = std::system(("gnuplot '" + file + "' 2>'" + (d / "err.txt").string() + "'").c_str());
+    std::string err;
+    {
+        std::ifstream e(d / "err.txt");
+        std::getline(e, err, '\0');
+    }
+    fs::remove_all(d);
+    if (rc != 0 || !fs::exists(out + ".tmp.png")) {
+        fs::remove(out + ".tmp.png");
+        throw std::runtime_error("gnuplot failed to draw " + out + ": " + err);
+    }
+    fs::rename(out + ".tmp.png", out);
+}
 
 void addAccuracyConfig(const std::string& name, AccuracyConfig fn) {
     registry().configs.emplace_back(name, std::move(fn));
@@ -186,14 +208,13 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
     std::vector<std::string> problems;
     for (const auto& p : pts)
         if (std::find(problems.begin(), problems.end(), p.problem) == problems.end()) problems.push_back(p.problem);
-    const fs::path dir = fs::temp_directory_path() / ("cutsim_plot_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
+    const fs::path dir = plotDataDir("plot");
     std::ostringstream g;
     // up to three panels a row
     const size_t cols = std::clamp<size_t>(problems.size(), 1, 3),
                  rows = std::max<size_t>(1, (problems.size() + 2) / 3);
-    g << "set terminal pngcairo size " << 700 * cols << "," << 560 * rows << " noenhanced\n";
-    g << "set output '" << out << ".tmp.png'\n";
+    std::ostringstream terminal;
+    terminal << "set terminal pngcairo size " << 700 * cols << "," << 560 * rows << " noenhanced";
     g << "set multiplot layout " << rows << "," << cols << "\n";
     g << "set logscale xy\nset grid\nset key bottom left\nset yrange [0.005:*]\n";
     g << "set xlabel 'wall time per simulated second [s/s]'\nset ylabel 'relative error'\n";
@@ -223,21 +244,7 @@ void plotPoints(const std::vector<BenchPoint>& pts, const std::string& out) {
         g << "\n";
     }
     g << "unset multiplot\n";
-    const std::string script = (dir / "plot.gp").string();
-    std::ofstream(script) << g.str();
-    const std::string cmd = "gnuplot '" + script + "' 2>'" + (dir / "err.txt").string() + "'";
-    const int rc = std::system(cmd.c_str());
-    std::string err;
-    {
-        std::ifstream e(dir / "err.txt");
-        std::getline(e, err, '\0');
-    }
-    fs::remove_all(dir);
-    if (rc != 0 || !fs::exists(out + ".tmp.png")) {
-        fs::remove(out + ".tmp.png");
-        throw std::runtime_error("gnuplot failed to draw " + out + ": " + err);
-    }
-    fs::rename(out + ".tmp.png", out);
+    runGnuplot(dir.string(), terminal.str(), g.str(), out);
 }
 
 // Backward Euler's cost at 1% on a mesh too fine to run it for a simulated second: its wall time

@@ -1,7 +1,8 @@
 // `cutsim bench contact`: what the contact stage costs against the number of contact points, with
 // the tool pressing or away from the tissue, and how deep the tool sinks against its stiffness.
 // The object is a soft slab (10 x 10 x 2 cm, E 30 kPa) fixed at its bottom, pressed 2 mm at the
-// middle of its top by a 1 cm sphere; contact.spacing sets the number of points.
+// middle of its top by a 1 cm sphere; contact.spacing sets the number of points (1 m: the
+// surface's vertices only).
 #include "bench.hpp"
 #include "commands.hpp"
 #include "sim/scene.hpp"
@@ -13,7 +14,9 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,6 +31,7 @@ struct ContactArgs {
     bool json = false;
     bool tiny = false;
     int threads = 1;
+    std::string plot;  // PNG of the table
 };
 
 constexpr double kRadius = 0.01;  // probe [m]
@@ -101,11 +105,43 @@ Row runRow(int cells, double spacing, bool near, double fraction, double duratio
     return r;
 }
 
+// Left: contact and elastic stage time per step against the contact points, tool pressing and
+// away; right: deepest point and force against the penalty stiffness.
+void plotRows(const std::vector<Row>& rows, const std::string& out) {
+    const std::string dir = plotDataDir("contact_plot");
+    {
+        std::ofstream away(dir + "/away.dat"), press(dir + "/pressing.dat"), sweep(dir + "/sweep.dat");
+        for (const Row& r : rows) {
+            if (r.stiffnessFraction > 0)
+                sweep << r.stiffness / r.limit << " " << r.maxDepth * 1e3 << " " << r.force << "\n";
+            else
+                (r.near ? press : away) << r.points << " " << r.contactPerStep * 1e6 << " " << r.elasticPerStep * 1e6
+                                        << "\n";
+        }
+    }
+    std::ostringstream g;
+    g << "set multiplot layout 1,2\nset grid\n"
+      << "set title 'cost per step, projection contact'\nset logscale xy\nset xlabel 'contact points'\n"
+      << "set ylabel 'stage time per step [us]'\nset key bottom right\nset xrange [700:200000]\n"
+      << "plot '" << dir << "/pressing.dat' using 1:2 with linespoints lw 2 pt 7 title 'contact, tool pressing', '"
+      << dir << "/away.dat' using 1:2 with linespoints lw 2 pt 5 title 'contact, tool away', '" << dir
+      << "/pressing.dat' using 1:3 with linespoints lw 2 pt 9 dt 2 title 'forces + integrate'\n"
+      << "unset logscale\nset autoscale x\nset title 'penalty model against its stiffness'\nset xlabel 'k / k_max'\n"
+      << "set ylabel 'deepest point [mm]'\nset y2label 'force [N]'\nset ytics nomirror\nset y2tics\n"
+      << "set yrange [0:*]\nset y2range [0:*]\nset key top center\n"
+      << "plot '" << dir << "/sweep.dat' using 1:2 with linespoints lw 2 pt 7 title 'deepest point', '" << dir
+      << "/sweep.dat' using 1:3 axes x1y2 with linespoints lw 2 pt 5 title 'force'\n"
+      << "unset multiplot\n";
+    runGnuplot(dir, "set terminal pngcairo size 1200,480 noenhanced", g.str(), out);
+}
+
 int runContact(const ContactArgs& a) {
+    if (!a.plot.empty() && !haveGnuplot())
+        throw InputError("--plot needs gnuplot, which is not installed (Debian package gnuplot-nox)");
     const int cells = a.tiny ? 10 : 20;
     const double duration = a.tiny ? 0.02 : 0.1;
     const std::vector<double> spacings =
-        a.tiny ? std::vector<double>{0.004} : std::vector<double>{0.005, 0.0028, 0.0016, 0.0009, 0.0005};
+        a.tiny ? std::vector<double>{0.004} : std::vector<double>{1.0, 0.005, 0.0028, 0.0016, 0.0009, 0.00075};
     std::vector<Row> rows;
     for (double s : spacings)
         for (bool near : {false, true}) {
@@ -132,6 +168,7 @@ int runContact(const ContactArgs& a) {
                      {"final_force", r.force},
                      {"final_contacts", r.contacts},
                      {"status", r.status}});
+    if (!a.plot.empty()) plotRows(rows, a.plot);
     if (a.json) {
         std::cout << jsonText(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}});
         for (const Row& r : rows)
@@ -169,6 +206,9 @@ void addContactBench() {
                                             "penetration and force against the penalty stiffness");
         c->add_flag("--json", a->json, "Print {probe_radius, pressed, runs: [...]}");
         c->add_flag("--tiny", a->tiny, "Test size: one small slab");
+        c->add_option("--plot", a->plot,
+                      "Draw cost against contact points and depth and force against stiffness "
+                      "to this PNG (needs gnuplot)");
         c->add_option("--threads", a->threads, "Worker threads per run")
             ->check(CLI::Range(1, 1024))
             ->capture_default_str();

@@ -211,16 +211,13 @@ json barFrequency() {
 }
 
 void drawPlot(const std::string& out, const json& timing) {
-    namespace fs = std::filesystem;
-    const fs::path dir = fs::temp_directory_path() / ("cutsim_improve_plot_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
+    const std::string dir = plotDataDir("improve_plot");
     std::ostringstream g;
-    g << "set terminal pngcairo size 900,560\nset output '" << out << ".tmp.png'\n"
-      << "set logscale x\nset xlabel 'seconds (one core)'\nset ylabel 'exact step of the mesh kept / input step'\n"
+    g << "set logscale x\nset xlabel 'seconds (one core)'\nset ylabel 'exact step of the mesh kept / input step'\n"
       << "set key left top\nset grid\nplot ";
     int k = 0;
     for (const auto& [name, t] : timing.items()) {
-        const std::string dat = (dir / (name + ".dat")).string();
+        const std::string dat = dir + "/" + name + ".dat";
         std::ofstream d(dat);
         double best = 0;  // the mesh kept so far
         for (const auto& p : t["history"]) {
@@ -230,12 +227,7 @@ void drawPlot(const std::string& out, const json& timing) {
         g << (k++ ? ", " : "") << "'" << dat << "' with steps lw 2 title '" << name << "'";
     }
     g << "\n";
-    const std::string script = (dir / "plot.gp").string();
-    std::ofstream(script) << g.str();
-    const int rc = std::system(("gnuplot '" + script + "' 2>/dev/null").c_str());
-    fs::remove_all(dir);
-    if (rc != 0 || !fs::exists(out + ".tmp.png")) throw std::runtime_error("gnuplot failed to draw " + out);
-    fs::rename(out + ".tmp.png", out);
+    runGnuplot(dir, "set terminal pngcairo size 900,560", g.str(), out);
 }
 
 int runImproveBench(const ImproveBenchArgs& a) {

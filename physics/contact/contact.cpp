@@ -120,64 +120,56 @@ void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
     m.stamp.assign(static_cast<size_t>(m.pts.points()), -1);
     m.query = 0;
     // the nodes each triangle's box depends on: those of its three vertices (edge and face
-    // points are combinations of the vertices, inside the triangle)
+    // points are combinations of the vertices, inside the triangle); linear in the surface, as
+    // this runs after every cut
     const auto nt = static_cast<size_t>(m.pts.triangles.cols());
     std::vector<int> slot;  // node -> index in surfNodes, or -1
     m.surfNodes.clear();
     m.wSum = 0;
-    std::vector<std::pair<int, int>> pairs;  // (surface node, triangle)
-    for (size_t t = 0; t < nt; ++t) {
-        int seen[3 * ContactPoints::kMaxNodes];
-        int ns = 0;
+    for (size_t t = 0; t < nt; ++t)
         for (int c = 0; c < 3; ++c) {
             const int p = m.pts.triangles(c, static_cast<Eigen::Index>(t));
             double w = 0;
             for (int i = 0; i < m.pts.count[static_cast<size_t>(p)]; ++i) {
-                const int node = m.pts.nodes(i, p);
+                const auto node = static_cast<size_t>(m.pts.nodes(i, p));
                 w += std::abs(m.pts.weights(i, p));
-                if (static_cast<size_t>(node) >= slot.size()) slot.resize(static_cast<size_t>(node) + 1, -1);
-                int& k = slot[static_cast<size_t>(node)];
-                if (k < 0) {
-                    k = static_cast<int>(m.surfNodes.size());
-                    m.surfNodes.push_back(node);
-                }
-                if (std::find(seen, seen + ns, k) == seen + ns) seen[ns++] = k;
+                if (node >= slot.size()) slot.resize(node + 1, -1);
+                slot[node] = 0;
             }
             m.wSum = std::max(m.wSum, w);
         }
-        for (int i = 0; i < ns; ++i) pairs.emplace_back(seen[i], static_cast<int>(t));
-    }
     // surface nodes in index order, so the per-step drift pass reads the positions in order
-    std::vector<int> order(m.surfNodes.size());
-    for (size_t k = 0; k < order.size(); ++k) order[k] = static_cast<int>(k);
-    std::sort(order.begin(), order.end(),
-              [&](int a, int b) { return m.surfNodes[static_cast<size_t>(a)] < m.surfNodes[static_cast<size_t>(b)]; });
-    std::vector<int> rank(order.size());
-    for (size_t k = 0; k < order.size(); ++k) rank[static_cast<size_t>(order[k])] = static_cast<int>(k);
-    std::sort(m.surfNodes.begin(), m.surfNodes.end());
-    for (auto& pr : pairs) pr.first = rank[static_cast<size_t>(pr.first)];
-    std::sort(pairs.begin(), pairs.end());
+    for (size_t n = 0; n < slot.size(); ++n)
+        if (slot[n] == 0) slot[n] = static_cast<int>(m.surfNodes.size()), m.surfNodes.push_back(static_cast<int>(n));
+    // each triangle's surface nodes, ascending, and each node's triangles, ascending
+    m.triNodeStart.assign(nt + 1, 0);
+    m.triNodes.clear();
     m.nodeTriStart.assign(m.surfNodes.size() + 1, 0);
-    m.nodeTris.resize(pairs.size());
-    for (size_t i = 0; i < pairs.size(); ++i) {
-        ++m.nodeTriStart[static_cast<size_t>(pairs[i].first) + 1];
-        m.nodeTris[i] = pairs[i].second;
+    for (size_t t = 0; t < nt; ++t) {
+        const size_t first = m.triNodes.size();
+        for (int c = 0; c < 3; ++c) {
+            const int p = m.pts.triangles(c, static_cast<Eigen::Index>(t));
+            for (int i = 0; i < m.pts.count[static_cast<size_t>(p)]; ++i) {
+                const int k = slot[static_cast<size_t>(m.pts.nodes(i, p))];
+                if (std::find(m.triNodes.begin() + static_cast<std::ptrdiff_t>(first), m.triNodes.end(), k) ==
+                    m.triNodes.end())
+                    m.triNodes.push_back(k), ++m.nodeTriStart[static_cast<size_t>(k) + 1];
+            }
+        }
+        std::sort(m.triNodes.begin() + static_cast<std::ptrdiff_t>(first), m.triNodes.end());
+        m.triNodeStart[t + 1] = static_cast<int>(m.triNodes.size());
     }
     for (size_t k = 0; k < m.surfNodes.size(); ++k) m.nodeTriStart[k + 1] += m.nodeTriStart[k];
-    // and the other way: the surface nodes of each triangle
-    m.triNodeStart.assign(nt + 1, 0);
-    m.triNodes.resize(pairs.size());
-    for (const auto& pr : pairs) ++m.triNodeStart[static_cast<size_t>(pr.second) + 1];
-    for (size_t t = 0; t < nt; ++t) m.triNodeStart[t + 1] += m.triNodeStart[t];
+    m.nodeTris.resize(m.triNodes.size());
     {
-        std::vector<int> fill(m.triNodeStart.begin(), m.triNodeStart.end() - 1);
-        for (const auto& pr : pairs) m.triNodes[static_cast<size_t>(fill[static_cast<size_t>(pr.second)]++)] = pr.first;
+        std::vector<int> fill(m.nodeTriStart.begin(), m.nodeTriStart.end() - 1);
+        for (size_t t = 0; t < nt; ++t)
+            for (int i = m.triNodeStart[t]; i < m.triNodeStart[t + 1]; ++i)
+                m.nodeTris[static_cast<size_t>(fill[static_cast<size_t>(m.triNodes[static_cast<size_t>(i)])]++)] =
+                    static_cast<int>(t);
     }
-    m.nodeSlot.assign(slot.size(), -1);
-    for (size_t k = 0; k < m.surfNodes.size(); ++k)
-        m.nodeSlot[static_cast<size_t>(m.surfNodes[k])] = static_cast<int>(k);
+    m.nodeSlot = slot;
     m.xRef.resize(3, static_cast<Eigen::Index>(m.surfNodes.size()));
-    m.moved.assign(m.surfNodes.size(), 0);
     m.triStamp.assign(nt, -1);
     m.placed.assign(static_cast<size_t>(m.pts.points()), -1);
     m.placing = 0;
@@ -212,6 +204,7 @@ void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
             m.pieces.push_back(std::make_unique<Piece>());
         }
         m.triPiece[t] = l;
+        m.pieces[static_cast<size_t>(l)]->tris.push_back(static_cast<int>(t));
     }
     m.nodePiece.resize(m.surfNodes.size());
     for (size_t k = 0; k < m.surfNodes.size(); ++k) {
@@ -258,17 +251,16 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         build(x);
         for (auto& pc : pieces) pc->drift = 0, pc->refitted = true;
     } else {
-        for (auto& pc : pieces) pc->drift = 0, pc->refitted = false;
-        for (size_t k = 0; k < surfNodes.size(); ++k) {
-            moved[k] = (x.col(surfNodes[k]) - xRef.col(static_cast<Eigen::Index>(k))).cwiseAbs().maxCoeff();
-            double& dr = pieces[static_cast<size_t>(nodePiece[k])]->drift;
-            dr = std::max(dr, moved[k]);
+        for (auto& pc : pieces) {
+            double dr = 0;  // in a register: the pass is most of what a tool away costs
+            for (const int k : pc->nodes) dr = std::max(dr, moved(x, static_cast<size_t>(k)));
+            pc->drift = dr;
+            pc->refitted = false;
         }
     }
     for (auto& pc : pieces) {
         pc->drift *= wSum;
-        if (!pc->tree.m_root) continue;
-        pc->around = pc->tree.m_root->volume;  // a shape away from the whole piece costs no more than this
+        if (!pc->bounds(pc->around)) continue;  // a shape away from the whole piece costs no more than this
         pc->around.Expand(btVector3(pc->drift, pc->drift, pc->drift));
     }
     // 2. tool parts at tq and tOther into the collision world; its broad phase updates their boxes
@@ -306,9 +298,12 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         // a piece away from the shape costs one box test; near it, the leaves within the piece's
         // drift of the shape's box are visited, their moved nodes reset (surface_tree.cpp), and
         // those that reach the box are the candidates
+        const int ignored =
+            sh.tool < 0 || ignoredCut.empty() || P.triCut.empty() ? -1 : ignoredCut[static_cast<size_t>(sh.tool)];
         for (auto& pc : pieces) {
-            if (!pc->tree.m_root) continue;
+            if (pc->empty()) continue;
             if (sh.plane ? !(belowPlane(pc->around, planeN, planeO) < 0) : !Intersect(pc->around, box)) continue;
+            buildTrees(*pc);
             // a piece that moved far as a whole (sagging, falling) is refitted in one pass, which
             // brings its drift back down; else only where the shape may reach
             if (!pc->refitted && pc->drift > kRefitAll * fat) refitMoved(*pc, x, v, dt);
@@ -320,7 +315,12 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             };
             visited.clear();
             resetting.clear();
-            walk.assign(1, pc->tree.m_root);
+            // faces of a cut this tool does not touch are not visited: their points are reached
+            // through other candidate faces only
+            walk.clear();
+            for (size_t i = 0; i < pc->trees.size(); ++i)
+                if (pc->trees[i].m_root && (ignored < 0 || pc->treeCut[i] != ignored))
+                    walk.push_back(pc->trees[i].m_root);
             while (!walk.empty()) {
                 const btDbvtNode* n = walk.back();
                 walk.pop_back();
@@ -333,7 +333,7 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
                 visited.push_back(n->dataAsInt);
                 if (!pc->refitted)
                     for (int i = triNodeStart[t]; i < triNodeStart[t + 1]; ++i)
-                        if (moved[static_cast<size_t>(triNodes[static_cast<size_t>(i)])] > trigger)
+                        if (moved(x, static_cast<size_t>(triNodes[static_cast<size_t>(i)])) > trigger)
                             resetting.push_back(triNodes[static_cast<size_t>(i)]);
             }
             resetNodes(resetting.data(), resetting.data() + resetting.size(), x, v, dt);
@@ -342,14 +342,6 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         }
 
         if (candidates.empty()) continue;
-        // faces of a cut this tool does not touch: dropped here, their points reached through
-        // other candidate faces only
-        const int ignored =
-            sh.tool < 0 || ignoredCut.empty() || P.triCut.empty() ? -1 : ignoredCut[static_cast<size_t>(sh.tool)];
-        if (ignored >= 0)
-            candidates.erase(std::remove_if(candidates.begin(), candidates.end(),
-                                            [&](int t) { return P.triCut[static_cast<size_t>(t)] == ignored; }),
-                             candidates.end());
         // the candidate triangles' points, each once
         const size_t ntri = candidates.size();
         if (++query == std::numeric_limits<int>::max()) {
@@ -429,14 +421,13 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
     // 4. pieces pressed into each other
     if (withPieces && pieceContact && pieces.size() > 1 && restPts.cols() == P.points()) {
         for (auto& pc : pieces)
-            if (!pc->refitted && pc->tree.m_root) {
+            if (!pc->refitted && !pc->empty()) {
                 bool near = false;
                 for (auto& q : pieces)
-                    near = near || (q.get() != pc.get() && q->tree.m_root && Intersect(pc->around, q->around));
-                if (near) refitMoved(*pc, x, v, dt);
+                    near = near || (q.get() != pc.get() && !q->empty() && Intersect(pc->around, q->around));
+                if (near) buildTrees(*pc), refitMoved(*pc, x, v, dt);
             }
-        for (auto& pc : pieces)
-            if (pc->tree.m_root) pc->around = pc->tree.m_root->volume;  // refitted: exact where they meet
+        for (auto& pc : pieces) pc->bounds(pc->around);  // refitted: exact where they meet
         touchPieces();
     }
 }

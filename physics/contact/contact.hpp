@@ -11,7 +11,9 @@
 // over the surface's nodes, not its points); a tool whose box misses the tree's root grown by that
 // bound costs nothing more; with a tool near, only the leaves within that bound of its box are
 // visited and their moved nodes' triangles refitted, in place (contact/surface_tree.cpp), and a
-// candidate triangle whose own box misses the tool's leaves its points untested.
+// candidate triangle whose own box misses the tool's leaves its points untested. The trees are
+// made only when a shape first comes near after the surface changed, and the faces of a blade's
+// own cut sit in a tree of their own that the blade skips.
 // Points are interpolated only when their triangle is a candidate.
 // This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.

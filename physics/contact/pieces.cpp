@@ -81,11 +81,15 @@ void ContactWorld::Impl::touchPieces() {
     for (size_t A = 0; A < pieces.size(); ++A)
         for (size_t B = A + 1; B < pieces.size(); ++B) {
             Piece &pa = *pieces[A], &pb = *pieces[B];
-            if (!pa.tree.m_root || !pb.tree.m_root || !Intersect(pa.around, pb.around)) continue;
+            if (pa.empty() || pb.empty() || !Intersect(pa.around, pb.around)) continue;
+            buildTrees(pa);
+            buildTrees(pb);
             pairs.clear();
             CollidePairs collide;
             collide.out = &pairs;
-            pa.tree.collideTT(pa.tree.m_root, pb.tree.m_root, collide);
+            for (btDbvt& ta : pa.trees)
+                for (btDbvt& tb : pb.trees)
+                    if (ta.m_root && tb.m_root) ta.collideTT(ta.m_root, tb.m_root, collide);
             if (pairs.empty()) continue;
             // the vertices of both triangles of each pair, placed now
             if (++query == std::numeric_limits<int>::max()) {

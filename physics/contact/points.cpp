@@ -27,18 +27,33 @@ struct SurfaceEdges {
     std::vector<std::pair<int, int>> ends;  // (nEdges)
 };
 SurfaceEdges surfaceEdges(const EmbeddedSurface& s) {
+    // the sides bucketed by their lower vertex, then ordered by the other within each bucket: the
+    // edges come out in (lower, upper) order, in linear time
     const int nt = s.faces();
-    std::vector<std::pair<std::pair<int, int>, int>> keyed(3 * static_cast<size_t>(nt));
+    const auto nv = static_cast<size_t>(s.vertices());
+    std::vector<int> start(nv + 1, 0);
     for (int t = 0; t < nt; ++t)
         for (int k = 0; k < 3; ++k)
-            keyed[3 * static_cast<size_t>(t) + static_cast<size_t>(k)] = {
-                std::minmax(s.triangles(k, t), s.triangles((k + 1) % 3, t)), 3 * t + k};
-    std::sort(keyed.begin(), keyed.end());
+            ++start[static_cast<size_t>(std::min(s.triangles(k, t), s.triangles((k + 1) % 3, t))) + 1];
+    for (size_t v = 0; v < nv; ++v) start[v + 1] += start[v];
+    std::vector<std::pair<int, int>> upper(3 * static_cast<size_t>(nt));  // (upper vertex, side)
+    {
+        std::vector<int> fill(start.begin(), start.end() - 1);
+        for (int t = 0; t < nt; ++t)
+            for (int k = 0; k < 3; ++k) {
+                const auto [lo, hi] = std::minmax(s.triangles(k, t), s.triangles((k + 1) % 3, t));
+                upper[static_cast<size_t>(fill[static_cast<size_t>(lo)]++)] = {hi, 3 * t + k};
+            }
+    }
     SurfaceEdges e;
-    e.side.resize(keyed.size());
-    for (size_t i = 0; i < keyed.size(); ++i) {
-        if (i == 0 || keyed[i].first != keyed[i - 1].first) e.ends.push_back(keyed[i].first);
-        e.side[static_cast<size_t>(keyed[i].second)] = static_cast<int>(e.ends.size()) - 1;
+    e.side.resize(upper.size());
+    for (size_t v = 0; v < nv; ++v) {
+        const auto b = upper.begin() + start[v], en = upper.begin() + start[v + 1];
+        std::sort(b, en);
+        for (auto it = b; it != en; ++it) {
+            if (it == b || it->first != (it - 1)->first) e.ends.emplace_back(static_cast<int>(v), it->first);
+            e.side[static_cast<size_t>(it->second)] = static_cast<int>(e.ends.size()) - 1;
+        }
     }
     return e;
 }

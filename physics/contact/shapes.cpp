@@ -10,8 +10,6 @@
 
 namespace cutsim {
 
-btVector3 bt(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
-Eigen::Vector3d eig(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 btTransform bt(const Pose& p) {
     const Eigen::Quaterniond& q = p.orientation;
     return btTransform(btQuaternion(q.x(), q.y(), q.z(), q.w()), bt(p.position));

@@ -11,8 +11,9 @@
 
 namespace cutsim {
 
-btVector3 bt(const Eigen::Vector3d& v);
-Eigen::Vector3d eig(const btVector3& v);
+// inline: the contact query converts every candidate triangle's box
+inline btVector3 bt(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+inline Eigen::Vector3d eig(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
 btTransform bt(const Pose& p);
 
 // A Bullet convex shape of one tool part. Margins are zero for boxes and hulls so that their core

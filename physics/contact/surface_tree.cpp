@@ -1,4 +1,5 @@
-// The surface's triangle trees (one btDbvt per piece) and how they follow the surface's motion.
+// The surface's triangle trees (per piece, one btDbvt per cut that made its triangles) and how they
+// follow the surface's motion.
 #include "contact/world.hpp"
 
 #include <algorithm>
@@ -26,29 +27,51 @@ void ContactWorld::Impl::build(const Eigen::Matrix3Xd& x) {
     fat = std::max(minFat, kLeafFat * extent / std::max(nt, 1));
     leafMargin = 0.5 * fat;
     trigger = leafMargin / (2 * std::max(wSum, 1e-300));
-    leaves.resize(static_cast<size_t>(nt));
-    for (int t = 0; t < nt; ++t) {
-        btDbvtVolume vol = triangleBox(xp, pts.triangles, t);
-        vol.Expand(btVector3(fat, fat, fat));
-        leaves[static_cast<size_t>(t)] =
-            pieces[static_cast<size_t>(triPiece[static_cast<size_t>(t)])]->tree.insert(vol, nullptr);
-        leaves[static_cast<size_t>(t)]->dataAsInt = t;
-    }
+    leaves.assign(static_cast<size_t>(nt), nullptr);
     for (size_t k = 0; k < surfNodes.size(); ++k) xRef.col(static_cast<Eigen::Index>(k)) = x.col(surfNodes[k]);
+    vertRef = xp.leftCols(nv);  // the vertices at x = xRef
+    vertStamp.assign(static_cast<size_t>(nv), -1);
     ++placing;  // xp was overwritten for the vertices
-    std::fill(moved.begin(), moved.end(), 0.0);
     // which way each piece's triangles face: out when its enclosed (signed) volume is positive;
-    // a surface that encloses nothing (open, or flat) takes no part in piece contact
+    // a surface that encloses nothing (open, or flat) takes no part in piece contact. And the box
+    // of each piece's leaves, which stands for its trees until a shape comes near.
     std::vector<double> volume(pieces.size(), 0.0), scale(pieces.size(), 0.0);
+    for (auto& pc : pieces) pc->built = false;
     for (int t = 0; t < nt; ++t) {
         const Eigen::Vector3d a = xp.col(pts.triangles(0, t)), b = xp.col(pts.triangles(1, t)),
                               c = xp.col(pts.triangles(2, t));
         const auto k = static_cast<size_t>(triPiece[static_cast<size_t>(t)]);
         volume[k] += a.dot(b.cross(c)) / 6;
         scale[k] += (b - a).cross(c - a).norm() * (a.norm() + b.norm() + c.norm()) / 18;
+        btDbvtVolume vol = triangleBox(xp, pts.triangles, t);
+        vol.Expand(btVector3(fat, fat, fat));
+        Piece& pc = *pieces[k];
+        if (pc.tris.front() == t)
+            pc.box = vol;
+        else
+            Merge(pc.box, vol, pc.box);
     }
     for (size_t k = 0; k < pieces.size(); ++k)
         pieces[k]->facing = std::abs(volume[k]) > 1e-3 * scale[k] ? (volume[k] > 0 ? 1 : -1) : 0;
+}
+
+// The piece's trees, made when a shape or another piece first comes near it after the surface
+// changed (a cut that leaves the tools away then costs no tree): its triangles at their reference
+// positions grown by fat, as if refitted.
+void ContactWorld::Impl::buildTrees(Piece& pc) {
+    if (pc.built) return;
+    pc.built = true;
+    for (const int t : pc.tris) {
+        const Eigen::Vector3d a = vertRef.col(pts.triangles(0, t)), b = vertRef.col(pts.triangles(1, t)),
+                              c = vertRef.col(pts.triangles(2, t));
+        btDbvtVolume vol = btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))),
+                                                bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
+        vol.Expand(btVector3(fat, fat, fat));
+        const int cut = pts.triCut.empty() ? -1 : pts.triCut[static_cast<size_t>(t)];
+        btDbvtNode* leaf = pc.treeOf(cut).insert(vol, nullptr);
+        leaf->dataAsInt = t;
+        leaves[static_cast<size_t>(t)] = leaf;
+    }
 }
 
 Eigen::Vector3d ContactWorld::Impl::atReference(int p) const {
@@ -58,10 +81,10 @@ Eigen::Vector3d ContactWorld::Impl::atReference(int p) const {
     return s;
 }
 
-void ContactWorld::Impl::refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt) {
+void ContactWorld::Impl::refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt, bool up) {
     const btVector3 grow(leafMargin, leafMargin, leafMargin);
-    const Eigen::Vector3d a = atReference(pts.triangles(0, t)), b = atReference(pts.triangles(1, t)),
-                          c = atReference(pts.triangles(2, t));
+    const Eigen::Vector3d a = vertRef.col(pts.triangles(0, t)), b = vertRef.col(pts.triangles(1, t)),
+                          c = vertRef.col(pts.triangles(2, t));
     btDbvtNode* leaf = leaves[static_cast<size_t>(t)];
     btDbvtVolume vol = btDbvtVolume::FromMM(bt(Eigen::Vector3d(a.cwiseMin(b).cwiseMin(c))),
                                             bt(Eigen::Vector3d(a.cwiseMax(b).cwiseMax(c))));
@@ -79,6 +102,7 @@ void ContactWorld::Impl::refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt) 
     // moves continuously, so neighbours stay neighbours and the tree keeps its shape without
     // Bullet's remove and insert per moved leaf
     leaf->volume = vol;
+    if (!up) return;
     for (btDbvtNode* n = leaf->parent; n; n = n->parent) {
         const btDbvtVolume before = n->volume;
         Merge(n->childs[0]->volume, n->childs[1]->volume, n->volume);
@@ -86,15 +110,29 @@ void ContactWorld::Impl::refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt) 
     }
 }
 
+namespace {
+// Every inner box of the tree merged again from its children, bottom up (each once).
+void mergeUp(btDbvt& tree, std::vector<btDbvtNode*>& stack) {
+    if (!tree.m_root || tree.m_root->isleaf()) return;
+    // pre-order onto the stack, then merged in reverse: children before their parent
+    stack.assign(1, tree.m_root);
+    for (size_t i = 0; i < stack.size(); ++i)
+        for (btDbvtNode* c : stack[i]->childs)
+            if (!c->isleaf()) stack.push_back(c);
+    for (auto it = stack.rbegin(); it != stack.rend(); ++it)
+        Merge((*it)->childs[0]->volume, (*it)->childs[1]->volume, (*it)->volume);
+}
+}  // namespace
+
 // The surface nodes [first, end) that moved more than `trigger` take x as their reference, and the
 // triangles following them are refitted, each once.
 void ContactWorld::Impl::resetNodes(const int* first, const int* end, const Eigen::Matrix3Xd& x,
-                                    const Eigen::Matrix3Xd& v, double dt) {
+                                    const Eigen::Matrix3Xd& v, double dt, Piece* whole) {
     const int stampNow = ++refits;
     dirty.clear();
     for (const int* it = first; it != end; ++it) {
         const auto k = static_cast<size_t>(*it);
-        if (!(moved[k] > trigger)) continue;
+        if (!(moved(x, k) > trigger)) continue;
         for (int i = nodeTriStart[k]; i < nodeTriStart[k + 1]; ++i) {
             const int t = nodeTris[static_cast<size_t>(i)];
             if (triStamp[static_cast<size_t>(t)] == stampNow) continue;
@@ -102,14 +140,25 @@ void ContactWorld::Impl::resetNodes(const int* first, const int* end, const Eige
             dirty.push_back(t);
         }
         xRef.col(static_cast<Eigen::Index>(k)) = x.col(surfNodes[k]);
-        moved[k] = 0;
     }
-    for (const int t : dirty) refitLeaf(t, v, dt);
+    // the dirty triangles' vertices at the new references, each once
+    for (const int t : dirty)
+        for (int c = 0; c < 3; ++c) {
+            const int p = pts.triangles(c, t);
+            if (vertStamp[static_cast<size_t>(p)] == stampNow) continue;
+            vertStamp[static_cast<size_t>(p)] = stampNow;
+            vertRef.col(p) = atReference(p);
+        }
+    // many leaves of a piece moved: merging all its inner boxes once is cheaper than from each leaf up
+    const bool bulk = whole && 8 * dirty.size() >= whole->nodes.size();
+    for (const int t : dirty) refitLeaf(t, v, dt, !bulk);
+    if (bulk)
+        for (btDbvt& tree : whole->trees) mergeUp(tree, mergeStack);
 }
 
 void ContactWorld::Impl::refitMoved(Piece& piece, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt) {
     piece.refitted = true;
-    resetNodes(piece.nodes.data(), piece.nodes.data() + piece.nodes.size(), x, v, dt);
+    resetNodes(piece.nodes.data(), piece.nodes.data() + piece.nodes.size(), x, v, dt, &piece);
 }
 
 }  // namespace cutsim

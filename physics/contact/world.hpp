@@ -9,6 +9,7 @@
 #include <btBulletCollisionCommon.h>
 
 #include <algorithm>
+#include <deque>
 #include <memory>
 #include <utility>
 #include <vector>
@@ -68,13 +69,48 @@ struct Touch {
 // A connected part of the surface (triangles joined by shared nodes: a piece of the object once
 // cuts have separated it). Each has its own tree and drift, so a piece far from every shape (one
 // falling away) costs one pass over its nodes and no refit.
+// Its triangles are in one tree per cut that made them (-1: none), so a blade skips the faces of
+// its own cut, which lie inside it, without visiting them.
 struct Piece {
-    btDbvt tree;
-    std::vector<int> nodes;  // indices into surfNodes
-    double drift = 0;        // how far any of its points may be outside its leaf [m]
-    bool refitted = false;   // this step
-    btDbvtVolume around;     // its root grown by drift
-    int facing = 1;          // +1: triangles counter-clockwise from outside; -1: from inside; 0: encloses nothing
+    std::deque<btDbvt> trees;  // a deque: btDbvt cannot move
+    std::vector<int> treeCut;  // the cut of each tree's triangles, -1 for the uncut surface
+    std::vector<int> nodes;    // indices into surfNodes
+    std::vector<int> tris;     // its triangles, ascending
+    bool built = false;        // its trees hold its triangles; else `box` stands for them
+    btDbvtVolume box;          // its triangles at reference, grown by fat (until built)
+    double drift = 0;          // how far any of its points may be outside its leaf [m]
+    bool refitted = false;     // this step
+    btDbvtVolume around;       // its root grown by drift
+    int facing = 1;            // +1: triangles counter-clockwise from outside; -1: from inside; 0: encloses nothing
+    btDbvt& treeOf(int cut) {
+        for (size_t i = 0; i < treeCut.size(); ++i)
+            if (treeCut[i] == cut) return trees[i];
+        treeCut.push_back(cut);
+        return trees.emplace_back();
+    }
+    // the box of all its trees' roots; false when it has no triangle
+    bool bounds(btDbvtVolume& out) const {
+        if (!built) {
+            out = box;
+            return !tris.empty();
+        }
+        bool any = false;
+        for (const btDbvt& t : trees)
+            if (t.m_root) {
+                if (any)
+                    Merge(out, t.m_root->volume, out);
+                else
+                    out = t.m_root->volume;
+                any = true;
+            }
+        return any;
+    }
+    bool empty() const {
+        if (!built) return tris.empty();
+        for (const btDbvt& t : trees)
+            if (t.m_root) return false;
+        return true;
+    }
 };
 
 struct ContactWorld::Impl {
@@ -106,7 +142,8 @@ struct ContactWorld::Impl {
     std::vector<int> surfNodes;     // nodes the surface's vertices follow
     std::vector<int> nodeSlot;      // node -> its index in surfNodes, or -1
     Eigen::Matrix3Xd xRef;          // their reference positions (3 x surfNodes) [m]
-    std::vector<double> moved;      // how far each moved from there, per axis (surfNodes) [m]
+    Eigen::Matrix3Xd vertRef;       // the surface vertices (points 0..) at xRef [m]
+    std::vector<int> vertStamp;     // last batch that placed each vertex in vertRef
     std::vector<int> nodeTriStart;  // CSR: triangles following surface node k (surfNodes + 1)
     std::vector<int> nodeTris;
     std::vector<int> triNodeStart;  // CSR: surface nodes triangle t follows (nTris + 1)
@@ -125,6 +162,7 @@ struct ContactWorld::Impl {
     int query = 0;
     std::vector<int> candidates;             // triangles, then points
     std::vector<const btDbvtNode*> walk;     // the tree traversal's stack
+    std::vector<btDbvtNode*> mergeStack;     // inner nodes merged bottom up
     std::vector<std::pair<int, int>> pairs;  // triangles of two pieces whose boxes overlap
     std::vector<btTransform> now, other;     // shape transforms at the query time and at the step's other end
     std::vector<Touch> touches;
@@ -135,8 +173,17 @@ struct ContactWorld::Impl {
     ContactStep last;
 
     void clearTree() {
-        for (auto& p : pieces) p->tree.clear();
+        for (auto& p : pieces) {
+            for (btDbvt& t : p->trees) t.clear();
+            p->trees.clear();
+            p->treeCut.clear();
+            p->built = false;
+        }
         leaves.clear();
+    }
+    // how far surface node k moved from its reference, per axis [m]
+    double moved(const Eigen::Matrix3Xd& x, size_t k) const {
+        return (x.col(surfNodes[k]) - xRef.col(static_cast<Eigen::Index>(k))).cwiseAbs().maxCoeff();
     }
     void interpolate(const Eigen::Matrix3Xd& x, int p) {
         Eigen::Vector3d s = Eigen::Vector3d::Zero();
@@ -161,10 +208,14 @@ struct ContactWorld::Impl {
         return s;
     }
     void refitMoved(Piece& piece, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt);
-    void resetNodes(const int* first, const int* end, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt);
-    void refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt);
+    // whole: the piece all of whose moved nodes are reset; its trees' inner boxes are then merged
+    // once, bottom up, instead of from each refitted leaf up
+    void resetNodes(const int* first, const int* end, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt,
+                    Piece* whole = nullptr);
+    void refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt, bool up);
     Eigen::Vector3d atReference(int p) const;
     void build(const Eigen::Matrix3Xd& x);
+    void buildTrees(Piece& pc);
     void touchPieces();
     void pointsInTriangle(int source, int target);
     void gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double tq, double tOther, bool withPieces);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -416,6 +417,30 @@ TEST(BenchContact, TinyRunContract) {
         }
     }
     EXPECT_GT(j["runs"][2]["max_depth"].get<double>(), j["runs"][5]["max_depth"].get<double>());  // k 0.1 vs 1.0
+}
+
+// `bench contact --plot` draws one PNG, and leaves no temporary file beside it; without gnuplot
+// it fails up front and writes nothing.
+TEST(BenchContact, PlotWritesOnePng) {
+    const std::string dir = workDir("contact_plot");
+    const std::string png = dir + "/contact.png";
+    std::string err;
+    if (std::system("command -v gnuplot > /dev/null 2>&1") == 0) {
+        ASSERT_EQ(test::runCutsim("bench contact --tiny --plot " + png, nullptr, &err), 0) << err;
+        std::ifstream f(png, std::ios::binary);
+        char magic[4] = {};
+        f.read(magic, 4);
+        EXPECT_EQ(std::string(magic + 1, 3), "PNG");
+        EXPECT_FALSE(fs::exists(png + ".tmp.png"));
+        fs::remove(png);
+    }
+    const std::string path = std::getenv("PATH") ? std::getenv("PATH") : "";
+    ::setenv("PATH", dir.c_str(), 1);
+    const int rc = test::runCutsim("bench contact --tiny --plot " + png, nullptr, &err);
+    ::setenv("PATH", path.c_str(), 1);
+    EXPECT_EQ(rc, 2);
+    EXPECT_NE(err.find("gnuplot"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(png));
 }
 
 // `bench haptic --tiny`: a small remeshed liver pressed by the probe, one run per thread count,

@@ -202,6 +202,36 @@ TEST(Take, HeldToolsAndADueCutReplayBitwise) {
     EXPECT_EQ(replay.record().cuts[0]["split"], live.record().cuts[0]["split"]);
 }
 
+// A probe lowered by holds (a haptic device's samples) and then held still keeps pressing: its
+// force 100 ms after the last hold is the force at it, not decayed towards 0.
+TEST(Take, HeldProbeKeepsItsForce) {
+    const json j = json::parse(R"({ "name": "held",
+        "object": { "box": { "size": [0.1, 0.1, 0.02], "cells": [10, 10, 2] } },
+        "material": { "E": 30000, "nu": 0.3, "rho": 1000, "damping": 20.0 },
+        "fixed": [ { "plane": { "point": [0, 0, 0], "normal": [0, 0, 1], "distance": 1e-4 } } ],
+        "loads": { "gravity": [0, 0, 0] },
+        "integrator": { "scheme": "symplectic_euler", "dt": { "mode": "fraction", "of": "exact", "fraction": 0.8 } },
+        "tools": [ { "name": "probe", "kind": "sphere", "radius": 0.01,
+                     "keyframes": [ { "time": 0, "position": [0.05, 0.05, 0.03] } ] } ],
+        "contact": { "spacing": 0.004 },
+        "duration": 1, "capture": { "enabled": false }, "output": { "vtu": false } })");
+    SimulationOptions o;
+    o.threads = 1;
+    Simulation sim(parseScene(j, "held.json"), o);
+    sim.advance(0.005);
+    const double t0 = sim.state().time;
+    for (int k = 1; k <= 40; ++k) {  // 2 mm in over 40 ms, a sample a millisecond
+        sim.holdTool(0, Eigen::Vector3d(0.05, 0.05, 0.03 - 0.002 * k / 40.0));
+        sim.advance(t0 + 0.001 * k);
+    }
+    sim.advance(sim.state().time + 0.02);  // settled
+    const double held = sim.contact()->last().reaction[0].norm();
+    EXPECT_GT(held, 0.1);
+    sim.advance(sim.state().time + 0.1);
+    EXPECT_GT(sim.contact()->last().contacts, 0);
+    EXPECT_NEAR(sim.contact()->last().reaction[0].norm(), held, 0.05 * held);
+}
+
 // A take that ends early is as long as it went.
 TEST(Take, EndsWhereTheTakeEnded) {
     SimulationOptions o;
