@@ -42,7 +42,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinFlatness = 1e-3;
 // Soft maximum exponent: ties between equally bad elements still give a descent direction.
 constexpr double kSoftMaxPower = 16;
-// Default work: 12x12 problems per element of the input, about 0.06 ms per element on one core,
+// Default work: 12x12 problems per element of the input, about 0.1 ms per element on one core,
 // with a floor for small meshes.
 constexpr long long kEvaluationsPerTet = 140;
 constexpr long long kMinEvaluations = 100000;
@@ -70,7 +70,7 @@ struct Worker {
     double dV = 0;              // enclosed volume change [m^3]
     long long evaluations = 0;  // 12x12 problems solved
     int moves = 0;
-    int share = 1;  // threads in the pass: each may use this share of the volume and work left
+    int share = 1;  // threads in the pass: each may use 1/share of the volume change and work left
 };
 
 class Improver {
