@@ -119,12 +119,17 @@ void addImproveCommand(CLI::App& app) {
     cmd->add_option("--out", args->out, "Write the improved mesh (.msh: Gmsh 2.2, .vtu)");
     cmd->add_option("--target-dt", args->opts.targetDt, "Stop once the exact step reaches DT [s]");
     cmd->add_option("--work", args->opts.maxEvaluations,
-                    "Work budget in element eigenvalue problems (deterministic); default 200 per element, at "
-                    "least 1e5 (about 1.2 s per 10,000 elements on one core)");
+                    "Work budget in element eigenvalue problems (deterministic); default 140 per element, at "
+                    "least 1e5");
     cmd->add_option("--max-seconds", args->opts.maxSeconds,
                     "Wall-time limit besides (a run it stops depends on the machine's speed)")
         ->capture_default_str();
     cmd->add_option("--rounds", args->opts.maxRounds, "Rounds at most")->capture_default_str();
+    cmd->add_option("--threads", args->opts.threads,
+                    "Threads that smooth disjoint parts of the mesh at once (0: one per core); the result "
+                    "depends on this count, and on meshes whose critical elements form one cluster a second "
+                    "thread saves little")
+        ->capture_default_str();
     cmd->add_option("--E", args->opts.material.E, "Young's modulus [Pa]")->capture_default_str();
     cmd->add_option("--nu", args->opts.material.nu, "Poisson's ratio [-]")->capture_default_str();
     cmd->add_option("--rho", args->opts.material.rho, "Density [kg/m^3]")->capture_default_str();

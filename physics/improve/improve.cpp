@@ -8,6 +8,8 @@
 // thesis's liver and armadillo; docs/method.md sec. 3). Moving a node or flipping changes the rows
 // of a few nodes only, so each trial re-solves the 12x12 problems of the elements touching them.
 #include "improve/improve.hpp"
+#include "improve/partition.hpp"
+#include "improve/stats.hpp"
 
 #include "embed/clip.hpp"
 #include "fem/model.hpp"
@@ -16,13 +18,16 @@
 #include "util/stopwatch.hpp"
 
 #include <Eigen/Dense>
+#include <omp.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
+#include <exception>
 #include <map>
 #include <numeric>
+#include <thread>
 
 namespace cutsim {
 namespace {
@@ -39,31 +44,38 @@ constexpr double kMinFlatness = 1e-3;
 constexpr double kSoftMaxPower = 16;
 // Default work: 12x12 problems per element of the input, about 0.1 ms per element on one core,
 // with a floor for small meshes.
-constexpr long long kEvaluationsPerTet = 200;
+constexpr long long kEvaluationsPerTet = 140;
 constexpr long long kMinEvaluations = 100000;
+// A node's descent watches the elements within this factor of its local maximum (and its own).
+constexpr double kWatched = 0.35;
+// 12x12 problems assembled and solved together: a buffer that stays in cache.
+constexpr int kChunk = 64;
+// Fewer nodes to smooth than this per thread: one thread does them (threads cost more than they save).
+constexpr int kMinNodesPerThread = 12;
+// Times the waiting nodes of a smoothing pass are cut again before one thread does the rest.
+constexpr int kCutLevels = 2;
 
-double minDihedralDeg(const TetMesh& m) {
-    static constexpr int kEdges[6][4] = {{0, 1, 2, 3}, {0, 2, 1, 3}, {0, 3, 1, 2},
-                                         {1, 2, 0, 3}, {1, 3, 0, 2}, {2, 3, 0, 1}};
-    double best = 180;
-    for (int e = 0; e < m.elements(); ++e) {
-        for (const auto& ed : kEdges) {
-            const Vec3 p = m.X.col(m.tets(ed[0], e)), q = m.X.col(m.tets(ed[1], e));
-            const Vec3 r = m.X.col(m.tets(ed[2], e)), s = m.X.col(m.tets(ed[3], e));
-            const Vec3 axis = (q - p).normalized();
-            Vec3 u = r - p, v = s - p;
-            u -= axis * axis.dot(u);
-            v -= axis * axis.dot(v);
-            const double c = u.dot(v) / std::max(u.norm() * v.norm(), 1e-300);
-            best = std::min(best, std::acos(std::clamp(c, -1.0, 1.0)) * 180 / kPi);
-        }
-    }
-    return best;
-}
+using Mat12s = std::vector<Mat12, Eigen::aligned_allocator<Mat12>>;
+
+// What one thread of a smoothing pass owns: scratch, and the volume change, work and moves it
+// made, folded into the improver's after the pass in thread order, so that a result depends on
+// the thread count but not on timing.
+struct Worker {
+    std::vector<unsigned> stampE;  // touching()'s marks, per element
+    unsigned stampT = 0;
+    Mat12s mats;
+    std::vector<double> out, floor;
+    std::vector<int> patch, ring, elems, watched;
+    double ref = 1;             // the soft maximum's unit
+    double dV = 0;              // enclosed volume change [m^3]
+    long long evaluations = 0;  // 12x12 problems solved
+    int moves = 0;
+    int share = 1;  // threads in the pass: each may use 1/share of the volume change and work left
+};
 
 class Improver {
 public:
-    Improver(const TetMesh& mesh, const ImproveOptions& o) : opts_(o), mat_(o.material) {
+    Improver(const TetMesh& mesh, const ImproveOptions& o, int threads) : opts_(o), mat_(o.material) {
         lame_ = mat_.lambda();
         mu_ = mat_.mu();
         rq_ = mat_.rho / 4;
@@ -75,6 +87,7 @@ public:
         blk_.assign(n, {});
         vs_.assign(n, 0.0);
         stampN_.assign(n, 0);
+        workers_.resize(static_cast<size_t>(std::max(1, threads)));
         for (int e = 0; e < mesh.elements(); ++e) {
             Tet t{mesh.tets(0, e), mesh.tets(1, e), mesh.tets(2, e), mesh.tets(3, e)};
             if (tetSignedVolume(X_.col(t[0]), X_.col(t[1]), X_.col(t[2]), X_.col(t[3])) < 0) std::swap(t[2], t[3]);
@@ -146,59 +159,107 @@ public:
         budget_ = budget;
         deadline_ = deadline;
     }
-    bool outOfTime() const { return evaluations >= budget_ || WallClock::now() > deadline_; }
+    bool outOfTime() const { return outOfTime(workers_[0]); }
 
     bool round(double& tSmooth, double& tTopo) {
         std::vector<int> bad = criticalElements();
         if (bad.empty()) return false;
         bool changed = false;
         auto t0 = WallClock::now();
-        if (opts_.smooth) {
-            ++stamp_;
-            for (int e : bad) {
-                if (!alive_[e]) continue;
-                for (int a : T_[e]) {
-                    if (stampN_[a] == stamp_) continue;
-                    stampN_[a] = stamp_;
-                    if (smoothNode(a)) changed = true;
-                }
-                if (outOfTime()) break;
-            }
-        }
+        if (opts_.smooth) changed = smoothPass(bad);
         tSmooth += secondsSince(t0);
         t0 = WallClock::now();
         if (opts_.flips || opts_.collapse) {
+            Worker& w = workers_[0];
             for (int e : bad) {
-                if (outOfTime()) break;
+                if (outOfTime(w)) break;
                 if (!alive_[e]) continue;
-                if (opts_.flips && (flipFaces(e) || flipEdges(e))) {
+                if (opts_.flips && (flipFaces(e, w) || flipEdges(e, w))) {
                     changed = true;
                     continue;
                 }
-                if (opts_.collapse && collapseShortest(e)) changed = true;
+                if (opts_.collapse && collapseShortest(e, w)) changed = true;
             }
+            fold();
         }
         tTopo += secondsSince(t0);
         return changed;
     }
 
 private:
+    // ---- smoothing pass -------------------------------------------------------------------------
+
+    // Smooths each node of the bad elements once, worst element first. With k threads the nodes
+    // are cut into k slabs along the longest axis of their box. A node whose re-solved elements
+    // (those touching its one ring) meet another slab's waits; the waiting nodes are cut again
+    // (they lie along the cuts, so along another axis), and what still waits is done on one
+    // thread. The threads' nodes neither read nor write each other's rows, so each part runs as
+    // if alone and a result depends on the thread count only.
+    bool smoothPass(const std::vector<int>& bad) {
+        std::vector<int> nodes;
+        ++stamp_;
+        for (int e : bad) {
+            if (!alive_[e]) continue;
+            for (int a : T_[e]) {
+                if (stampN_[a] == stamp_) continue;
+                stampN_[a] = stamp_;
+                if (movable_[a] && !nt_[a].empty()) nodes.push_back(a);
+            }
+        }
+        bool changed = false;
+        for (int level = 0; level < kCutLevels && !nodes.empty(); ++level) {
+            const int k =
+                std::min(static_cast<int>(workers_.size()), static_cast<int>(nodes.size()) / kMinNodesPerThread);
+            if (k <= 1) break;
+            std::vector<std::vector<int>> parts(k);
+            std::vector<int> later;
+            partitionNodes(nodes, X_, T_, nt_, parts, later);
+            std::vector<char> moved(k, 0);
+            std::vector<std::exception_ptr> error(k);
+            auto run = [&](int p) {
+                try {
+                    workers_[p].share = k;
+                    moved[p] = smoothNodes(parts[p], workers_[p]);
+                } catch (...) {
+                    error[p] = std::current_exception();
+                }
+            };
+            std::vector<std::thread> pool;
+            for (int p = 1; p < k; ++p) pool.emplace_back(run, p);
+            run(0);
+            for (auto& t : pool) t.join();
+            fold();
+            for (int p = 0; p < k; ++p) {
+                if (error[p]) std::rethrow_exception(error[p]);
+                changed = changed || moved[p];
+            }
+            nodes = std::move(later);
+        }
+        changed = smoothNodes(nodes, workers_[0]) || changed;
+        fold();
+        return changed;
+    }
+
+    bool smoothNodes(const std::vector<int>& nodes, Worker& w) {
+        bool changed = false;
+        for (int i : nodes) {
+            if (outOfTime(w)) break;
+            if (smoothNode(i, w)) changed = true;
+        }
+        return changed;
+    }
+
     // ---- assembled rows -------------------------------------------------------------------------
 
-    Eigen::Matrix3d& block(int i, int j) {
+    // Position of row j in node i's row list, appended when new. Lists only grow, so an element's
+    // positions (slot_) stay valid while it lives, dies and revives.
+    int slotOf(int i, int j) {
         auto& nb = nbr_[i];
         for (size_t k = 0; k < nb.size(); ++k)
-            if (nb[k] == j) return blk_[i][k];
+            if (nb[k] == j) return static_cast<int>(k);
         nb.push_back(j);
         blk_[i].push_back(Eigen::Matrix3d::Zero());
-        return blk_[i].back();
-    }
-    const Eigen::Matrix3d& blockOf(int i, int j) const {
-        const auto& nb = nbr_[i];
-        for (size_t k = 0; k < nb.size(); ++k)
-            if (nb[k] == j) return blk_[i][k];
-        static const Eigen::Matrix3d zero = Eigen::Matrix3d::Zero();
-        return zero;
+        return static_cast<int>(nb.size()) - 1;
     }
 
     void geometry(int e) {
@@ -209,20 +270,21 @@ private:
         g_[e] = shapeGradients(Dm.inverse());
     }
 
-    // Adds (sign 1) or removes (-1) element e's share of the rows and masses; K_ab of
-    // fem/tet.hpp: V [lambda g_a g_b^T + mu g_b g_a^T + mu (g_a.g_b) I].
-    void scatter(int e, double sign) {
+    // Adds (sign 1) or removes (-1) element e's share of the rows and masses, its volume to
+    // `volume`; K_ab of fem/tet.hpp: V [lambda g_a g_b^T + mu g_b g_a^T + mu (g_a.g_b) I].
+    void scatter(int e, double sign, double& volume) {
         const Tet& t = T_[e];
         const Mat34& g = g_[e];
+        const auto& slot = slot_[e];
         const double V = sign * V_[e];
-        volume_ += V;
+        volume += V;
         for (int a = 0; a < 4; ++a) {
             vs_[t[a]] += V;
             for (int b = 0; b < 4; ++b) {
                 const Vec3 ga = g.col(a), gb = g.col(b);
                 Eigen::Matrix3d k = lame_ * ga * gb.transpose() + mu_ * gb * ga.transpose();
                 k.diagonal().array() += mu_ * ga.dot(gb);
-                block(t[a], t[b]) += V * k;
+                blk_[t[a]][slot[4 * a + b]] += V * k;
             }
         }
     }
@@ -231,18 +293,22 @@ private:
         const int e = static_cast<int>(T_.size());
         T_.push_back(t);
         alive_.push_back(1);
+        dirty_.push_back(1);
         V_.push_back(0);
         g_.emplace_back();
         lam_.push_back(0);
-        stampE_.push_back(0);
+        std::array<int, 16> slot;
+        for (int a = 0; a < 4; ++a)
+            for (int b = 0; b < 4; ++b) slot[4 * a + b] = slotOf(t[a], t[b]);
+        slot_.push_back(slot);
         geometry(e);
-        scatter(e, 1);
+        scatter(e, 1, volume_);
         for (int a : t) nt_[a].push_back(e);
         ++aliveCount_;
         return e;
     }
     void killTet(int e) {
-        scatter(e, -1);
+        scatter(e, -1, volume_);
         alive_[e] = 0;
         --aliveCount_;
         for (int a : T_[e]) {
@@ -254,7 +320,7 @@ private:
         alive_[e] = 1;
         ++aliveCount_;
         geometry(e);
-        scatter(e, 1);
+        scatter(e, 1, volume_);
         for (int a : T_[e]) nt_[a].push_back(e);
     }
 
@@ -268,22 +334,30 @@ private:
 
     // ---- the objective --------------------------------------------------------------------------
 
-    // lambda_R1R of elems into lam_ (docs/method.md sec. 3).
-    void evaluate(const std::vector<int>& elems) {
-        const int n = static_cast<int>(elems.size());
-        mats_.resize(n);
-        out_.resize(n);
-        for (int k = 0; k < n; ++k) {
-            const Tet& t = T_[elems[k]];
-            double s[4];
-            for (int a = 0; a < 4; ++a) s[a] = 1 / std::sqrt(rq_ * vs_[t[a]]);
-            Mat12& A = mats_[k];
-            for (int a = 0; a < 4; ++a)
-                for (int b = 0; b < 4; ++b) A.block<3, 3>(3 * a, 3 * b) = blockOf(t[a], t[b]) * (s[a] * s[b]);
+    // lambda_R1R of elems[0 .. n-1] into lam_ (docs/method.md sec. 3), kChunk at a time.
+    void evaluate(const int* elems, int n, Worker& w) {
+        w.mats.resize(kChunk);
+        w.out.resize(kChunk);
+        for (int c = 0; c < n; c += kChunk) {
+            const int m = std::min(kChunk, n - c);
+            for (int k = 0; k < m; ++k) {
+                const int e = elems[c + k];
+                const Tet& t = T_[e];
+                const auto& slot = slot_[e];
+                double s[4];
+                for (int a = 0; a < 4; ++a) s[a] = 1 / std::sqrt(rq_ * vs_[t[a]]);
+                Mat12& A = w.mats[k];
+                for (int a = 0; a < 4; ++a)
+                    for (int b = 0; b < 4; ++b)
+                        A.block<3, 3>(3 * a, 3 * b) = blk_[t[a]][slot[4 * a + b]] * (s[a] * s[b]);
+            }
+            largestEigenvalues(w.mats.data(), m, w.out.data());
+            for (int k = 0; k < m; ++k) {
+                lam_[elems[c + k]] = w.out[k];
+                dirty_[elems[c + k]] = 0;
+            }
         }
-        if (n) largestEigenvalues(mats_.data(), n, out_.data());
-        evaluations += n;
-        for (int k = 0; k < n; ++k) lam_[elems[k]] = out_[k];
+        w.evaluations += n;
     }
 
     struct Score {
@@ -294,33 +368,40 @@ private:
     };
     // Solves elems' problems and scores them; `reference` first makes their maximum the soft
     // maximum's unit (the start of a node's descent or of a flip).
-    Score score(const std::vector<int>& elems, bool reference = false) {
-        evaluate(elems);
+    Score score(const std::vector<int>& elems, Worker& w, bool reference = false) {
+        evaluate(elems.data(), static_cast<int>(elems.size()), w);
         Score s;
         for (int e : elems) s.max = std::max(s.max, lam_[e]);
-        if (reference) ref_ = s.max;
-        for (int e : elems) s.soft += std::pow(lam_[e] / ref_, kSoftMaxPower);
+        if (reference) w.ref = s.max;
+        for (int e : elems) s.soft += std::pow(lam_[e] / w.ref, kSoftMaxPower);
         return s;
     }
 
     // Alive elements with a node among `nodes` (rows changed there).
-    void touching(const std::vector<int>& nodes, std::vector<int>& out) {
+    void touching(const std::vector<int>& nodes, std::vector<int>& out, Worker& w) const {
         out.clear();
-        ++stampT_;
+        if (w.stampE.size() < T_.size()) w.stampE.resize(T_.size(), 0);
+        ++w.stampT;
         for (int a : nodes)
             for (int f : nt_[a])
-                if (stampE_[f] != stampT_) {
-                    stampE_[f] = stampT_;
+                if (w.stampE[f] != w.stampT) {
+                    w.stampE[f] = w.stampT;
                     out.push_back(f);
                 }
     }
 
-    // Elements whose R1R step is within a factor of the worst, worst first.
+    // Elements whose R1R step is within a factor of the worst, worst first. Only elements whose
+    // rows changed since their last solve are solved again.
     std::vector<int> criticalElements() {
-        std::vector<int> all;
+        Worker& w = workers_[0];
+        std::vector<int> all, stale;
         for (int e = 0; e < static_cast<int>(T_.size()); ++e)
-            if (alive_[e]) all.push_back(e);
-        evaluate(all);
+            if (alive_[e]) {
+                all.push_back(e);
+                if (dirty_[e]) stale.push_back(e);
+            }
+        evaluate(stale.data(), static_cast<int>(stale.size()), w);
+        fold();
         double top = 0;
         for (int e : all) top = std::max(top, lam_[e]);
         std::vector<int> bad;
@@ -331,6 +412,22 @@ private:
         const size_t cap = std::max<size_t>(64, all.size() / 10);
         if (bad.size() > cap) bad.resize(cap);
         return bad;
+    }
+
+    // The workers' volume changes, work and moves into the improver's, in thread order.
+    void fold() {
+        for (Worker& w : workers_) {
+            volume_ += w.dV;
+            evaluations += w.evaluations;
+            moves += w.moves;
+            w.dV = 0;
+            w.evaluations = 0;
+            w.moves = 0;
+            w.share = 1;
+        }
+    }
+    bool outOfTime(const Worker& w) const {
+        return evaluations + w.share * w.evaluations >= budget_ || WallClock::now() > deadline_;
     }
 
     // ---- boundary -------------------------------------------------------------------------------
@@ -421,10 +518,10 @@ private:
         return best;
     }
     // The boundary around node i stays within the distance bound of the old surface.
-    bool boundaryKept(int i) {
+    bool boundaryKept(int i, Worker& w) const {
         const double tol = opts_.maxBoundaryDistance * diag_;
         if (distanceToFaces(X_.col(i), ringFaces_[i]) > tol) return false;
-        std::vector<int>& patch = patch_;
+        std::vector<int>& patch = w.patch;
         for (int f : ringFaces_[i]) {
             patch.clear();
             for (int v : bf_[f])
@@ -434,25 +531,26 @@ private:
             for (const Vec3& s : samples)
                 if (distanceToFaces(s, patch) > tol) return false;
         }
-        return std::abs(volume_ - volume0_) <= opts_.maxVolumeChange * volume0_;
+        // Each of k threads may use 1/k of what is left (then all of them together stay within).
+        return std::abs(volume_ + w.share * w.dV - volume0_) <= opts_.maxVolumeChange * volume0_;
     }
 
     // ---- smoothing ------------------------------------------------------------------------------
 
     // Puts node i at p, unless an element would get flatter than kMinFlatness or than it was
-    // (floor_, per element of nt_[i], set by smoothNode): then nothing changes and false.
-    bool place(int i, const Vec3& p) {
+    // (w.floor, per element of nt_[i], set by smoothNode): then nothing changes and false.
+    bool place(int i, const Vec3& p, Worker& w) {
         const Vec3 old = X_.col(i);
         X_.col(i) = p;
         bool ok = true;
-        for (size_t k = 0; k < nt_[i].size() && ok; ++k) ok = flatness(T_[nt_[i][k]]) >= floor_[k];
+        for (size_t k = 0; k < nt_[i].size() && ok; ++k) ok = flatness(T_[nt_[i][k]]) >= w.floor[k];
         X_.col(i) = old;
         if (!ok) return false;
-        for (int e : nt_[i]) scatter(e, -1);
+        for (int e : nt_[i]) scatter(e, -1, w.dV);
         X_.col(i) = p;
         for (int e : nt_[i]) {
             geometry(e);
-            scatter(e, 1);
+            scatter(e, 1, w.dV);
         }
         return true;
     }
@@ -460,15 +558,16 @@ private:
     // Descends the soft maximum of lambda_R1R over the elements node i influences, along its
     // finite-difference gradient (in the tangent plane for a boundary node, then back onto the
     // node's original faces), accepting a step only when the local maximum does not rise.
-    bool smoothNode(int i) {
+    bool smoothNode(int i, Worker& w) {
         if (!movable_[i] || nt_[i].empty()) return false;
-        std::vector<int> ring;
+        std::vector<int>& ring = w.ring;
+        ring.clear();
         for (int e : nt_[i])
             for (int b : T_[e]) ring.push_back(b);
         std::sort(ring.begin(), ring.end());
         ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
-        std::vector<int> elems;
-        touching(ring, elems);
+        std::vector<int>& elems = w.elems;
+        touching(ring, elems, w);
         double len = 0;
         for (int b : ring)
             if (b != i) len += (X_.col(b) - X_.col(i)).norm();
@@ -489,10 +588,21 @@ private:
         }
         const bool onCrease = onBoundary && !creaseNbr_[i].empty();
         if (onCrease) t1 = (X0_.col(creaseNbr_[i][0]) - X0_.col(creaseNbr_[i][1])).normalized();
-        floor_.clear();
-        for (int e : nt_[i]) floor_.push_back(std::min(kMinFlatness, flatness(T_[e])));
-        Score best = score(elems, true);
-        bool moved = false;
+        w.floor.clear();
+        for (int e : nt_[i]) w.floor.push_back(std::min(kMinFlatness, flatness(T_[e])));
+        Score best = score(elems, w, true);
+        // The descent watches the elements that can become critical: those near the local maximum,
+        // and those of node i, whose shapes change. The others' problems change through masses and
+        // shared edges only, by far less than the factor; their soft maximum terms are < 1e-7.
+        std::vector<int>& watched = w.watched;
+        watched.clear();
+        for (int e : elems) {
+            const Tet& t = T_[e];
+            if (lam_[e] >= kWatched * w.ref || t[0] == i || t[1] == i || t[2] == i || t[3] == i) watched.push_back(e);
+        }
+        best.soft = 0;
+        for (int e : watched) best.soft += std::pow(lam_[e] / w.ref, kSoftMaxPower);
+        bool moved = false, fresh = true;  // fresh: lam_ of the watched elements is of the current rows
         for (int iter = 0; iter < 3; ++iter) {
             const Vec3 x = X_.col(i);
             const double h = 1e-4 * len;
@@ -501,14 +611,15 @@ private:
             const int nd = onCrease ? 1 : onBoundary ? 2 : 3;
             bool probeOk = true;
             for (int k = 0; k < nd && probeOk; ++k) {
-                probeOk = place(i, x + h * dirs[k]);
-                grad += dirs[k] * (score(elems).soft - best.soft) / h;
+                probeOk = place(i, x + h * dirs[k], w);
+                if (probeOk) grad += dirs[k] * (score(watched, w).soft - best.soft) / h;
             }
-            place(i, x);
+            place(i, x, w);
+            fresh = false;
             if (!probeOk || grad.squaredNorm() == 0) break;
             const Vec3 d = -grad.normalized();
             bool accepted = false;
-            const double volume = volume_;
+            const double volume = w.dV;
             for (double step = 0.3 * len; step > 1e-3 * len; step *= 0.5) {
                 Vec3 p = x + step * d;
                 if (onCrease) {
@@ -517,12 +628,12 @@ private:
                     // Slide within the old faces, then along the normal by what gives the volume
                     // back: dV = offset x (ring area / 3) to first order.
                     p = projectToRing(i, p);
-                    if (!place(i, p)) continue;
-                    const double dV = volume_ - volume;
+                    if (!place(i, p, w)) continue;
+                    const double dV = w.dV - volume;
                     p += normal * (-dV / (ringArea / 3));
                 }
-                if (!place(i, p) || (onBoundary && !boundaryKept(i))) continue;
-                const Score s = score(elems);
+                if (!place(i, p, w) || (onBoundary && !boundaryKept(i, w))) continue;
+                const Score s = score(watched, w);
                 if (s.better(best)) {
                     best = s;
                     accepted = true;
@@ -530,12 +641,16 @@ private:
                 }
             }
             if (!accepted) {
-                place(i, x);
+                place(i, x, w);
                 break;
             }
-            moved = true;
+            moved = fresh = true;
         }
-        if (moved) ++moves;
+        // The rows of elems changed: what was not solved at the final position is solved again
+        // by the next round's critical-element search.
+        if (!fresh || watched.size() < elems.size())
+            for (int e : elems) dirty_[e] = 1;
+        if (moved) ++w.moves;
         return moved;
     }
 
@@ -543,7 +658,7 @@ private:
 
     // Replaces the elements `olds` by `news` (node lists) when that lowers the local objective;
     // otherwise restores them.
-    bool tryReplace(const std::vector<int>& olds, std::vector<Tet> news) {
+    bool tryReplace(const std::vector<int>& olds, std::vector<Tet> news, Worker& w) {
         // Every new element positive and no flatter than kMinFlatness or the flattest it
         // replaces, and the volume preserved.
         double vOld = 0, vNew = 0, floor = kMinFlatness;
@@ -567,20 +682,22 @@ private:
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
         std::vector<int> elems;
-        touching(nodes, elems);
-        const Score before = score(elems, true);
+        touching(nodes, elems, w);
+        const Score before = score(elems, w, true);
         for (int e : olds) killTet(e);
         std::vector<int> added;
         for (const Tet& t : news) added.push_back(addTet(t));
-        touching(nodes, elems);
-        if (score(elems).better(before)) return true;
+        touching(nodes, elems, w);
+        if (score(elems, w).better(before)) return true;
         for (int e : added) killTet(e);
         for (int e : olds) reviveTet(e);
+        touching(nodes, elems, w);
+        for (int e : elems) dirty_[e] = 1;
         return false;
     }
 
     // 2-3 flips across the faces of element e.
-    bool flipFaces(int e) {
+    bool flipFaces(int e, Worker& w) {
         for (int o = 0; o < 4; ++o) {
             const Tet& t = T_[e];
             const int d = t[o];
@@ -601,7 +718,7 @@ private:
             if (e2 < 0) continue;
             std::vector<Tet> news = {
                 {face[0], face[1], d, other}, {face[1], face[2], d, other}, {face[2], face[0], d, other}};
-            if (tryReplace({e, e2}, news)) {
+            if (tryReplace({e, e2}, news, w)) {
                 ++flips23;
                 return true;
             }
@@ -610,7 +727,7 @@ private:
     }
 
     // 3-2 flips of the interior edges of element e that have exactly three elements around them.
-    bool flipEdges(int e) {
+    bool flipEdges(int e, Worker& w) {
         for (int a = 0; a < 4; ++a)
             for (int b = a + 1; b < 4; ++b) {
                 const int p = T_[e][a], q = T_[e][b];
@@ -627,7 +744,7 @@ private:
                 if (ringUse.size() != 3) continue;  // an open ring: the edge is on the boundary
                 std::vector<int> r;
                 for (const auto& [c, uses] : ringUse) r.push_back(c);
-                if (tryReplace(around, {{r[0], r[1], r[2], p}, {r[0], r[1], r[2], q}})) {
+                if (tryReplace(around, {{r[0], r[1], r[2], p}, {r[0], r[1], r[2], q}}, w)) {
                     ++flips32;
                     return true;
                 }
@@ -636,7 +753,7 @@ private:
     }
 
     // Collapses the shortest edge of element e that has an interior, movable end into its other end.
-    bool collapseShortest(int e) {
+    bool collapseShortest(int e, Worker& w) {
         std::array<std::pair<double, std::pair<int, int>>, 12> cand;
         int nc = 0;
         for (int a = 0; a < 4; ++a)
@@ -664,7 +781,7 @@ private:
             }
             if (aliveCount_ - removed < (1 - opts_.maxElementLoss) * elements0_) return false;
             if (!manifoldAfter(q, olds, news)) continue;
-            if (tryReplace(olds, news)) {
+            if (tryReplace(olds, news, w)) {
                 ++collapses;
                 return true;
             }
@@ -703,13 +820,14 @@ private:
     Eigen::Matrix3Xd X_, X0_;                  // current and original positions
     std::vector<std::vector<int>> creaseNbr_;  // feature-edge neighbours of a boundary node
     std::vector<Tet> T_;
-    std::vector<char> alive_;
+    std::vector<char> alive_, dirty_;  // dirty: rows changed since lam_ was solved
     std::vector<double> V_, lam_;
+    std::vector<std::array<int, 16>> slot_;  // element's block (a, b) at blk_[T_[e][a]][slot[4 a + b]]
     std::vector<Mat34, Eigen::aligned_allocator<Mat34>> g_;
     std::vector<std::vector<int>> nt_, nbr_;
     std::vector<std::vector<Eigen::Matrix3d, Eigen::aligned_allocator<Eigen::Matrix3d>>> blk_;
     std::vector<double> vs_;
-    double volume_ = 0, volume0_ = 0, diag_ = 0, ref_ = 1;
+    double volume_ = 0, volume0_ = 0, diag_ = 0;
     int elements0_ = 0, aliveCount_ = 0;
     long long budget_ = 0;
     WallClock::time_point deadline_;
@@ -717,65 +835,26 @@ private:
     std::vector<std::array<int, 3>> bf_;
     std::vector<Tri> faces0_;
     std::vector<std::vector<int>> ringFaces_;
-    std::vector<int> patch_;
-    std::vector<double> floor_;
-    std::vector<unsigned> stampN_, stampE_;
-    unsigned stamp_ = 0, stampT_ = 0;
-    std::vector<Mat12, Eigen::aligned_allocator<Mat12>> mats_;
-    std::vector<double> out_;
+    std::vector<unsigned> stampN_;
+    unsigned stamp_ = 0;
+    std::vector<Worker> workers_;  // one per thread; workers_[0] is the calling thread's
 };
 
 }  // namespace
-
-MeshStepStats meshStepStats(const TetMesh& mesh, const Material& material) {
-    MeshStepStats s;
-    const Model m = buildModel(mesh, material);
-    const StiffnessRows rows = assembleStiffnessRows(m);
-    s.nodes = m.nodes();
-    s.tets = m.elements();
-    s.dtExact = exactCriticalDt(m, rows).dt;
-    s.dtCertified = certifiedDt(m, rows);
-    ElementEstimates est;
-    estimateElements(m, rows, assembleStiffnessDiagonal(m), nullptr, est);
-    s.dtR1R = est.r1r.size() ? est.r1r.minCoeff() : 0.0;
-    s.minDihedralDeg = minDihedralDeg(mesh);
-    s.volume = totalVolume(mesh);
-    return s;
-}
-
-double surfaceDistance(const TetMesh& from, const TetMesh& to) {
-    const Eigen::Matrix3Xi F = boundaryFaces(from), G = boundaryFaces(to);
-    // Each old face's bounding sphere prunes the exact point-triangle distances.
-    std::vector<Vec3> centre(F.cols());
-    std::vector<double> radius(F.cols());
-    for (int f = 0; f < F.cols(); ++f) {
-        centre[f] = (from.X.col(F(0, f)) + from.X.col(F(1, f)) + from.X.col(F(2, f))) / 3;
-        radius[f] = 0;
-        for (int k = 0; k < 3; ++k) radius[f] = std::max(radius[f], (from.X.col(F(k, f)) - centre[f]).norm());
-    }
-    auto distance = [&](const Vec3& p) {
-        double best = std::numeric_limits<double>::infinity();
-        for (int f = 0; f < F.cols(); ++f) {
-            if ((p - centre[f]).norm() - radius[f] >= best) continue;
-            const Vec3 c = closestPointOnTriangle(p, from.X.col(F(0, f)), from.X.col(F(1, f)), from.X.col(F(2, f)));
-            best = std::min(best, (c - p).norm());
-        }
-        return best;
-    };
-    double worst = 0;
-    for (int g = 0; g < G.cols(); ++g) {
-        const Vec3 p0 = to.X.col(G(0, g)), p1 = to.X.col(G(1, g)), p2 = to.X.col(G(2, g));
-        for (const Vec3& s :
-             {p0, p1, p2, Vec3((p0 + p1) / 2), Vec3((p1 + p2) / 2), Vec3((p2 + p0) / 2), Vec3((p0 + p1 + p2) / 3)})
-            worst = std::max(worst, distance(s));
-    }
-    return worst;
-}
 
 ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     const auto start = WallClock::now();
     const auto deadline =
         start + std::chrono::duration_cast<WallClock::duration>(std::chrono::duration<double>(opts.maxSeconds));
+    const int threads =
+        opts.threads > 0 ? opts.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+    // The Lanczos solves and statistics would otherwise start OpenMP teams of all cores, on top
+    // of the improver's own threads.
+    struct SerialOpenMP {
+        int before = omp_get_max_threads();
+        SerialOpenMP() { omp_set_num_threads(1); }
+        ~SerialOpenMP() { omp_set_num_threads(before); }
+    } serial;
     ImproveReport r;
     double tStats = 0, tSmooth = 0, tTopo = 0, tExact = 0;
     auto t0 = WallClock::now();
@@ -783,7 +862,7 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     tStats += secondsSince(t0);
     r.history.push_back({secondsSince(start), r.before.dtExact});
 
-    Improver imp(mesh, opts);
+    Improver imp(mesh, opts, threads);
     imp.setLimits(opts.maxEvaluations > 0 ? opts.maxEvaluations
                                           : std::max<long long>(kMinEvaluations, kEvaluationsPerTet * mesh.elements()),
                   deadline);
@@ -823,7 +902,7 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     best.source = mesh.source;
     mesh = std::move(best);
     t0 = WallClock::now();
-    r.after = meshStepStats(mesh, opts.material);
+    r.after = stepStats(mesh, opts.material, bestDt);  // the kept mesh's exact step is known
     tStats += secondsSince(t0);
     r.volumeChange = (r.after.volume - r.before.volume) / r.before.volume;
     r.seconds = {

@@ -17,8 +17,8 @@ struct ImproveOptions {
     Material material;
     double targetDt = 0;                 // stop once the exact step reaches it (0: no target) [s]
     long long maxEvaluations = 0;        // work budget in reduced-one-ring eigenvalue problems, the
-                                         // unit that makes a run deterministic; 0: 200 per element
-                                         // (at least 1e5), about 1.2 s per 10,000 elements on one core
+                                         // unit that makes a run deterministic; 0: 140 per element
+                                         // (at least 1e5)
     double maxSeconds = 60;              // wall-time limit besides [s]
     int maxRounds = 40;                  // rounds of smoothing then flips
     bool smooth = true;                  // move nodes
@@ -33,6 +33,8 @@ struct ImproveOptions {
                                          // the volume and distance bounds alone keep the shape [deg]
     double maxElementLoss = 0.05;        // collapses may remove at most this share of the elements [-]
     std::vector<int> fixedNodes;         // nodes that must not move (a scene's fixed region)
+    int threads = 1;                     // threads that smooth disjoint parts at once; a result depends
+                                         // on this count, not on timing (0: one per core)
     // Called after each round with the round, the seconds so far and the exact step of the
     // round's mesh; for a progress bar.
     std::function<void(int round, double seconds, double dtExact)> progress;

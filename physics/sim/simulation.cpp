@@ -387,6 +387,7 @@ void Simulation::improveOnLoad(TetMesh& mesh) {
     const SceneDef& sc = sc_;
     ImproveOptions o = sc.improveOptions;
     o.material = sc.material;
+    if (opt_.threads > 0) o.threads = opt_.threads;
     for (const auto& reg : sc.fixed) {
         const auto nodes = selectNodes(reg, mesh.X);
         o.fixedNodes.insert(o.fixedNodes.end(), nodes.begin(), nodes.end());
