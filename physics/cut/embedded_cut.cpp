@@ -364,14 +364,17 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         if (added) it->second = windingNumber(cache.tree, rest(p, w));
         return it->second;
     };
-    // Where the surface crosses the segment from a to b (their sides differ), as a fraction of it:
-    // bisection on the winding number to 2^-12 of the segment, so a cap's rim follows the surface
-    // instead of the staircase a linear interpolant of the (step-like) winding number draws.
+    // Where the surface crosses the segment from a to b (their sides differ), as a fraction of it,
+    // so a cap's rim follows the surface instead of the staircase a linear interpolant of the
+    // (step-like) winding number draws: the first triangle the segment meets, or where none does
+    // (a hole, a gap in a self-intersecting surface) bisection on the winding number to 2^-12.
     auto crossingAt = [&](int p, const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
         const bool flip = std::lexicographical_compare(b.data(), b.data() + 4, a.data(), a.data() + 4);
         const Eigen::Vector4d& u = flip ? b : a;
         const Eigen::Vector4d& v = flip ? a : b;
         const auto [it, added] = cache.crossing.try_emplace({p, {u[0], u[1], u[2], u[3], v[0], v[1], v[2], v[3]}}, 0.0);
+        if (added && firstCrossing(cache.tree, rest(p, u), rest(p, v), it->second))
+            return flip ? 1 - it->second : it->second;
         if (added) {
             const bool in = windingAt(p, u) >= 0.5;
             double lo = 0, hi = 1;

@@ -115,6 +115,44 @@ double windingNumber(const WindingTree& t, const Eigen::Vector3d& q) {
     return w / (4 * std::numbers::pi);
 }
 
+bool firstCrossing(const WindingTree& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double& at) {
+    if (t.nodes.empty()) return false;
+    const SurfaceMesh& s = *t.surface;
+    const Eigen::Vector3d d = b - a;
+    const Eigen::Vector3d lo = a.cwiseMin(b), hi = a.cwiseMax(b);
+    double best = 2;
+    int stack[128];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const WindingTree::Node& n = t.nodes[stack[--top]];
+        if ((n.lo.array() > hi.array()).any() || (n.hi.array() < lo.array()).any()) continue;
+        if (n.count == 0) {
+            stack[top++] = n.left;
+            stack[top++] = n.right;
+            continue;
+        }
+        for (int k = n.first; k < n.first + n.count; ++k) {
+            const int f = t.order[k];
+            const Eigen::Vector3d p0 = s.V.col(s.F(0, f)), e1 = s.V.col(s.F(1, f)) - p0, e2 = s.V.col(s.F(2, f)) - p0;
+            const Eigen::Vector3d h = d.cross(e2);
+            const double det = e1.dot(h);
+            if (std::abs(det) < 1e-300) continue;  // the segment lies in the triangle's plane
+            const Eigen::Vector3d r = a - p0;
+            const double u = r.dot(h) / det;
+            if (u < 0 || u > 1) continue;
+            const Eigen::Vector3d q = r.cross(e1);
+            const double v = d.dot(q) / det;
+            if (v < 0 || u + v > 1) continue;
+            const double s0 = e2.dot(q) / det;
+            if (s0 >= 0 && s0 <= 1) best = std::min(best, s0);
+        }
+    }
+    if (best > 1) return false;
+    at = best;
+    return true;
+}
+
 SurfaceCheck checkSurface(const SurfaceMesh& s) {
     SurfaceCheck c;
     // Directed edge counts keyed by (min, max) vertex; +1 for min -> max, +2^20 for max -> min.

@@ -42,6 +42,11 @@ double windingNumberExact(const SurfaceMesh& s, const Eigen::Vector3d& q);
 // Winding number at q through the hierarchy (exact near q, dipole terms far away).
 double windingNumber(const WindingTree& t, const Eigen::Vector3d& q);
 
+// The first point where the segment from a to b meets a triangle of the surface, as a fraction
+// of the segment in [0, 1] (Moller & Trumbore 1997, through the tree's boxes); false when it
+// meets none.
+bool firstCrossing(const WindingTree& t, const Eigen::Vector3d& a, const Eigen::Vector3d& b, double& at);
+
 // Edge health of a surface: a closed oriented surface has every edge used exactly twice, once in each direction.
 struct SurfaceCheck {
     int openEdges = 0;         // edges used by one triangle
