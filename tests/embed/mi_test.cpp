@@ -72,6 +72,20 @@ TEST(Winding, BoxSurfaceIsClosedAndOutward) {
     EXPECT_NEAR(windingNumberExact(b, {1.5, 1, 1.5}), 0.0, 1e-12);
 }
 
+TEST(Winding, FirstCrossingOfASegment) {
+    // The box [0,1]x[0,2]x[0,3]: from (0.5, 1, 1.5) to (3, 1, 1.5) the segment leaves through
+    // x = 1 at 0.5 / 2.5 = 0.2 of it; from (-1, 1, 1.5) to (2, 1, 1.5) it enters at x = 0 (1/3)
+    // before leaving at x = 1; a segment inside meets nothing.
+    const SurfaceMesh b = boxSurface({0, 0, 0}, {1, 2, 3});
+    const WindingTree tree = buildWindingTree(b);
+    double at = -1;
+    ASSERT_TRUE(firstCrossing(tree, {0.5, 1, 1.5}, {3, 1, 1.5}, at));
+    EXPECT_NEAR(at, 0.2, 1e-14);
+    ASSERT_TRUE(firstCrossing(tree, {-1, 1, 1.5}, {2, 1, 1.5}, at));
+    EXPECT_NEAR(at, 1.0 / 3, 1e-14);
+    EXPECT_FALSE(firstCrossing(tree, {0.2, 0.5, 0.5}, {0.8, 1.5, 2.5}, at));
+}
+
 TEST(Winding, TreeMatchesExactSumOnTheBunny) {
     const SurfaceMesh s = readSurfaceMesh(test::data("surface/igl_bunny.off"));
     const WindingTree tree = buildWindingTree(s);
