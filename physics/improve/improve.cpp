@@ -8,6 +8,7 @@
 // thesis's liver and armadillo; docs/method.md sec. 3). Moving a node or flipping changes the rows
 // of a few nodes only, so each trial re-solves the 12x12 problems of the elements touching them.
 #include "improve/improve.hpp"
+#include "improve/boundary.hpp"
 #include "improve/partition.hpp"
 #include "improve/stats.hpp"
 
@@ -36,7 +37,6 @@ using Vec3 = Eigen::Vector3d;
 using Tet = std::array<int, 4>;
 using Tri = std::array<Vec3, 3>;
 
-constexpr double kPi = 3.14159265358979323846;
 // 6 V / l_max^3 of an accepted element: far from flat (the regular tet has 0.71) and far above the
 // readers' kMinTetFlatness, so an improved mesh always loads.
 constexpr double kMinFlatness = 1e-3;
@@ -97,9 +97,9 @@ public:
         volume0_ = volume_;
         const Vec3 lo = X_.rowwise().minCoeff(), hi = X_.rowwise().maxCoeff();
         diag_ = (hi - lo).norm();
-        setUpBoundary(mesh);
+        b0_.build(mesh, opts_.featureAngleDeg, opts_.moveBoundary);
         for (int i : opts_.fixedNodes)
-            if (i >= 0 && i < n) movable_[i] = 0;
+            if (i >= 0 && i < n) b0_.movable[i] = 0;
     }
 
     double diagonal() const { return diag_; }
@@ -140,15 +140,15 @@ public:
     double boundaryDistance(const Eigen::Matrix3Xd& X) const {
         double worst = 0;
         std::vector<int> patch;
-        for (int f = 0; f < static_cast<int>(bf_.size()); ++f) {
-            const auto& t = bf_[f];
+        for (int f = 0; f < static_cast<int>(b0_.faces.size()); ++f) {
+            const auto& t = b0_.faces[f];
             if (X.col(t[0]) == X0_.col(t[0]) && X.col(t[1]) == X0_.col(t[1]) && X.col(t[2]) == X0_.col(t[2])) continue;
             patch.clear();
             for (int v : t)
-                for (int g : ringFaces_[v]) patch.push_back(g);
+                for (int g : b0_.ring[v]) patch.push_back(g);
             const Vec3 p0 = X.col(t[0]), p1 = X.col(t[1]), p2 = X.col(t[2]);
             const Vec3 samples[7] = {p0, p1, p2, (p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
-            for (const Vec3& s : samples) worst = std::max(worst, distanceToFaces(s, patch));
+            for (const Vec3& s : samples) worst = std::max(worst, b0_.distance(s, patch));
         }
         return worst;
     }
@@ -203,7 +203,7 @@ private:
             for (int a : T_[e]) {
                 if (stampN_[a] == stamp_) continue;
                 stampN_[a] = stamp_;
-                if (movable_[a] && !nt_[a].empty()) nodes.push_back(a);
+                if (b0_.movable[a] && !nt_[a].empty()) nodes.push_back(a);
             }
         }
         bool changed = false;
@@ -432,104 +432,19 @@ private:
 
     // ---- boundary -------------------------------------------------------------------------------
 
-    void setUpBoundary(const TetMesh& mesh) {
-        const int n = mesh.nodes();
-        movable_.assign(n, 1);
-        boundary_.assign(n, 0);
-        ringFaces_.assign(n, {});
-        const Eigen::Matrix3Xi F = boundaryFaces(mesh);
-        for (int f = 0; f < F.cols(); ++f) {
-            bf_.push_back({F(0, f), F(1, f), F(2, f)});
-            faces0_.push_back({X_.col(F(0, f)), X_.col(F(1, f)), X_.col(F(2, f))});
-            for (int k = 0; k < 3; ++k) {
-                boundary_[F(k, f)] = 1;
-                ringFaces_[F(k, f)].push_back(f);
-            }
-        }
-        // Feature edges: boundary edges whose two faces turn by more than the feature angle.
-        const double cosFeature = std::cos(opts_.featureAngleDeg * kPi / 180);
-        std::map<std::pair<int, int>, std::vector<int>> edgeFaces;
-        for (int f = 0; f < static_cast<int>(bf_.size()); ++f)
-            for (int k = 0; k < 3; ++k) {
-                const int u = bf_[f][k], v = bf_[f][(k + 1) % 3];
-                edgeFaces[{std::min(u, v), std::max(u, v)}].push_back(f);
-            }
-        creaseNbr_.assign(n, {});
-        std::vector<char> nonManifold(n, 0);
-        for (const auto& [edge, fs] : edgeFaces) {
-            if (fs.size() != 2) {
-                nonManifold[edge.first] = nonManifold[edge.second] = 1;
-                continue;
-            }
-            if (faceNormal(faces0_[fs[0]]).normalized().dot(faceNormal(faces0_[fs[1]]).normalized()) < cosFeature) {
-                creaseNbr_[edge.first].push_back(edge.second);
-                creaseNbr_[edge.second].push_back(edge.first);
-            }
-        }
-        for (int i = 0; i < n; ++i) {
-            if (!boundary_[i]) continue;
-            if (!opts_.moveBoundary || nonManifold[i]) {
-                movable_[i] = 0;
-                continue;
-            }
-            // A disk: every edge from i is on exactly two of its faces.
-            std::map<int, int> edgeUse;
-            for (int f : ringFaces_[i])
-                for (int v : bf_[f])
-                    if (v != i) ++edgeUse[v];
-            bool disk = true;
-            for (const auto& [v, c] : edgeUse) disk = disk && c == 2;
-            // Free on a smooth patch, along the crease between two feature edges, fixed at a corner.
-            const size_t creases = creaseNbr_[i].size();
-            movable_[i] = disk && (creases == 0 || creases == 2);
-        }
-    }
-    static Vec3 faceNormal(const Tri& t) { return (t[1] - t[0]).cross(t[2] - t[0]); }
-
-    double distanceToFaces(const Vec3& p, const std::vector<int>& faces) const {
-        double best = std::numeric_limits<double>::infinity();
-        for (int f : faces) {
-            const Tri& t = faces0_[f];
-            best = std::min(best, (closestPointOnTriangle(p, t[0], t[1], t[2]) - p).squaredNorm());
-        }
-        return std::sqrt(best);
-    }
-    // Closest point on the node's two original crease segments.
-    Vec3 projectToCrease(int i, const Vec3& p) const {
-        Vec3 best = p;
-        double bd = std::numeric_limits<double>::infinity();
-        const Vec3 o = X0_.col(i);
-        for (int k : creaseNbr_[i]) {
-            const Vec3 q = X0_.col(k), d = q - o;
-            const Vec3 c = o + d * std::clamp((p - o).dot(d) / d.squaredNorm(), 0.0, 1.0);
-            if ((c - p).squaredNorm() < bd) bd = (c - p).squaredNorm(), best = c;
-        }
-        return best;
-    }
-    Vec3 projectToRing(int i, const Vec3& p) const {
-        Vec3 best = p;
-        double bd = std::numeric_limits<double>::infinity();
-        for (int f : ringFaces_[i]) {
-            const Tri& t = faces0_[f];
-            const Vec3 c = closestPointOnTriangle(p, t[0], t[1], t[2]);
-            const double d = (c - p).squaredNorm();
-            if (d < bd) bd = d, best = c;
-        }
-        return best;
-    }
     // The boundary around node i stays within the distance bound of the old surface.
     bool boundaryKept(int i, Worker& w) const {
         const double tol = opts_.maxBoundaryDistance * diag_;
-        if (distanceToFaces(X_.col(i), ringFaces_[i]) > tol) return false;
+        if (b0_.distance(X_.col(i), b0_.ring[i]) > tol) return false;
         std::vector<int>& patch = w.patch;
-        for (int f : ringFaces_[i]) {
+        for (int f : b0_.ring[i]) {
             patch.clear();
-            for (int v : bf_[f])
-                for (int g : ringFaces_[v]) patch.push_back(g);
-            const Vec3 p0 = X_.col(bf_[f][0]), p1 = X_.col(bf_[f][1]), p2 = X_.col(bf_[f][2]);
+            for (int v : b0_.faces[f])
+                for (int g : b0_.ring[v]) patch.push_back(g);
+            const Vec3 p0 = X_.col(b0_.faces[f][0]), p1 = X_.col(b0_.faces[f][1]), p2 = X_.col(b0_.faces[f][2]);
             const Vec3 samples[4] = {(p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
             for (const Vec3& s : samples)
-                if (distanceToFaces(s, patch) > tol) return false;
+                if (b0_.distance(s, patch) > tol) return false;
         }
         // Each of k threads may use 1/k of what is left (then all of them together stay within).
         return std::abs(volume_ + w.share * w.dV - volume0_) <= opts_.maxVolumeChange * volume0_;
@@ -559,7 +474,7 @@ private:
     // finite-difference gradient (in the tangent plane for a boundary node, then back onto the
     // node's original faces), accepting a step only when the local maximum does not rise.
     bool smoothNode(int i, Worker& w) {
-        if (!movable_[i] || nt_[i].empty()) return false;
+        if (!b0_.movable[i] || nt_[i].empty()) return false;
         std::vector<int>& ring = w.ring;
         ring.clear();
         for (int e : nt_[i])
@@ -573,12 +488,13 @@ private:
             if (b != i) len += (X_.col(b) - X_.col(i)).norm();
         len /= std::max<size_t>(1, ring.size() - 1);
 
-        const bool onBoundary = boundary_[i];
+        const bool onBoundary = b0_.onBoundary[i];
         Vec3 t1 = Vec3::UnitX(), t2 = Vec3::UnitY(), t3 = Vec3::UnitZ(), normal = Vec3::Zero();
         double ringArea = 0;
         if (onBoundary) {
-            for (int f : ringFaces_[i]) {
-                const Vec3 c = (X_.col(bf_[f][1]) - X_.col(bf_[f][0])).cross(X_.col(bf_[f][2]) - X_.col(bf_[f][0]));
+            for (int f : b0_.ring[i]) {
+                const Vec3 c = (X_.col(b0_.faces[f][1]) - X_.col(b0_.faces[f][0]))
+                                   .cross(X_.col(b0_.faces[f][2]) - X_.col(b0_.faces[f][0]));
                 normal += c;
                 ringArea += 0.5 * c.norm();
             }
@@ -586,8 +502,8 @@ private:
             t1 = normal.unitOrthogonal();
             t2 = normal.cross(t1);
         }
-        const bool onCrease = onBoundary && !creaseNbr_[i].empty();
-        if (onCrease) t1 = (X0_.col(creaseNbr_[i][0]) - X0_.col(creaseNbr_[i][1])).normalized();
+        const bool onCrease = onBoundary && !b0_.crease[i].empty();
+        if (onCrease) t1 = (X0_.col(b0_.crease[i][0]) - X0_.col(b0_.crease[i][1])).normalized();
         w.floor.clear();
         for (int e : nt_[i]) w.floor.push_back(std::min(kMinFlatness, flatness(T_[e])));
         Score best = score(elems, w, true);
@@ -623,11 +539,11 @@ private:
             for (double step = 0.3 * len; step > 1e-3 * len; step *= 0.5) {
                 Vec3 p = x + step * d;
                 if (onCrease) {
-                    p = projectToCrease(i, p);
+                    p = b0_.projectToCrease(i, p, X0_);
                 } else if (onBoundary) {
                     // Slide within the old faces, then along the normal by what gives the volume
                     // back: dV = offset x (ring area / 3) to first order.
-                    p = projectToRing(i, p);
+                    p = b0_.projectToRing(i, p);
                     if (!place(i, p, w)) continue;
                     const double dV = w.dV - volume;
                     p += normal * (-dV / (ringArea / 3));
@@ -760,7 +676,7 @@ private:
             for (int b = 0; b < 4; ++b) {
                 if (a == b) continue;
                 const int p = T_[e][a], q = T_[e][b];
-                if (boundary_[p] || !movable_[p]) continue;
+                if (b0_.onBoundary[p] || !b0_.movable[p]) continue;
                 cand[nc++] = {(X_.col(p) - X_.col(q)).squaredNorm(), {p, q}};
             }
         std::sort(cand.begin(), cand.begin() + nc);
@@ -817,8 +733,7 @@ private:
     const ImproveOptions& opts_;
     Material mat_;
     double lame_ = 0, mu_ = 0, rq_ = 0;
-    Eigen::Matrix3Xd X_, X0_;                  // current and original positions
-    std::vector<std::vector<int>> creaseNbr_;  // feature-edge neighbours of a boundary node
+    Eigen::Matrix3Xd X_, X0_;  // current and original positions
     std::vector<Tet> T_;
     std::vector<char> alive_, dirty_;  // dirty: rows changed since lam_ was solved
     std::vector<double> V_, lam_;
@@ -831,10 +746,7 @@ private:
     int elements0_ = 0, aliveCount_ = 0;
     long long budget_ = 0;
     WallClock::time_point deadline_;
-    std::vector<char> movable_, boundary_;
-    std::vector<std::array<int, 3>> bf_;
-    std::vector<Tri> faces0_;
-    std::vector<std::vector<int>> ringFaces_;
+    ReferenceBoundary b0_;  // the input's boundary, which moved nodes must stay near
     std::vector<unsigned> stampN_;
     unsigned stamp_ = 0;
     std::vector<Worker> workers_;  // one per thread; workers_[0] is the calling thread's

@@ -1,0 +1,32 @@
+// The input mesh's boundary as the improver keeps it (docs/method.md sec. 4): moved boundary nodes
+// slide on their original faces or crease segments and stay within a distance of the old surface.
+#pragma once
+
+#include "mesh/mesh.hpp"
+
+#include <Eigen/Core>
+
+#include <array>
+#include <vector>
+
+namespace cutsim {
+
+struct ReferenceBoundary {
+    std::vector<std::array<int, 3>> faces;             // boundary triangles (node indices)
+    std::vector<std::array<Eigen::Vector3d, 3>> tris;  // their original corners [m]
+    std::vector<std::vector<int>> ring;                // faces around each node
+    std::vector<std::vector<int>> crease;              // feature-edge neighbours of each node
+    std::vector<char> onBoundary, movable;             // per node: movable on a disk, a crease, or inside
+
+    // Faces, rings and feature edges (faces turning by more than featureAngleDeg) of `mesh`; a
+    // boundary node moves when moveBoundary, on a manifold disk, not at a corner of creases.
+    void build(const TetMesh& mesh, double featureAngleDeg, bool moveBoundary);
+    // Distance from p to the nearest original face of `of` [m].
+    double distance(const Eigen::Vector3d& p, const std::vector<int>& of) const;
+    // Closest point on node i's original crease segments (X0: original positions).
+    Eigen::Vector3d projectToCrease(int i, const Eigen::Vector3d& p, const Eigen::Matrix3Xd& X0) const;
+    // Closest point on node i's original faces.
+    Eigen::Vector3d projectToRing(int i, const Eigen::Vector3d& p) const;
+};
+
+}  // namespace cutsim
