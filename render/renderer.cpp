@@ -710,7 +710,7 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
 
     // An auto-resized window takes the size of its previous frame's content (and a new one is
     // hidden on its first frame): lay it out once without drawing, so a line added this frame (a
-    // cut's answered count) is inside the panel. Costs microseconds.
+    // cut's answered count) is inside the panel (layout only: nothing is drawn).
     if (opts_.hud) {
         ImGui_ImplOpenGL3_NewFrame();
         ImGui::NewFrame();

@@ -96,7 +96,7 @@ struct CutEngine::SplitCache {
     const EmbeddedSurface* original = nullptr;
     int vertices = 0, faces = 0;
     SurfaceMesh rest;  // the original at rest [m]
-    WindingTree tree;  // of rest (built on first need)
+    WindingTree tree;  // of rest
     double tinyArea = 0;
     // Each original triangle's parts in the parents it crosses, clipped to their inner faces (CSR by triangle).
     std::vector<int> partStart;

@@ -208,7 +208,8 @@ private:
 
     // What surface(m, original) keeps of an original surface between calls: its rest positions,
     // winding tree, triangle parts per parent and the winding numbers sampled so far. All of the
-    // uncut rest configuration, so never stale; a copy of the engine starts without them.
+    // uncut rest configuration, so never stale; a copy of the engine starts without them. Keyed
+    // by the original's address: it must stay the same object while the engine serves it.
     struct SplitCache;
     struct SplitSlot {
         std::vector<std::shared_ptr<SplitCache>> caches;  // one per original surface (touched, drawn)
