@@ -206,6 +206,10 @@ void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
         m.triPiece[t] = l;
         m.pieces[static_cast<size_t>(l)]->tris.push_back(static_cast<int>(t));
     }
+    m.pointPiece.assign(static_cast<size_t>(m.pts.points()), -1);
+    for (size_t t = 0; t < nt; ++t)
+        for (int k = m.pts.triStart[t]; k < m.pts.triStart[t + 1]; ++k)
+            m.pointPiece[static_cast<size_t>(m.pts.triPoints[static_cast<size_t>(k)])] = m.triPiece[t];
     m.nodePiece.resize(m.surfNodes.size());
     for (size_t k = 0; k < m.surfNodes.size(); ++k) {
         const int l = label[static_cast<size_t>(uf.find(m.surfNodes[k]))];
@@ -252,12 +256,31 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         for (auto& pc : pieces) pc->drift = 0, pc->refitted = true;
     } else {
         for (auto& pc : pieces) {
-            double dr = 0;  // in a register: the pass is most of what a tool away costs
-            for (const int k : pc->nodes) dr = std::max(dr, moved(x, static_cast<size_t>(k)));
+            double dr = 0, mv = 0;  // in registers: the pass is most of what a tool away costs
+            if (pc->nearValid)
+                for (size_t i = 0; i < pc->nodes.size(); ++i) {
+                    const auto k = static_cast<size_t>(pc->nodes[i]);
+                    dr = std::max(dr, moved(x, k));
+                    mv = std::max(
+                        mv, (x.col(surfNodes[k]) - pc->snap.col(static_cast<Eigen::Index>(i))).cwiseAbs().maxCoeff());
+                }
+            else
+                for (const int k : pc->nodes) dr = std::max(dr, moved(x, static_cast<size_t>(k)));
             pc->drift = dr;
+            pc->nearMove = mv;
             pc->refitted = false;
         }
     }
+    // which pieces keep their static colliders' points from an earlier query
+    const bool statics = !colliders.empty();
+    if (statics)
+        for (auto& pc : pieces) {
+            pc->nearFresh =
+                !(pc->nearValid && std::sqrt(3.0) * wSum * pc->nearMove <= nearBand - kSpeculative * margin);
+            if (!pc->nearFresh) continue;
+            pc->near.assign(shapes.size(), {});
+            pc->nearValid = false;
+        }
     for (auto& pc : pieces) {
         pc->drift *= wSum;
         if (!pc->bounds(pc->around)) continue;  // a shape away from the whole piece costs no more than this
@@ -273,10 +296,12 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         for (size_t i = 0; i < partsA.size(); ++i, ++o) {
             now[o] = bt(pa) * bt(partsA[i].local);
             other[o] = bt(pb) * bt(partsB[i].local);
+            // a tool at rest keeps its box in the broad phase
+            if (objects[o]->getWorldTransform() == now[o]) continue;
             objects[o]->setWorldTransform(now[o]);
+            world.updateSingleAabb(objects[o].get());
         }
     }
-    if (!tools.empty()) world.updateAabbs();
     // 3. per shape: the bound-volume test per piece, then candidates from its tree, then signed
     // distances. The projection also takes points just outside (speculative contacts, as Box2D
     // keeps resting contact): they may close the gap in this step but not pass it, so a point
@@ -300,18 +325,28 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         // those that reach the box are the candidates
         const int ignored =
             sh.tool < 0 || ignoredCut.empty() || P.triCut.empty() ? -1 : ignoredCut[static_cast<size_t>(sh.tool)];
+        // a static collider's band: points within it are kept by pieces that query the trees now
+        const bool fixedShape = sh.tool < 0;
+        const double band = fixedShape ? nearBand : 0.0;
+        btDbvtVolume banded = box;
+        banded.Expand(btVector3(band, band, band));
         for (auto& pc : pieces) {
             if (pc->empty()) continue;
-            if (sh.plane ? !(belowPlane(pc->around, planeN, planeO) < 0) : !Intersect(pc->around, box)) continue;
+            if (fixedShape && !pc->nearFresh) {
+                const auto& kept = pc->near[o];
+                candidates.insert(candidates.end(), kept.begin(), kept.end());
+                continue;
+            }
+            if (sh.plane ? !(belowPlane(pc->around, planeN, planeO) < band) : !Intersect(pc->around, banded)) continue;
             buildTrees(*pc);
             // a piece that moved far as a whole (sagging, falling) is refitted in one pass, which
             // brings its drift back down; else only where the shape may reach
             if (!pc->refitted && pc->drift > kRefitAll * fat) refitMoved(*pc, x, v, dt);
             const double reach = pc->refitted ? 0.0 : pc->drift;
-            btDbvtVolume region = box;
+            btDbvtVolume region = banded;
             region.Expand(btVector3(reach, reach, reach));
             auto reaches = [&](const btDbvtVolume& vol, double by, const btDbvtVolume& b) {
-                return sh.plane ? belowPlane(vol, planeN, planeO) < by : Intersect(vol, b);
+                return sh.plane ? belowPlane(vol, planeN, planeO) < by + band : Intersect(vol, b);
             };
             visited.clear();
             resetting.clear();
@@ -338,12 +373,11 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             }
             resetNodes(resetting.data(), resetting.data() + resetting.size(), x, v, dt);
             for (const int t : visited)
-                if (reaches(leaves[static_cast<size_t>(t)]->volume, 0, box)) candidates.push_back(t);
+                if (reaches(leaves[static_cast<size_t>(t)]->volume, 0, banded)) triangles.push_back(t);
         }
 
-        if (candidates.empty()) continue;
-        // the candidate triangles' points, each once
-        const size_t ntri = candidates.size();
+        if (candidates.empty() && triangles.empty()) continue;
+        // the candidate triangles' points, each once, after the points kept
         if (++query == std::numeric_limits<int>::max()) {
             std::fill(stamp.begin(), stamp.end(), -1);
             query = 0;
@@ -354,16 +388,17 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         const btTransform back = sh.tool >= 0 ? other[o] * now[o].inverse() : btTransform::getIdentity();
         const btVector3 bc = frame.getOrigin();
         const double br = sh.radius;
-        btDbvtVolume near = box;  // what a point must reach to be tested
-        near.Expand(btVector3(speculative, speculative, speculative));
-        for (size_t c = 0; c < ntri; ++c) {
-            const int t = candidates[c];
+        const double within = std::max(speculative, band);  // what a point must reach to be tested
+        const double brw = br + band;
+        btDbvtVolume near = box;
+        near.Expand(btVector3(within, within, within));
+        for (const int t : triangles) {
             // the triangle's points lie in the box of its vertices: a box away from the shape's
             // box, or from its bounding sphere, leaves them all out (as the test per point would)
             for (int k = 0; k < 3; ++k) place(x, P.triangles(k, t));
             const btDbvtVolume tb = triangleBox(xp, P.triangles, t);
-            if (sh.plane ? !(belowPlane(tb, planeN, planeO) < speculative)
-                         : !Intersect(tb, near) || boxDistance2(tb, bc) > br * br * (1 + 1e-9))
+            if (sh.plane ? !(belowPlane(tb, planeN, planeO) < within)
+                         : !Intersect(tb, near) || boxDistance2(tb, bc) > brw * brw * (1 + 1e-9))
                 continue;
             for (int k = P.triStart[static_cast<size_t>(t)]; k < P.triStart[static_cast<size_t>(t) + 1]; ++k) {
                 const int p = P.triPoints[static_cast<size_t>(k)];
@@ -372,9 +407,9 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
                 candidates.push_back(p);
             }
         }
-        candidates.erase(candidates.begin(), candidates.begin() + static_cast<std::ptrdiff_t>(ntri));
+        triangles.clear();
         // in point order: the contacts, and the projection's sweeps over them, do not depend on
-        // the trees' state
+        // the trees' state (nor on whether a piece kept its points)
         std::sort(candidates.begin(), candidates.end());
         for (int p : candidates) {
             place(x, p);
@@ -384,16 +419,20 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             if (sh.plane) {
                 n = planeN;
                 d = planeN.dot(xp.col(p) - planeO);
-                if (!(d < speculative)) continue;
             } else {
                 // bounding sphere of the part about its origin: points outside it need no distance
-                if (q.distance2(bc) > br * br) continue;
+                if (q.distance2(bc) > brw * brw) continue;
                 if (!closedFormDistance(sh.part, frame, q, d, n)) {
                     btGjkEpaSolver2::sResults res;
                     d = btGjkEpaSolver2::SignedDistance(q, 0, btShapes[o].get(), frame, res);
                     n = eig(res.normal);
                 }
             }
+            if (fixedShape && d < band) {
+                Piece& pc = *pieces[static_cast<size_t>(pointPiece[static_cast<size_t>(p)])];
+                if (pc.nearFresh) pc.near[o].push_back(p);
+            }
+            if (sh.plane && !(d < speculative)) continue;
             ++st.tested;
             if (!(d < speculative) || !std::isfinite(d)) continue;
             if (!n.allFinite() || std::abs(n.norm() - 1) > 1e-6) continue;
@@ -418,6 +457,16 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
                 ++st.colliderContacts, st.colliderDepth = std::max(st.colliderDepth, -d);
         }
     }
+    // the pieces that queried the trees keep their points until they move
+    if (statics)
+        for (auto& pc : pieces)
+            if (pc->nearFresh) {
+                pc->snap.resize(3, static_cast<Eigen::Index>(pc->nodes.size()));
+                for (size_t i = 0; i < pc->nodes.size(); ++i)
+                    pc->snap.col(static_cast<Eigen::Index>(i)) = x.col(surfNodes[static_cast<size_t>(pc->nodes[i])]);
+                pc->nearValid = true;
+                pc->nearFresh = false;
+            }
     // 4. pieces pressed into each other
     if (withPieces && pieceContact && pieces.size() > 1 && restPts.cols() == P.points()) {
         for (auto& pc : pieces)

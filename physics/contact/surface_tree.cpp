@@ -26,6 +26,9 @@ void ContactWorld::Impl::build(const Eigen::Matrix3Xd& x) {
     }
     fat = std::max(minFat, kLeafFat * extent / std::max(nt, 1));
     leafMargin = 0.5 * fat;
+    // not fat: a collider-only world's minFat is a centimetre, and every point within the band is
+    // tested at every step
+    nearBand = kSpeculative * margin + kNearBand * kLeafFat * extent / std::max(nt, 1);
     trigger = leafMargin / (2 * std::max(wSum, 1e-300));
     leaves.assign(static_cast<size_t>(nt), nullptr);
     for (size_t k = 0; k < surfNodes.size(); ++k) xRef.col(static_cast<Eigen::Index>(k)) = x.col(surfNodes[k]);

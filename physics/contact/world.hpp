@@ -32,6 +32,9 @@ inline constexpr double kSpeculative = 0.1;
 inline constexpr double kRefitAll = 2;
 // Leaf fattening as a fraction of the surface's mean triangle extent.
 inline constexpr double kLeafFat = 0.05;
+// Band around the static colliders beyond the speculative reach, in leaf fattenings (without the
+// least fattening), whose points a piece keeps between queries.
+inline constexpr double kNearBand = 2;
 
 // One shape the surface can touch: a part of a tool (moving on its keyframes) or a static collider.
 struct Shape {
@@ -82,6 +85,15 @@ struct Piece {
     bool refitted = false;     // this step
     btDbvtVolume around;       // its root grown by drift
     int facing = 1;            // +1: triangles counter-clockwise from outside; -1: from inside; 0: encloses nothing
+    // Static colliders without a tree query per step (resting contact costs what touches): the
+    // points within nearBand of each collider when `snap` (its nodes, as in `nodes`) was taken.
+    // No other point can reach a collider until one of its nodes moved (nearBand - speculative) /
+    // (sqrt(3) wSum) along an axis since: then the trees are queried again.
+    Eigen::Matrix3Xd snap;
+    std::vector<std::vector<int>> near;  // per shape (tools' stay empty), ascending
+    bool nearValid = false;
+    double nearMove = 0;     // this step: largest per-axis move of its nodes since snap [m]
+    bool nearFresh = false;  // this step queries the trees and takes the lists and snap anew
     btDbvt& treeOf(int cut) {
         for (size_t i = 0; i < treeCut.size(); ++i)
             if (treeCut[i] == cut) return trees[i];
@@ -131,8 +143,10 @@ struct ContactWorld::Impl {
     ContactPoints pts;
     std::vector<int> ignoredCut;  // per tool: the cut whose faces it does not touch, or -1
     std::vector<std::unique_ptr<Piece>> pieces;
-    std::vector<int> triPiece;   // piece of each triangle (nTris)
-    std::vector<int> nodePiece;  // piece of each surface node (surfNodes)
+    std::vector<int> triPiece;    // piece of each triangle (nTris)
+    std::vector<int> pointPiece;  // piece of each point (nPoints)
+    double nearBand = 2e-3;       // how far from a static collider a piece keeps its points [m]
+    std::vector<int> nodePiece;   // piece of each surface node (surfNodes)
     std::vector<btDbvtNode*>
         leaves;            // (nTris): each triangle's box in its piece's tree, grown by `leafMargin` at the last refit
     double margin = 5e-4;  // contact reach: speculative contacts and piece contact (fat / 2) [m]
@@ -160,7 +174,8 @@ struct ContactWorld::Impl {
     Eigen::Matrix3Xd xp;     // point positions (3 x nPoints) [m], computed for candidates only
     std::vector<int> stamp;  // last query that visited each point (nPoints)
     int query = 0;
-    std::vector<int> candidates;             // triangles, then points
+    std::vector<int> triangles;              // a shape's candidate triangles
+    std::vector<int> candidates;             // their points, and those kept (Piece::near)
     std::vector<const btDbvtNode*> walk;     // the tree traversal's stack
     std::vector<btDbvtNode*> mergeStack;     // inner nodes merged bottom up
     std::vector<std::pair<int, int>> pairs;  // triangles of two pieces whose boxes overlap

@@ -3,6 +3,7 @@
 // bisection, the mass scale by hand, explicit steps of an MI slab pressed over its whole top face:
 // bounded at the limit, diverging above it), tool paths, and the element broad phase against a scan.
 #include "contact/broadphase.hpp"
+#include "contact/collider.hpp"
 #include "contact/contact.hpp"
 #include "contact/tool.hpp"
 #include "embed/mi.hpp"
@@ -226,6 +227,54 @@ TEST(Contact, FarToolTestsNothingAndMovedSurfaceIsFollowed) {
         EXPECT_EQ(w.last().contacts, fresh.last().contacts) << stepsToMove;
         EXPECT_NEAR((w.last().reaction[0] - fresh.last().reaction[0]).norm(), 0, 1e-9) << stepsToMove;
     }
+}
+
+// Static colliders keep the points near them between queries (Piece::near): a slab bobbing 3 mm
+// above and 0.2 mm into a floor plane, and into and out of a box over its top face, shaken each
+// step by up to 0.05 mm at random (so the kept points serve on some steps and are queried again on
+// others), gets bitwise the contacts and the projection of a world made afresh each step, which
+// queries its trees every time.
+TEST(Contact, CollidersKeepTheirNearPointsExactly) {
+    Slab s;
+    auto colliders = [] {
+        ColliderDef floor;  // under the slab's bottom face (z = 0)
+        ColliderDef box;    // over a corner of its top face (z = 0.02), 2.5 mm above it
+        box.kind = ColliderDef::Kind::Box;
+        box.size << 0.02, 0.02, 0.01;
+        box.pose.position = {0.0, 0.0, 0.0325};
+        return std::vector<ColliderDef>{floor, box};
+    };
+    ContactWorld kept({}, colliders());
+    kept.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0.004));
+    const Eigen::VectorXd invMass = Eigen::VectorXd::Ones(s.mesh.X.cols());
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    int contacts = 0, touching = 0;
+    // then a slow steady descent onto the floor, which finds any slack in the bound on the move
+    for (int step = 0; step < 700; ++step) {
+        // the slab's height: from 0.2 mm into the floor to 0.5 mm into the box, then down from 5 mm
+        const bool bobbing = step < 200;
+        const double h = bobbing ? -2e-4 + 3.2e-3 * (0.5 - 0.5 * std::cos(0.1 * step)) : 5e-3 - 1e-5 * (step - 200);
+        Eigen::Matrix3Xd x = s.mesh.X;
+        x.row(2).array() += h;
+        if (bobbing)
+            for (Eigen::Index i = 0; i < x.cols(); ++i) x.col(i) += 5e-5 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+        Eigen::Matrix3Xd v = Eigen::Matrix3Xd::Zero(3, x.cols());
+        v.row(2).setConstant(-5);  // 0.5 mm a step: speculative contacts hold it
+        Eigen::Matrix3Xd x2 = x, v2 = v;
+        kept.project(invMass, step * 1e-4, 1e-4, x, v);
+        ContactWorld fresh({}, colliders());
+        fresh.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0.004));
+        fresh.project(invMass, step * 1e-4, 1e-4, x2, v2);
+        ASSERT_EQ(kept.last().colliderContacts, fresh.last().colliderContacts) << step;
+        ASSERT_EQ(kept.last().colliderDepth, fresh.last().colliderDepth) << step;
+        ASSERT_TRUE(x == x2 && v == v2) << step;
+        contacts += kept.last().colliderContacts;
+        touching += kept.last().colliderContacts > 0;
+    }
+    EXPECT_GT(contacts, 2000);
+    EXPECT_GT(touching, 100);  // the slab touched the floor, the box, or neither, in turns
+    EXPECT_LT(touching, 600);
 }
 
 TEST(Contact, HullFromObjActsLikeItsShape) {
