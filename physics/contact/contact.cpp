@@ -547,7 +547,10 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
         tc.mass = w > 0 ? 1.0 / w : 0.0;  // 0: on fixed nodes only, nothing to move
     }
     // velocities: no approach, friction within the cone
-    for (int it = 0; it < kProjectionIterations; ++it)
+    // Sweeps stop early once one changes no contact's velocity by more than kSettledSpeed (or its
+    // position by kSettledMove): a resting contact, or contacts sharing no node, need one or two.
+    for (int it = 0, settled = 0; it < kProjectionIterations && !settled; ++it) {
+        double change = 0;
         for (Touch& tc : m.touches) {
             if (tc.mass == 0) continue;
             // the normal speed is held against the world, not the tool: a tool moves what it presses
@@ -557,6 +560,7 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             const double allowed = tc.depth < 0 && dt > 0 ? tc.depth / dt : 0.0;  // a gap may close, no more
             const double lambda = std::max(0.0, tc.lambda + tc.mass * (allowed - tc.n_.dot(rel)));
             applyTo(v, tc, (lambda - tc.lambda) * tc.n_);
+            change = std::max(change, std::abs(lambda - tc.lambda) / tc.mass);
             tc.lambda = lambda;
             if (!(tc.friction > 0)) continue;
             rel = m.combine(v, tc) - tc.vWall;
@@ -564,17 +568,24 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             const double cap = tc.friction * tc.lambda, len = t.norm();
             if (len > cap) t *= cap / len;
             applyTo(v, tc, t - tc.tangent);
+            change = std::max(change, (t - tc.tangent).norm() / tc.mass);
             tc.tangent = t;
         }
+        settled = change <= kSettledSpeed;
+    }
     // positions: back onto the surface, depths linearised about the detected points
-    for (int it = 0; it < kProjectionIterations; ++it)
+    for (int it = 0, settled = 0; it < kProjectionIterations && !settled; ++it) {
+        double change = 0;
         for (Touch& tc : m.touches) {
             if (tc.mass == 0) continue;
             const double depth = tc.depth - tc.n_.dot(m.combine(x, tc) - tc.c0);
             const double push = std::max(0.0, tc.push + tc.mass * depth);
             applyTo(x, tc, (push - tc.push) * tc.n_);
+            change = std::max(change, std::abs(push - tc.push) / tc.mass);
             tc.push = push;
         }
+        settled = change <= kSettledMove;
+    }
     // the reaction on each tool: minus the momentum given to the tissue over the step
     for (const Touch& tc : m.touches) {
         if (tc.mass > 0 && tc.depth > 0)

@@ -100,8 +100,12 @@ double stableStiffness(const ContactPoints& pts, const Model& model, double dt, 
 // tool on alternate steps gains energy near the limit (tests/contact/contact_test.cpp).
 inline constexpr double kDefaultStiffnessFraction = 0.5;
 
-// Gauss-Seidel sweeps of the projection over its contacts (velocities, then positions).
+// Gauss-Seidel sweeps of the projection over its contacts (velocities, then positions), at most;
+// they stop after a sweep that changed no contact's velocity by more than kSettledSpeed [m/s] (or
+// its position by more than kSettledMove [m]).
 inline constexpr int kProjectionIterations = 8;
+inline constexpr double kSettledSpeed = 1e-9;
+inline constexpr double kSettledMove = 1e-12;
 
 // What contact did in the last step.
 struct ContactStep {
