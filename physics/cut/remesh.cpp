@@ -1,5 +1,7 @@
 #include "cut/remesh.hpp"
 
+#include "mesh/generate.hpp"
+
 #ifdef CUTSIM_HAVE_TETGEN
 #include <tetgen.h>
 #endif
@@ -365,6 +367,7 @@ RemeshResult remeshPieces(const TetMesh& mesh, const RemeshOptions& opts) {
     for (size_t i = 0; i < X.size(); ++i) m.X.col(static_cast<Eigen::Index>(i)) = X[i];
     m.tets.resize(4, static_cast<Eigen::Index>(T.size()));
     for (size_t t = 0; t < T.size(); ++t) m.tets.col(static_cast<Eigen::Index>(t)) = T[t];
+    m = spatialOrder(m);  // TetGen's order is arbitrary: threads would share most nodes
     rep.nodes = m.nodes();
     rep.tets = m.elements();
     rep.minVolume = std::numeric_limits<double>::infinity();

@@ -1,6 +1,7 @@
 #include "mesh/generate.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <unordered_map>
 #include <vector>
 #include <utility>
@@ -72,6 +73,57 @@ TetMesh refineTets(const TetMesh& mesh) {
     for (int t = 0; t < out.elements(); ++t)
         if (tetSignedVolume(out, t) < 0) std::swap(out.tets(2, t), out.tets(3, t));
     out.source = mesh.source + " (refined)";
+    return out;
+}
+
+TetMesh spatialOrder(const TetMesh& mesh) {
+    const int ne = mesh.elements(), nn = mesh.nodes();
+    if (ne == 0) return mesh;
+    Eigen::Matrix3Xd c(3, ne);
+    for (int e = 0; e < ne; ++e)
+        c.col(e) = 0.25 * (mesh.X.col(mesh.tets(0, e)) + mesh.X.col(mesh.tets(1, e)) + mesh.X.col(mesh.tets(2, e)) +
+                           mesh.X.col(mesh.tets(3, e)));
+    const Eigen::Vector3d lo = c.rowwise().minCoeff(), span = (c.rowwise().maxCoeff() - lo).cwiseMax(1e-300);
+    // 21 bits per axis, interleaved
+    auto spread = [](std::uint64_t v) {
+        v &= 0x1fffff;
+        v = (v | v << 32) & 0x1f00000000ffffULL;
+        v = (v | v << 16) & 0x1f0000ff0000ffULL;
+        v = (v | v << 8) & 0x100f00f00f00f00fULL;
+        v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+        v = (v | v << 2) & 0x1249249249249249ULL;
+        return v;
+    };
+    std::vector<std::pair<std::uint64_t, int>> key(static_cast<size_t>(ne));
+    for (int e = 0; e < ne; ++e) {
+        std::uint64_t code = 0;
+        for (int k = 0; k < 3; ++k) {
+            const double u = std::clamp((c(k, e) - lo(k)) / span(k), 0.0, 1.0);
+            code |= spread(static_cast<std::uint64_t>(u * 2097151.0)) << k;
+        }
+        key[static_cast<size_t>(e)] = {code, e};
+    }
+    std::sort(key.begin(), key.end());  // ties in element order: deterministic
+    std::vector<int> newNode(static_cast<size_t>(nn), -1);
+    int next = 0;
+    TetMesh out;
+    out.source = mesh.source;
+    out.tets.resize(4, ne);
+    for (int e = 0; e < ne; ++e)
+        for (int k = 0; k < 4; ++k) {
+            int& n = newNode[static_cast<size_t>(mesh.tets(k, key[static_cast<size_t>(e)].second))];
+            if (n < 0) n = next++;
+            out.tets(k, e) = n;
+        }
+    for (int& n : newNode)
+        if (n < 0) n = next++;  // nodes of no element keep their relative order, last
+    out.X.resize(3, nn);
+    if (!mesh.nodeIds.empty()) out.nodeIds.resize(static_cast<size_t>(nn));
+    for (int i = 0; i < nn; ++i) {
+        out.X.col(newNode[static_cast<size_t>(i)]) = mesh.X.col(i);
+        if (!mesh.nodeIds.empty())
+            out.nodeIds[static_cast<size_t>(newNode[static_cast<size_t>(i)])] = mesh.nodeIds[static_cast<size_t>(i)];
+    }
     return out;
 }
 

@@ -22,4 +22,10 @@ TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz, BoxSpli
 // their indices (midpoints are appended), so values on the coarse nodes compare directly.
 TetMesh refineTets(const TetMesh& mesh);
 
+// The same mesh with its elements in Z-order (Morton) of their centroids and its nodes in the order
+// the elements first use them: elements near in memory are near in space, so a thread's range of
+// elements shares few nodes with another's, and their nodes share cache lines. A mesher's output
+// order (TetGen's) is arbitrary. nodeIds follow their nodes.
+TetMesh spatialOrder(const TetMesh& mesh);
+
 }  // namespace cutsim

@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <array>
+#include <numeric>
+#include <random>
 #include <set>
+#include <vector>
 
 using namespace cutsim;
 
@@ -81,4 +84,67 @@ TEST(BoxMesh, MirroredSplitIsConformingAndSymmetric) {
         EXPECT_EQ(reflectedTets(m, nx, ny, nz, axis), self) << "axis " << axis;
         EXPECT_NE(reflectedTets(kuhn, nx, ny, nz, axis), selfKuhn) << "axis " << axis;
     }
+}
+
+namespace {
+// Nodes used both by elements [0, n/2) and by elements [n/2, n): what two threads' halves share.
+int sharedByHalves(const TetMesh& m) {
+    std::vector<int> side(static_cast<size_t>(m.nodes()), 0);
+    const int half = m.elements() / 2;
+    for (int e = 0; e < m.elements(); ++e)
+        for (int k = 0; k < 4; ++k) side[static_cast<size_t>(m.tets(k, e))] |= e < half ? 1 : 2;
+    return static_cast<int>(std::count(side.begin(), side.end(), 3));
+}
+}  // namespace
+
+// spatialOrder renumbers a shuffled 12^3-cube box (10,368 tets): the same tets on the same points,
+// each with its orientation, the node ids following their nodes; and the two halves of its
+// elements (the Z-order's first bit: the mid-plane) share the 13 x 13 nodes of that plane, where
+// the shuffled order's halves share nearly all 2,197.
+TEST(BoxMesh, SpatialOrderIsAPermutationThatHalvesShareLittleOf) {
+    TetMesh box = test::boxMesh(1.0, 1.0, 1.0, 12, 12, 12);
+    std::mt19937 rng(3);
+    std::vector<int> perm(static_cast<size_t>(box.nodes())), order(static_cast<size_t>(box.elements()));
+    std::iota(perm.begin(), perm.end(), 0);
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(perm.begin(), perm.end(), rng);
+    std::shuffle(order.begin(), order.end(), rng);
+    TetMesh shuffled;
+    shuffled.X.resize(3, box.nodes());
+    shuffled.tets.resize(4, box.elements());
+    shuffled.nodeIds.resize(static_cast<size_t>(box.nodes()));
+    for (int i = 0; i < box.nodes(); ++i) {
+        shuffled.X.col(perm[static_cast<size_t>(i)]) = box.X.col(i);
+        shuffled.nodeIds[static_cast<size_t>(perm[static_cast<size_t>(i)])] = 1000 + i;
+    }
+    for (int e = 0; e < box.elements(); ++e)
+        for (int k = 0; k < 4; ++k)
+            shuffled.tets(k, e) = perm[static_cast<size_t>(box.tets(k, order[static_cast<size_t>(e)]))];
+
+    const TetMesh m = spatialOrder(shuffled);
+    ASSERT_EQ(m.nodes(), box.nodes());
+    ASSERT_EQ(m.elements(), box.elements());
+    // the same tets: each as its four corner points, in its corner order (orientation kept)
+    auto corners = [](const TetMesh& t) {
+        std::multiset<std::array<double, 12>> s;
+        for (int e = 0; e < t.elements(); ++e) {
+            std::array<double, 12> c{};
+            for (int k = 0; k < 4; ++k)
+                for (int d = 0; d < 3; ++d) c[static_cast<size_t>(3 * k + d)] = t.X(d, t.tets(k, e));
+            s.insert(c);
+        }
+        return s;
+    };
+    EXPECT_TRUE(corners(m) == corners(box));
+    for (int i = 0; i < m.nodes(); ++i) {  // id 1000 + i was box node i
+        const int was = static_cast<int>(m.nodeIds[static_cast<size_t>(i)]) - 1000;
+        EXPECT_EQ(m.X.col(i), box.X.col(was)) << i;
+    }
+    for (int e = 0; e < m.elements(); ++e) EXPECT_GT(tetSignedVolume(m, e), 0);
+    const int before = sharedByHalves(shuffled), after = sharedByHalves(m);
+    EXPECT_GT(before, 2000);
+    EXPECT_EQ(after, 13 * 13);
+    // deterministic
+    const TetMesh again = spatialOrder(shuffled);
+    EXPECT_TRUE(again.tets == m.tets && again.X == m.X);
 }

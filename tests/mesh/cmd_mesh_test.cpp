@@ -40,6 +40,22 @@ TEST(CutsimMesh, JsonOnGoodTetMesh) {
     EXPECT_LT(j["bbox_min"][0].get<double>(), j["bbox_max"][0].get<double>());
 }
 
+// --spatial-order writes the same mesh renumbered: counts, volume and boundary as the input's.
+TEST(CutsimMesh, SpatialOrderWritesTheSameMesh) {
+    const std::string out = test::tempDir() + "/liver2_ordered.msh";
+    std::string text, err;
+    ASSERT_EQ(test::runCutsim("mesh " + test::data("tet/sofa_liver2.msh") + " --spatial-order --out " + out + " --json",
+                              &text, &err),
+              0)
+        << err;
+    const TetMesh in = readTetMesh(test::data("tet/sofa_liver2.msh")), m = readTetMesh(out);
+    EXPECT_EQ(m.nodes(), in.nodes());
+    EXPECT_EQ(m.elements(), in.elements());
+    EXPECT_NEAR(totalVolume(m), totalVolume(in), 1e-9 * totalVolume(in));
+    EXPECT_EQ(boundaryFaces(m).cols(), boundaryFaces(in).cols());
+    EXPECT_FALSE(m.tets == in.tets);  // renumbered
+}
+
 TEST(CutsimMesh, JsonOnSurfaceWithScale) {
     std::string out, err;
     ASSERT_EQ(test::runCutsim("mesh " + test::data("surface/sofa_liver.obj") + " --scale 0.01 --json", &out, &err), 0)
