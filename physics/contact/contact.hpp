@@ -13,7 +13,9 @@
 // visited and their moved nodes' triangles refitted, in place (contact/surface_tree.cpp), and a
 // candidate triangle whose own box misses the tool's leaves its points untested. The trees are
 // made only when a shape first comes near after the surface changed, and the faces of a blade's
-// own cut sit in a tree of their own that the blade skips.
+// own cut sit in a tree of their own that the blade skips. A static collider is queried through the
+// trees only when a piece moved enough since the last query for a new point to reach it: in between
+// the piece tests the points it kept within a band of the collider (resting contact costs its points).
 // Points are interpolated only when their triangle is a candidate.
 // This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.
