@@ -586,6 +586,9 @@ SceneDef parseScene(const json& j, const std::string& file) {
                              ? ContactModel::Penalty
                              : ContactModel::Projection;
         s.pieceContact = c.boolean("pieces", false);
+        if (s.pieceContact && s.contactModel == ContactModel::Penalty)
+            throw InputError(c.file() + ": " + c.path() +
+                             ".pieces: contact between pieces needs contact.model \"projection\" (penalty has none)");
         s.pieceFriction = c.number("piece_friction", s.pieceFriction, 0, 10);
         s.contactSpacing = c.number("spacing", 0, 0, 1e3);
         s.forceRate = c.number("force_rate", 1000, 0, 1e9, true);

@@ -437,10 +437,10 @@ void Simulation::chooseAndApply(bool initial) {
 }
 
 void Simulation::setupContact() {
-    // Contact: a Bullet world only when the scene has tools or colliders. The projection model has
-    // no stiffness; the penalty model's stays below the limit that keeps this step stable
-    // (contact/contact.hpp stableStiffness).
-    if (sc_.tools.empty() && sc_.colliders.empty()) return;
+    // Contact: a Bullet world only when the scene has tools, colliders or contact between pieces.
+    // The projection model has no stiffness; the penalty model's stays below the limit that keeps
+    // this step stable (contact/contact.hpp stableStiffness).
+    if (sc_.tools.empty() && sc_.colliders.empty() && !sc_.pieceContact) return;
     const double dt = choice_.dt;
     const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
     const bool penalty = sc_.contactModel == ContactModel::Penalty;
