@@ -38,6 +38,31 @@ json cubeOverFloor(double friction, const Eigen::Vector3d& gravity) {  // mass d
     return j;
 }
 
+// Centre of mass (and its velocity, into v) of the nodes of the pieces that hold no fixed node.
+Eigen::Vector3d freeCentre(const Simulation& sim, Eigen::Vector3d* v = nullptr) {
+    const Model& m = sim.model();
+    std::vector<int> root(static_cast<size_t>(m.nodes()));
+    std::iota(root.begin(), root.end(), 0);
+    auto find = [&](int a) {
+        while (root[static_cast<size_t>(a)] != a) a = root[static_cast<size_t>(a)];
+        return a;
+    };
+    for (int e = 0; e < m.elements(); ++e)
+        for (int k = 1; k < 4; ++k) root[static_cast<size_t>(find(m.tets(k, e)))] = find(m.tets(0, e));
+    std::vector<char> held(static_cast<size_t>(m.nodes()), 0);
+    for (int i = 0; i < m.nodes(); ++i) held[static_cast<size_t>(find(i))] |= m.fixed[static_cast<size_t>(i)];
+    double mass = 0;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero(), mv = Eigen::Vector3d::Zero();
+    for (int i = 0; i < m.nodes(); ++i)
+        if (!held[static_cast<size_t>(find(i))]) {
+            mass += m.mass(i);
+            c += m.mass(i) * sim.state().x.col(i);
+            mv += m.mass(i) * sim.state().v.col(i);
+        }
+    if (v) *v = mv / mass;
+    return c / mass;
+}
+
 double lowest(const Simulation& sim) { return sim.state().x.row(1).minCoeff() + 0.01; }  // above the floor
 
 // Falling 1 cm takes 45 ms; the cube lands, stays on the floor (no point deeper than one step's
@@ -86,7 +111,6 @@ TEST(Collider, DemoProbeDoesNotSinkIn) {
     EXPECT_LT(sim.contact()->last().residualDepth, 1e-5);
 }
 
-// A collider needs a known kind and its keys; errors name them.
 // A 2 x 2 x 4 cm column held at its base and cut through at mid-height (XFEM, at t = 0): its top
 // half rests on its bottom half under gravity when pieces touch (contact.pieces, with no tool or
 // collider in the scene), and falls through it when they do not. Measured on the free piece's
@@ -104,37 +128,13 @@ TEST(Collider, CutPiecesRestOnEachOther) {
         })");
         j["contact"]["pieces"] = pieces;
         Simulation sim = makeSim(j);
-        // the piece without a fixed node: its centre of mass at the cut and at the end
-        auto centre = [&](Eigen::Vector3d* v) {
-            const Model& m = sim.model();
-            std::vector<int> root(static_cast<size_t>(m.nodes()));
-            std::iota(root.begin(), root.end(), 0);
-            auto find = [&](int a) {
-                while (root[static_cast<size_t>(a)] != a) a = root[static_cast<size_t>(a)];
-                return a;
-            };
-            for (int e = 0; e < m.elements(); ++e)
-                for (int k = 1; k < 4; ++k) root[static_cast<size_t>(find(m.tets(k, e)))] = find(m.tets(0, e));
-            std::vector<char> held(static_cast<size_t>(m.nodes()), 0);
-            for (int i = 0; i < m.nodes(); ++i) held[static_cast<size_t>(find(i))] |= m.fixed[static_cast<size_t>(i)];
-            double mass = 0;
-            Eigen::Vector3d c = Eigen::Vector3d::Zero(), mv = Eigen::Vector3d::Zero();
-            for (int i = 0; i < m.nodes(); ++i)
-                if (!held[static_cast<size_t>(find(i))]) {
-                    mass += m.mass(i);
-                    c += m.mass(i) * sim.state().x.col(i);
-                    mv += m.mass(i) * sim.state().v.col(i);
-                }
-            if (v) *v = mv / mass;
-            return Eigen::Vector3d(c / mass);
-        };
         sim.step();  // the cut
         EXPECT_EQ(sim.record().cutsMade, 1);
-        const Eigen::Vector3d start = centre(nullptr);
+        const Eigen::Vector3d start = freeCentre(sim);
         while (sim.step() == RunStatus::Running) {}
         EXPECT_EQ(sim.status(), RunStatus::Finished) << sim.message();
         Eigen::Vector3d v;
-        const double drop = start.z() - centre(&v).z();
+        const double drop = start.z() - freeCentre(sim, &v).z();
         return std::make_pair(drop, v.norm());
     };
     const auto [dropTouching, speed] = run(true);
@@ -143,6 +143,28 @@ TEST(Collider, CutPiecesRestOnEachOther) {
     EXPECT_GT(run(false).first, 0.05);  // without contact it falls through the bottom half
 }
 
+// blade.json severs the liver's front lobe by 0.47 s; it falls 3.5 cm onto the floor and stays on
+// it: from 1 s to the end (1.5 s) its centre of mass stays 1.3-1.7 cm above the floor (about 1.5)
+// and no surface point is 1 mm into it. It does not come to rest: its nodes keep a vibration the
+// projection feeds at 0.9 of the exact step, which moves the centre by tenths of a millimetre
+// (docs/method.md, Contact).
+TEST(Collider, BladesLobeLandsAndStaysOnTheFloor) {
+    Simulation sim(loadScene(test::source("assets/scenes/blade.json")), SimulationOptions{1, false});
+    sim.advance(1.0);
+    ASSERT_EQ(sim.contact()->pieces(), 2);
+    double deepest = 0, low = 1, high = -1;
+    do {
+        deepest = std::max(deepest, sim.contact()->last().colliderDepth);
+        const double above = freeCentre(sim).y() + 0.03;  // the floor is at y = -0.03
+        low = std::min(low, above), high = std::max(high, above);
+    } while (sim.step() == RunStatus::Running);
+    ASSERT_EQ(sim.status(), RunStatus::Finished) << sim.message();
+    EXPECT_GT(low, 0.013);
+    EXPECT_LT(high, 0.017);
+    EXPECT_LT(deepest, 1e-3);
+}
+
+// A collider needs a known kind and its keys; errors name them.
 TEST(Collider, BadCollidersNameTheKey) {
     json j = cubeOverFloor(0.5, {0, -9.81, 0});
     j["colliders"][0]["kind"] = "cone";
