@@ -43,6 +43,9 @@ constexpr double kNearReach = 2.0;       // local improvement: elements this man
 
 struct CutStepArgs {
     bool json = false, tiny = false;
+    long long problems = 0;  // the budgeted improvement's work, 0: NearPlaneOptions::budgeted's
+    int freeNodes = 0;       // and its free nodes, 0: budgeted's
+    std::string only;        // one method alone (its name), else all
 };
 
 // One object with its four planes and the uncut reference values.
@@ -123,22 +126,33 @@ public:
 
 struct Method {
     std::string name;
-    std::function<std::unique_ptr<MethodRun>(const BenchObject&, bool tiny)> start;
+    std::function<std::unique_ptr<MethodRun>(const BenchObject&, const CutStepArgs&)> start;
 };
 
 // Conforming subdivision (thesis sec. 5.2): the mesh is cut and the model rebuilt; optionally the
-// elements near the plane are improved (sec. 5.1), every other node fixed.
+// elements near the plane are improved (sec. 5.1), every other node fixed: within the budget of
+// NearPlaneOptions::budgeted, or at the full setting (100 problems per region element, every
+// critical element, rounds judged by the exact step).
+enum class Improve : std::uint8_t { None, Budgeted, Full };
 class SubdivisionRun : public MethodRun {
 public:
-    SubdivisionRun(const BenchObject& o, bool improve, bool tiny)
-        : o_(o), mesh_(o.mesh), improve_(improve), tiny_(tiny) {}
+    SubdivisionRun(const BenchObject& o, Improve improve, const CutStepArgs& a)
+        : o_(o), mesh_(o.mesh), improve_(improve) {
+        near_ = NearPlaneOptions::budgeted(o.dt0);
+        if (a.problems > 0) near_.maxProblems = a.problems;
+        if (a.freeNodes > 0) near_.maxFreeNodes = a.freeNodes;
+        if (improve == Improve::Full) {
+            near_ = NearPlaneOptions{.dtCritical = o.dt0, .reach = kNearReach};
+            if (a.tiny) near_.rounds = 2, near_.maxSeconds = 2;
+        }
+    }
     CutMeasure cut(const CutPlane& plane) override {
         CutMeasure r;
         Stopwatch sw;
         mesh_ = conformingCut(mesh_, plane, ConformingOptions{}).mesh;
         r.cutSeconds = sw.lap();
-        if (improve_) {
-            improveNearPlane(mesh_, plane, o_.material, o_.dt0, kNearReach, tiny_ ? 2 : 4, tiny_ ? 2 : 10);
+        if (improve_ != Improve::None) {
+            improveNearPlane(mesh_, plane, o_.material, near_);
             r.improveSeconds = sw.lap();
         }
         model_ = buildModel(mesh_, o_.material);
@@ -155,7 +169,8 @@ private:
     TetMesh mesh_;
     Model model_;
     TimestepAnalyzer ta_;
-    bool improve_, tiny_;
+    Improve improve_;
+    NearPlaneOptions near_;
 };
 
 // XFEM virtual elements (thesis sec. 2.3): the model is cut in place and the step analysis updated
@@ -204,14 +219,21 @@ private:
 
 // The rows of the tables; a further method is one more entry.
 std::vector<Method> methods() {
+    auto subdivision = [](Improve improve) {
+        return [improve](const BenchObject& o, const CutStepArgs& a) {
+            return std::make_unique<SubdivisionRun>(o, improve, a);
+        };
+    };
+    auto xfem = [](XfemMode mode) {
+        return [mode](const BenchObject& o, const CutStepArgs&) { return std::make_unique<XfemRun>(o, mode); };
+    };
     return {
-        {"subdivision",
-         [](const BenchObject& o, bool tiny) { return std::make_unique<SubdivisionRun>(o, false, tiny); }},
-        {"subdivision+improve",
-         [](const BenchObject& o, bool tiny) { return std::make_unique<SubdivisionRun>(o, true, tiny); }},
-        {"xfem", [](const BenchObject& o, bool) { return std::make_unique<XfemRun>(o, XfemMode::Plain); }},
-        {"xfem+floor", [](const BenchObject& o, bool) { return std::make_unique<XfemRun>(o, XfemMode::Floor); }},
-        {"xfem+hybrid", [](const BenchObject& o, bool) { return std::make_unique<XfemRun>(o, XfemMode::Hybrid); }},
+        {"subdivision", subdivision(Improve::None)},
+        {"subdivision+improve", subdivision(Improve::Budgeted)},
+        {"subdivision+improve-full", subdivision(Improve::Full)},
+        {"xfem", xfem(XfemMode::Plain)},
+        {"xfem+floor", xfem(XfemMode::Floor)},
+        {"xfem+hybrid", xfem(XfemMode::Hybrid)},
     };
 }
 
@@ -257,7 +279,7 @@ int runCutStep(const CutStepArgs& a) {
                     "floor's or the hybrid's update); mass: floor's added mass [%%]; cost: "
                     "wall s per simulated s at %.2f dt after cut 4\n",
                     kCriticalShare, kFloor);
-        std::printf("%-6s %-20s %3s %6s %9s %7s %8s %6s %8s %8s %8s %8s %7s %8s\n", "object", "method", "cut", "tets",
+        std::printf("%-6s %-24s %3s %6s %9s %7s %8s %6s %8s %8s %8s %8s %7s %8s\n", "object", "method", "cut", "tets",
                     "dt", "ratio", "critical", "share", "cut", "update", "improve", "floor", "mass", "cost");
     }
     j["objects"] = json::array();
@@ -273,10 +295,11 @@ int runCutStep(const CutStepArgs& a) {
             jo["planes"].push_back({{"point", {p.point.x(), p.point.y(), p.point.z()}},
                                     {"normal", {p.normal.x(), p.normal.y(), p.normal.z()}}});
         if (!a.json)
-            std::printf("%-6s %-20s %3d %6d %9.4f %7.4f %8d %6.3f\n", o.name.c_str(), "uncut", 0, o.mesh.elements(),
+            std::printf("%-6s %-24s %3d %6d %9.4f %7.4f %8d %6.3f\n", o.name.c_str(), "uncut", 0, o.mesh.elements(),
                         1e3 * o.dt0, 1.0, 0, 0.0);  // none by definition: all are at or above the minimum
         for (const Method& me : methods()) {
-            std::unique_ptr<MethodRun> run = me.start(o, a.tiny);
+            if (!a.only.empty() && me.name != a.only) continue;
+            std::unique_ptr<MethodRun> run = me.start(o, a);
             json jm = {{"name", me.name}, {"cuts", json::array()}};
             for (size_t k = 0; k < o.planes.size(); ++k) {
                 const CutMeasure r = run->cut(o.planes[k]);
@@ -305,7 +328,7 @@ int runCutStep(const CutStepArgs& a) {
                     cost = buf;
                 }
                 if (!a.json)
-                    std::printf("%-6s %-20s %3zu %6d %9.4f %7.4f %8d %6.3f %8.3f %8.3f %8.1f %8.3f %7.3f %8s\n",
+                    std::printf("%-6s %-24s %3zu %6d %9.4f %7.4f %8d %6.3f %8.3f %8.3f %8.2f %8.3f %7.3f %8s\n",
                                 o.name.c_str(), me.name.c_str(), k + 1, r.elements, 1e3 * r.dt, r.dt / o.dt0,
                                 r.critical, share, 1e3 * r.cutSeconds, 1e3 * r.updateSeconds, 1e3 * r.improveSeconds,
                                 1e3 * r.floorSeconds, 100 * r.addedMass, cost.c_str());
@@ -332,7 +355,13 @@ void addCutStepBench() {
                     "Print {objects: [{name, tets, dt_uncut, r1r_min_uncut, critical_below, planes, methods: [{name, "
                     "cuts: [{cut, elements, dt_exact, dt_ratio, critical, critical_share, cut_seconds, "
                     "update_seconds, improve_seconds, floor_seconds, added_mass}], cost}]}]}");
-        c->add_flag("--tiny", a->tiny, "Test size: the bar only, short cost runs, small improvement budget");
+        c->add_flag("--tiny", a->tiny, "Test size: the bar only, short cost runs, small full improvement");
+        c->add_option("--only", a->only, "One method alone, by its name in the table");
+        c->add_option(
+            "--problems", a->problems,
+            "subdivision+improve: R1R problems per cut, ranking included (default: NearPlaneOptions::budgeted)");
+        c->add_option("--free-nodes", a->freeNodes,
+                      "subdivision+improve: nodes of the worst critical elements set free (default: budgeted)");
         c->callback([a] { setExitCode(benchGuarded([&] { return runCutStep(*a); })); });
     });
 }

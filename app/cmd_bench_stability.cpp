@@ -216,14 +216,14 @@ int runStability(const StabilityArgs& a) {
     j["random_cuts"] = json::array();
     if (a.cutRuns > 0) {
         if (!a.json)
-            std::printf(
-                "\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
-                "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
-                "scaling), certified (local, then the exact step and keepStep) or globally (keepStep))\n%-10s %6s "
-                "%9s %6s %6s %9s %9s %14s %15s %13s %12s %11s %9s %13s %14s\n",
-                a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
-                "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
-                "floor ms/cut");
+            std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
+                        "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
+                        "scaling), certified (local, then the exact step and keepStep), globally (keepStep) or hybrid "
+                        "(the elements under it matched, then certified))\n%-10s %6s "
+                        "%9s %6s %6s %9s %9s %14s %15s %13s %12s %11s %9s %13s %14s\n",
+                        a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
+                        "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
+                        "floor ms/cut");
         std::vector<std::pair<std::string, Model>> objects;
         objects.emplace_back("bar", randomCutBarModel());
         const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
@@ -231,19 +231,23 @@ int runStability(const StabilityArgs& a) {
         unsigned seed = 21;
         for (const auto& [name, model] : objects) {
             // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
-            // and with the step floor held locally and globally (timestep/floor.hpp, keepStep)
+            // and with the step floor held locally and globally (timestep/floor.hpp, keepStep), and
+            // certified after the hybrid matched every element under it (timestep/hybrid.hpp)
             struct Variant {
                 double limit;
                 const char* floor;
             };
             using Floor = RandomCutOptions::Floor;
             for (const Variant& v : {Variant{0.0, "-"}, Variant{0.2, "-"}, Variant{0.2, "local"},
-                                     Variant{0.2, "certified"}, Variant{0.2, "global"}}) {
+                                     Variant{0.2, "certified"}, Variant{0.2, "global"}, Variant{0.2, "hybrid"}}) {
                 const double limit = v.limit;
                 const std::string fl = v.floor;
                 RandomCutOptions ro{MassLumping::Enrichment, 0.9, limit};
                 ro.stepFloor = fl == "-" ? 0.0 : 0.95;
-                ro.floor = fl == "global" ? Floor::Global : fl == "certified" ? Floor::Certified : Floor::Local;
+                ro.floor = fl == "global"      ? Floor::Global
+                           : fl == "certified" ? Floor::Certified
+                           : fl == "hybrid"    ? Floor::HybridCertified
+                                               : Floor::Local;
                 const auto t0 = WallClock::now();
                 const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, ro);
                 j["random_cuts"].push_back({{"object", name},
@@ -251,6 +255,7 @@ int runStability(const StabilityArgs& a) {
                                             {"floor", v.floor},
                                             {"cuts_below_floor", st.cutsBelowFloor},
                                             {"cuts_topped_up", st.toppedUp},
+                                            {"max_matched_share", st.maxMatchedShare},
                                             {"max_added_mass", st.maxAddedMass},
                                             {"max_floor_seconds", st.maxFloorSeconds},
                                             {"mean_floor_seconds", st.cuts ? st.floorSeconds / st.cuts : 0.0},
@@ -268,13 +273,17 @@ int runStability(const StabilityArgs& a) {
                                             {"max_mass_error", st.maxMassError},
                                             {"first_failure", st.firstFailure},
                                             {"seconds", secondsSince(t0)}});
+                char matched[48] = "";
+                if (ro.floor == Floor::HybridCertified)
+                    std::snprintf(matched, sizeof matched, "  matched <= %.1f%%", 100 * st.maxMatchedShare);
                 if (!a.json)
                     std::printf(
-                        "%-10s %6.2f %9s %6d %6d %9ld %9d %14d %15d %13d %12.4f %11d %9d %12.3f%% %6.3f/%-7.3f%s%s\n",
+                        "%-10s %6.2f %9s %6d %6d %9ld %9d %14d %15d %13d %12.4f %11d %9d %12.3f%% %6.3f/%-7.3f%s%s%s\n",
                         name.c_str(), limit, v.floor, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns,
                         st.invertedAtEnd, st.limitedRuns, st.minDtRatio, st.cutsBelowFloor, st.toppedUp,
                         100 * st.maxAddedMass, st.cuts ? 1e3 * st.floorSeconds / st.cuts : 0.0,
-                        1e3 * st.maxFloorSeconds, st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
+                        1e3 * st.maxFloorSeconds, matched,
+                        st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
             }
             ++seed;
         }

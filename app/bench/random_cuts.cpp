@@ -4,6 +4,7 @@
 #include "mesh/generate.hpp"
 #include "timestep/analyzer.hpp"
 #include "timestep/floor.hpp"
+#include "timestep/hybrid.hpp"
 #include "util/stopwatch.hpp"
 
 #include <algorithm>
@@ -130,6 +131,12 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
             if (ro.floor == RandomCutOptions::Floor::Global) {
                 keepStep(m, ta.rows(), ro.stepFloor * dt0);
                 ta.compute(m);
+            } else if (ro.floor == RandomCutOptions::Floor::HybridCertified) {
+                HybridOptions ho;
+                ho.threshold = ro.hybridShare;
+                matchCritical(m, ta, ro.stepFloor * dt0, ho);
+                out.matchedShare = static_cast<double>(m.matchedList.size()) / m.elements();
+                out.toppedUp += holdStepFloorCertified(m, ta, ro.stepFloor * dt0).toppedUp;
             } else if (ro.floor == RandomCutOptions::Floor::Certified) {
                 out.toppedUp += holdStepFloorCertified(m, ta, ro.stepFloor * dt0).toppedUp;
             } else {
@@ -185,6 +192,7 @@ RandomCutStats runRandomCuts(const Model& base, int runs, int stepsBetween, unsi
         st.floorSeconds += r.floorSeconds;
         st.cutsBelowFloor += r.cutsBelowFloor;
         st.toppedUp += r.toppedUp;
+        st.maxMatchedShare = std::max(st.maxMatchedShare, r.matchedShare);
         st.failures += r.failed;
         st.invertedRuns += r.inverted;
         st.invertedAtEnd += r.invertedAtEnd;

@@ -35,6 +35,7 @@ struct RandomCutStats {
     double floorSeconds = 0;     // all floor updates [s]
     int cutsBelowFloor = 0;      // cuts whose exact step stayed under the floor after it
     int toppedUp = 0;            // cuts the certified floor topped up globally
+    double maxMatchedShare = 0;  // most elements the hybrid matched in a sequence, over the elements [-]
     std::string firstFailure;
 };
 
@@ -54,6 +55,7 @@ struct RandomCutRun {
     double floorSeconds = 0, maxFloorSeconds = 0;  // the floor's updates: all, slowest [s]
     int cutsBelowFloor = 0;                        // cuts whose exact step stayed under the floor
     int toppedUp = 0;                              // cuts the certified floor topped up globally
+    double matchedShare = 0;                       // elements the hybrid matched, over the elements [-]
     std::string failure;                           // where it blew up
     // The first inverted element: after which cut (0: before any), at which step after it, its
     // fraction, its prescribed corners, and the piece it belongs to (elements, volume share of
@@ -84,7 +86,10 @@ struct RandomCutOptions {
     // Step floor after each cut, as a fraction of the uncut exact step (0: none), held by
     // holdStepFloor (local) or keepStep (global selective mass scaling, an eigen-solve per round).
     double stepFloor = 0;
-    enum class Floor : std::uint8_t { Local, Certified, Global } floor = Floor::Local;
+    enum class Floor : std::uint8_t { Local, Certified, Global, HybridCertified } floor = Floor::Local;
+    // HybridCertified: before the certified floor, the elements whose R1R step is under this share
+    // of the floor are matched (timestep/hybrid.hpp), so mass goes to the rest only. [-]
+    double hybridShare = 1.0;
 };
 
 // One sequence of 1-4 random planes through the model's box, the generator seeded with

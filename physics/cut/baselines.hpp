@@ -49,14 +49,44 @@ TetMesh barMesh(const BarOptions& opts = {});
 // Exact critical step of a mesh with no fixed nodes [s] (timestep/timestep.hpp exactCriticalDt).
 double exactDtOf(const TetMesh& mesh, const Material& material = {});
 
+// How improveNearPlane works and how much. The defaults are the full setting; budgeted() keeps up
+// with cutting.
+struct NearPlaneOptions {
+    double dtCritical = 0;           // work on the band's elements whose R1R step is under it (0: all) [s]
+    double reach = 2.0;              // band: elements with a node within this many mean edge lengths
+    bool rankAround = false;         // rank with the elements around the band's nodes: the whole
+                                     // mesh's R1R steps (false: the band's, approximate at its rim)
+    int rounds = 4;                  // improver rounds
+    long long problemsPerTet = 100;  // work: R1R problems per element of the region (at least 2000)
+    long long maxProblems = 0;       // and at most this many in all, ranking the band included (0: no cap)
+    int maxFreeNodes = 0;            // the worst critical elements' nodes, at most about this many (0: all)
+    int descentSteps = 3;            // ImproveOptions::descentSteps
+    bool lean = false;               // ImproveOptions::lean
+    bool exactSteps = true;          // ImproveOptions::exactSteps
+    double maxSeconds = 10;          // wall-time limit [s]
+    // Keeps up with cutting: the cut's own elements (a node on the plane) ranked, the nodes of the
+    // worst, about 40, free; one lean gradient step per node and round, rounds judged by the R1R
+    // step, 5000 problems in all (a few ms a cut, `cutsim bench cutstep`).
+    static NearPlaneOptions budgeted(double dtCritical);
+};
+
+// What improveNearPlane did.
+struct NearPlaneReport {
+    int band = 0;                      // elements near the plane
+    int critical = 0;                  // of them under dtCritical (with dtCritical > 0)
+    int freeNodes = 0;                 // nodes that were free to move
+    long long problems = 0;            // R1R problems solved, ranking and improver [-]
+    double dtBefore = 0, dtAfter = 0;  // the region's smallest R1R step before and after [s]
+    double seconds = 0;
+};
+
 // The thesis's local improvement after a conforming cut (sec. 5.2), with the improver of sec. 5.1,
 // on the elements within `reach` mean edge lengths of the plane (the band). With dtCritical > 0
 // only the band's critical elements are worked on: those whose R1R step (of the band as a mesh of
-// its own) is under dtCritical, their nodes free and their one-ring the region; else every band
-// node is free. The region is improved as a mesh of its own (improve/region.hpp), for `rounds`
-// rounds of 100 one-ring problems per element of it. Returns the seconds it took.
-double improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material, double dtCritical = 0,
-                        double reach = 2.0, int rounds = 4, double maxSeconds = 10);
+// its own) is under dtCritical, worst first, their nodes free and their one-ring the region; else
+// every band node is free. The region is improved as a mesh of its own (improve/region.hpp).
+NearPlaneReport improveNearPlane(TetMesh& mesh, const CutPlane& plane, const Material& material,
+                                 const NearPlaneOptions& opts = {});
 
 // Applies the planes in sequence with the method (both sides kept and separated) and returns the
 // exact critical step after each cut [s] (planes.size() values).

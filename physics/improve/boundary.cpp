@@ -83,6 +83,14 @@ double ReferenceBoundary::distance(const Eigen::Vector3d& p, const std::vector<i
     return std::sqrt(best);
 }
 
+bool ReferenceBoundary::within(const Eigen::Vector3d& p, const std::vector<int>& of, double tol) const {
+    for (int f : of) {
+        const auto& t = tris[static_cast<size_t>(f)];
+        if (std::sqrt((closestPointOnTriangle(p, t[0], t[1], t[2]) - p).squaredNorm()) <= tol) return true;
+    }
+    return false;
+}
+
 Eigen::Vector3d ReferenceBoundary::projectToCrease(int i, const Eigen::Vector3d& p, const Eigen::Matrix3Xd& X0) const {
     Eigen::Vector3d best = p;
     double bd = std::numeric_limits<double>::infinity();

@@ -23,6 +23,8 @@ struct ReferenceBoundary {
     void build(const TetMesh& mesh, double featureAngleDeg, bool moveBoundary);
     // Distance from p to the nearest original face of `of` [m].
     double distance(const Eigen::Vector3d& p, const std::vector<int>& of) const;
+    // distance(p, of) <= tol, stopping at the first face that is near enough.
+    bool within(const Eigen::Vector3d& p, const std::vector<int>& of, double tol) const;
     // Closest point on node i's original crease segments (X0: original positions).
     Eigen::Vector3d projectToCrease(int i, const Eigen::Vector3d& p, const Eigen::Matrix3Xd& X0) const;
     // Closest point on node i's original faces.

@@ -48,6 +48,8 @@ constexpr long long kEvaluationsPerTet = 140;
 constexpr long long kMinEvaluations = 100000;
 // A node's descent watches the elements within this factor of its local maximum (and its own).
 constexpr double kWatched = 0.35;
+// Lean descent: probes solve the elements within this factor of the local maximum.
+constexpr double kProbe = 0.6;
 // 12x12 problems assembled and solved together: a buffer that stays in cache.
 constexpr int kChunk = 64;
 // Fewer nodes to smooth than this per thread: one thread does them (threads cost more than they save).
@@ -65,7 +67,7 @@ struct Worker {
     unsigned stampT = 0;
     Mat12s mats;
     std::vector<double> out, floor;
-    std::vector<int> patch, ring, elems, watched;
+    std::vector<int> patch, ring, elems, watched, probed, rest, stale;
     double ref = 1;             // the soft maximum's unit
     double dV = 0;              // enclosed volume change [m^3]
     long long evaluations = 0;  // 12x12 problems solved
@@ -153,6 +155,20 @@ public:
         return worst;
     }
     const Eigen::Matrix3Xd& positions() const { return X_; }
+
+    // The largest lambda_R1R of the live mesh, the stale elements solved again.
+    double largestLambda() {
+        std::vector<int> stale;
+        double top = 0;
+        for (int e = 0; e < static_cast<int>(T_.size()); ++e)
+            if (alive_[e] && dirty_[e]) stale.push_back(e);
+        evaluate(stale.data(), static_cast<int>(stale.size()), workers_[0]);
+        fold();
+        for (int e = 0; e < static_cast<int>(T_.size()); ++e)
+            if (alive_[e]) top = std::max(top, lam_[e]);
+        return top;
+    }
+    double volume() const { return volume_; }
 
     // Work budget (12x12 problems solved) and wall-clock deadline.
     void setLimits(long long budget, WallClock::time_point deadline) {
@@ -370,6 +386,10 @@ private:
     // maximum's unit (the start of a node's descent or of a flip).
     Score score(const std::vector<int>& elems, Worker& w, bool reference = false) {
         evaluate(elems.data(), static_cast<int>(elems.size()), w);
+        return scored(elems, w, reference);
+    }
+    // The same from the problems as last solved.
+    Score scored(const std::vector<int>& elems, Worker& w, bool reference = false) {
         Score s;
         for (int e : elems) s.max = std::max(s.max, lam_[e]);
         if (reference) w.ref = s.max;
@@ -393,23 +413,13 @@ private:
     // Elements whose R1R step is within a factor of the worst, worst first. Only elements whose
     // rows changed since their last solve are solved again.
     std::vector<int> criticalElements() {
-        Worker& w = workers_[0];
-        std::vector<int> all, stale;
-        for (int e = 0; e < static_cast<int>(T_.size()); ++e)
-            if (alive_[e]) {
-                all.push_back(e);
-                if (dirty_[e]) stale.push_back(e);
-            }
-        evaluate(stale.data(), static_cast<int>(stale.size()), w);
-        fold();
-        double top = 0;
-        for (int e : all) top = std::max(top, lam_[e]);
+        const double top = largestLambda();
         std::vector<int> bad;
-        for (int e : all)
-            if (lam_[e] > 0.5 * top) bad.push_back(e);
+        for (int e = 0; e < static_cast<int>(T_.size()); ++e)
+            if (alive_[e] && lam_[e] > 0.5 * top) bad.push_back(e);
         std::sort(bad.begin(), bad.end(),
                   [&](int a, int b) { return lam_[a] > lam_[b] || (lam_[a] == lam_[b] && a < b); });
-        const size_t cap = std::max<size_t>(64, all.size() / 10);
+        const size_t cap = std::max<size_t>(64, static_cast<size_t>(aliveCount_) / 10);
         if (bad.size() > cap) bad.resize(cap);
         return bad;
     }
@@ -435,16 +445,16 @@ private:
     // The boundary around node i stays within the distance bound of the old surface.
     bool boundaryKept(int i, Worker& w) const {
         const double tol = opts_.maxBoundaryDistance * diag_;
-        if (b0_.distance(X_.col(i), b0_.ring[i]) > tol) return false;
+        if (!b0_.within(X_.col(i), b0_.ring[i], tol)) return false;
         std::vector<int>& patch = w.patch;
         for (int f : b0_.ring[i]) {
-            patch.clear();
+            patch.assign(1, f);  // a sample of face f is most often near its own old face
             for (int v : b0_.faces[f])
                 for (int g : b0_.ring[v]) patch.push_back(g);
             const Vec3 p0 = X_.col(b0_.faces[f][0]), p1 = X_.col(b0_.faces[f][1]), p2 = X_.col(b0_.faces[f][2]);
             const Vec3 samples[4] = {(p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
             for (const Vec3& s : samples)
-                if (b0_.distance(s, patch) > tol) return false;
+                if (!b0_.within(s, patch, tol)) return false;
         }
         // Each of k threads may use 1/k of what is left (then all of them together stay within).
         return std::abs(volume_ + w.share * w.dV - volume0_) <= opts_.maxVolumeChange * volume0_;
@@ -506,7 +516,17 @@ private:
         if (onCrease) t1 = (X0_.col(b0_.crease[i][0]) - X0_.col(b0_.crease[i][1])).normalized();
         w.floor.clear();
         for (int e : nt_[i]) w.floor.push_back(std::min(kMinFlatness, flatness(T_[e])));
-        Score best = score(elems, w, true);
+        Score best;
+        if (opts_.lean) {  // the problems solved since their rows last changed still hold
+            std::vector<int>& stale = w.stale;
+            stale.clear();
+            for (int e : elems)
+                if (dirty_[e]) stale.push_back(e);
+            evaluate(stale.data(), static_cast<int>(stale.size()), w);
+            best = scored(elems, w, true);
+        } else {
+            best = score(elems, w, true);
+        }
         // The descent watches the elements that can become critical: those near the local maximum,
         // and those of node i, whose shapes change. The others' problems change through masses and
         // shared edges only, by far less than the factor; their soft maximum terms are < 1e-7.
@@ -518,8 +538,18 @@ private:
         }
         best.soft = 0;
         for (int e : watched) best.soft += std::pow(lam_[e] / w.ref, kSoftMaxPower);
+        // Lean: probes solve the near-critical elements alone (the soft maximum's gradient is
+        // theirs: an element at kProbe of the maximum weighs kProbe^16 < 3e-4), and a trial solves
+        // them first, stopping when their maximum already rises.
+        std::vector<int>& probed = w.probed;
+        std::vector<int>& rest = w.rest;
+        probed.clear();
+        rest.clear();
+        for (int e : watched) (!opts_.lean || lam_[e] >= kProbe * w.ref ? probed : rest).push_back(e);
+        double probedSoft = 0;
+        for (int e : probed) probedSoft += std::pow(lam_[e] / w.ref, kSoftMaxPower);
         bool moved = false, fresh = true;  // fresh: lam_ of the watched elements is of the current rows
-        for (int iter = 0; iter < 3; ++iter) {
+        for (int iter = 0; iter < opts_.descentSteps; ++iter) {
             const Vec3 x = X_.col(i);
             const double h = 1e-4 * len;
             Vec3 grad = Vec3::Zero();
@@ -528,7 +558,7 @@ private:
             bool probeOk = true;
             for (int k = 0; k < nd && probeOk; ++k) {
                 probeOk = place(i, x + h * dirs[k], w);
-                if (probeOk) grad += dirs[k] * (score(watched, w).soft - best.soft) / h;
+                if (probeOk) grad += dirs[k] * (score(probed, w).soft - probedSoft) / h;
             }
             place(i, x, w);
             fresh = false;
@@ -549,9 +579,12 @@ private:
                     p += normal * (-dV / (ringArea / 3));
                 }
                 if (!place(i, p, w) || (onBoundary && !boundaryKept(i, w))) continue;
-                const Score s = score(watched, w);
+                if (!rest.empty() && score(probed, w).max > best.max) continue;
+                if (!rest.empty()) evaluate(rest.data(), static_cast<int>(rest.size()), w);
+                const Score s = rest.empty() ? score(watched, w) : scored(watched, w);
                 if (s.better(best)) {
                     best = s;
+                    probedSoft = rest.empty() ? s.soft : scored(probed, w).soft;
                     accepted = true;
                     break;
                 }
@@ -564,8 +597,16 @@ private:
         }
         // The rows of elems changed: what was not solved at the final position is solved again
         // by the next round's critical-element search.
-        if (!fresh || watched.size() < elems.size())
+        if (!opts_.lean) {
+            if (!fresh || watched.size() < elems.size())
+                for (int e : elems) dirty_[e] = 1;
+        } else if (!moved) {  // the rows are back (to round-off): the solved ones are of trials
+            for (int e : watched) dirty_[e] = 1;
+        } else {
             for (int e : elems) dirty_[e] = 1;
+            if (fresh)
+                for (int e : watched) dirty_[e] = 0;
+        }
         if (moved) ++w.moves;
         return moved;
     }
@@ -770,18 +811,21 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     ImproveReport r;
     double tStats = 0, tSmooth = 0, tTopo = 0, tExact = 0;
     auto t0 = WallClock::now();
-    r.before = meshStepStats(mesh, opts.material);
+    if (opts.exactSteps) r.before = meshStepStats(mesh, opts.material);
     tStats += secondsSince(t0);
-    r.history.push_back({secondsSince(start), r.before.dtExact});
 
     Improver imp(mesh, opts, threads);
     imp.setLimits(opts.maxEvaluations > 0 ? opts.maxEvaluations
                                           : std::max<long long>(kMinEvaluations, kEvaluationsPerTet * mesh.elements()),
                   deadline);
+    // Without Lanczos a round is judged by 2 / sqrt(the largest lambda_R1R), solved by the improver.
+    auto r1rStep = [&imp] { return 2 / std::sqrt(imp.largestLambda()); };
+    if (!opts.exactSteps) r.before = r1rStats(mesh, r1rStep());
+    r.history.push_back({secondsSince(start), opts.exactSteps ? r.before.dtExact : r.before.dtR1R});
     r.diagonal = imp.diagonal();
     TetMesh best = mesh;
     Eigen::Matrix3Xd bestX = mesh.X;  // all positions of the best round, before unused nodes are dropped
-    double bestDt = r.before.dtExact;
+    double bestDt = r.history.back().dtExact;
     int stale = 0;
     for (int round = 1; round <= opts.maxRounds; ++round) {
         if (opts.targetDt > 0 && bestDt >= opts.targetDt) break;
@@ -791,7 +835,7 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
         if (!changed) break;
         t0 = WallClock::now();
         TetMesh cur = imp.mesh();
-        const double dt = exactCriticalDt(buildModel(cur, opts.material)).dt;
+        const double dt = opts.exactSteps ? exactCriticalDt(buildModel(cur, opts.material)).dt : r1rStep();
         tExact += secondsSince(t0);
         r.history.push_back({secondsSince(start), dt});
         if (opts.progress) opts.progress(round, secondsSince(start), dt);
@@ -809,12 +853,13 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
     r.flips23 = imp.flips23;
     r.flips32 = imp.flips32;
     r.collapses = imp.collapses;
-    r.boundaryDistance = imp.boundaryDistance(bestX);
+    if (opts.exactSteps) r.boundaryDistance = imp.boundaryDistance(bestX);  // else kept, not measured
     r.evaluations = imp.evaluations;
     best.source = mesh.source;
     mesh = std::move(best);
     t0 = WallClock::now();
-    r.after = stepStats(mesh, opts.material, bestDt);  // the kept mesh's exact step is known
+    // The kept mesh's step is known.
+    r.after = opts.exactSteps ? stepStats(mesh, opts.material, bestDt) : r1rStats(mesh, bestDt);
     tStats += secondsSince(t0);
     r.volumeChange = (r.after.volume - r.before.volume) / r.before.volume;
     r.seconds = {

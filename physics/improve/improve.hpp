@@ -33,6 +33,15 @@ struct ImproveOptions {
                                          // the volume and distance bounds alone keep the shape [deg]
     double maxElementLoss = 0.05;        // collapses may remove at most this share of the elements [-]
     std::vector<int> fixedNodes;         // nodes that must not move (a scene's fixed region)
+    int descentSteps = 3;                // gradient steps per node and round, each a line search
+    bool lean = false;                   // fewer problems per node, for local improvement on a budget:
+                                         // a descent reuses what was solved since the rows last
+                                         // changed and probes its near-critical elements alone
+    bool exactSteps = true;              // rounds judged by the exact (Lanczos) step; false: by the
+                                         // smallest R1R step, which the improver solves anyway (no
+                                         // Lanczos: for improvement that has to keep up with cutting);
+                                         // the report's before/after then hold the R1R step and volume,
+                                         // its boundaryDistance 0 (the bound is kept, not measured)
     int threads = 1;                     // threads that smooth disjoint parts at once; a result depends
                                          // on this count, not on timing (0: one per core)
     // Called after each round with the round, the seconds so far and the exact step of the
@@ -64,7 +73,8 @@ struct ImproveReport {
     struct Point {
         double seconds, dtExact;
     };
-    std::vector<Point> history;  // exact step after each round (round 0: the input)
+    std::vector<Point> history;  // exact step after each round (round 0: the input); the
+                                 // smallest R1R step when !exactSteps
 };
 
 // Largest distance from the boundary of `to` (its vertices, edge midpoints and face centroids) to

@@ -59,6 +59,15 @@ MeshStepStats stepStats(const TetMesh& mesh, const Material& material, double dt
     return s;
 }
 
+MeshStepStats r1rStats(const TetMesh& mesh, double dtR1R) {
+    MeshStepStats s;
+    s.nodes = mesh.nodes();
+    s.tets = mesh.elements();
+    s.dtR1R = dtR1R;
+    s.volume = totalVolume(mesh);
+    return s;
+}
+
 double surfaceDistance(const TetMesh& from, const TetMesh& to) {
     const Eigen::Matrix3Xi F = boundaryFaces(from), G = boundaryFaces(to);
     // Each old face's bounding sphere prunes the exact point-triangle distances.

@@ -518,8 +518,8 @@ TEST(BenchCutStep, TinyRunContract) {
         const double cost = m["cost"]["wall_per_simulated_second"].get<double>();
         EXPECT_TRUE(std::isfinite(cost) && cost > 0) << name;
     }
-    EXPECT_EQ(names,
-              (std::vector<std::string>{"subdivision", "subdivision+improve", "xfem", "xfem+floor", "xfem+hybrid"}));
+    EXPECT_EQ(names, (std::vector<std::string>{"subdivision", "subdivision+improve", "subdivision+improve-full", "xfem",
+                                               "xfem+floor", "xfem+hybrid"}));
 }
 
 // What a scene does not use costs nothing: no tools, no cuts, no rendering -> those stages are 0.

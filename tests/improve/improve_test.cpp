@@ -189,6 +189,33 @@ TEST(Improve, IsDeterministicWithTwoThreads) {
     expectShapeKept(ra);
 }
 
+// Lean descent judged by the R1R step (the local improvement after a cut): the report's steps
+// are the smallest R1R steps of the meshes before and after, the step does not fall, nothing
+// inverts, and two threads give the same mesh every time.
+TEST(Improve, LeanR1RModeReportsItsMeshesSteps) {
+    ReadOptions ro;
+    ro.scale = 0.0254;
+    const TetMesh input = readTetMesh(test::data("tet/sofa_liver.msh"), ro);
+    ImproveOptions o = untimed();
+    o.lean = true;
+    o.exactSteps = false;
+    o.descentSteps = 1;
+    o.maxRounds = 3;
+    o.maxEvaluations = 20000;
+    o.threads = 2;
+    TetMesh a = input, b = input;
+    const ImproveReport r = improveMesh(a, o);
+    improveMesh(b, o);
+    EXPECT_EQ(a.tets, b.tets);
+    EXPECT_EQ(a.X, b.X);
+    EXPECT_NEAR(r.before.dtR1R, meshStepStats(input, o.material).dtR1R, 1e-9 * r.before.dtR1R);
+    EXPECT_NEAR(r.after.dtR1R, meshStepStats(a, o.material).dtR1R, 1e-9 * r.after.dtR1R);
+    EXPECT_GT(r.after.dtR1R, r.before.dtR1R);
+    EXPECT_EQ(r.before.dtExact, 0.0);  // no Lanczos
+    EXPECT_GT(minFlatness(a), 0);
+    EXPECT_LE(std::abs(r.volumeChange), o.maxVolumeChange);
+}
+
 TEST(Improve, FixedNodesAndAFixedBoundaryStayPut) {
     ReadOptions ro;
     ro.scale = 0.0254;
