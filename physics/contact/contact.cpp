@@ -257,15 +257,13 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
     } else {
         for (auto& pc : pieces) {
             double dr = 0, mv = 0;  // in registers: the pass is most of what a tool away costs
-            if (pc->nearValid)
-                for (size_t i = 0; i < pc->nodes.size(); ++i) {
-                    const auto k = static_cast<size_t>(pc->nodes[i]);
-                    dr = std::max(dr, moved(x, k));
-                    mv = std::max(
-                        mv, (x.col(surfNodes[k]) - pc->snap.col(static_cast<Eigen::Index>(i))).cwiseAbs().maxCoeff());
-                }
-            else
-                for (const int k : pc->nodes) dr = std::max(dr, moved(x, static_cast<size_t>(k)));
+            const auto n = static_cast<Eigen::Index>(pc->nodes.size());
+            for (Eigen::Index i = 0; i < n; ++i) {
+                const auto k = static_cast<Eigen::Index>(pc->nodes[static_cast<size_t>(i)]);
+                const auto xk = x.col(surfNodes[static_cast<size_t>(k)]);
+                dr = std::max(dr, (xk - xRef.col(k)).cwiseAbs().maxCoeff());
+                if (pc->nearValid) mv = std::max(mv, (xk - pc->snap.col(i)).cwiseAbs().maxCoeff());
+            }
             pc->drift = dr;
             pc->nearMove = mv;
             pc->refitted = false;
