@@ -112,6 +112,8 @@ void ContactWorld::ignoreCut(int tool, int cut) {
     m.ignoredCut.at(static_cast<size_t>(tool)) = cut;
 }
 
+void ContactWorld::setOutsideNodes(std::vector<std::uint8_t> outside) { impl_->outside = std::move(outside); }
+
 void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
     Impl& m = *impl_;
     m.clearTree();
@@ -523,23 +525,38 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
     // Node masses capped below at the mean of the contact's free nodes: with pure 1/m the light
     // control points of a small cut share (weight w, mass m) would take a correction of up to
     // depth / w, several element sizes; the cap keeps the correction geometric (as limitStretch does).
+    // Nodes outside the material (setOutsideNodes) take no correction when the point's other free
+    // nodes carry kMinFreeWeight of it: they belong to partial elements only, whose lumping keeps a
+    // parent's eigenvalues on light nodes (xfem.hpp), so their modes sit near the step's limit, and
+    // stopping them on contact every step fed a vibration that mass damping could not remove (a
+    // severed lobe on a floor kept ~3 mJ; docs/method.md, Contact).
     // A contact whose free nodes carry less than kMinFreeWeight of it (a point on the fixed part)
     // is left alone: stopping it would take node moves of 1 / (their weight) times its own.
+    const bool anyOutside = !m.outside.empty();
     for (Touch& tc : m.touches) {
-        double mean = 0, w = 0, freeWeight = 0;
+        double inside = 0, all = 0;
+        for (int i = tc.first; i < tc.first + tc.n; ++i) {
+            const Term& t = m.terms[static_cast<size_t>(i)];
+            if (!(invMass(t.node) > 0)) continue;
+            all += std::abs(t.w);
+            if (anyOutside && !m.outside[static_cast<size_t>(t.node)]) inside += std::abs(t.w);
+        }
+        const bool skipOutside = anyOutside && inside >= kMinFreeWeight;
+        auto moves = [&](const Term& t) {
+            return invMass(t.node) > 0 && !(skipOutside && m.outside[static_cast<size_t>(t.node)]);
+        };
+        double mean = 0, w = 0;
         int free = 0;
         for (int i = tc.first; i < tc.first + tc.n; ++i)
-            if (const double im = invMass(m.terms[static_cast<size_t>(i)].node); im > 0)
-                mean += 1 / im, ++free, freeWeight += std::abs(m.terms[static_cast<size_t>(i)].w);
+            if (const Term& t = m.terms[static_cast<size_t>(i)]; moves(t)) mean += 1 / invMass(t.node), ++free;
         mean = free ? mean / free : 0;
-        if (freeWeight < kMinFreeWeight) {
+        if (all < kMinFreeWeight) {
             tc.mass = 0;
             continue;
         }
         for (int i = tc.first; i < tc.first + tc.n; ++i) {
             Term& t = m.terms[static_cast<size_t>(i)];
-            const double im = invMass(t.node);
-            t.im = im > 0 ? 1 / std::max(1 / im, mean) : 0.0;
+            t.im = moves(t) ? 1 / std::max(1 / invMass(t.node), mean) : 0.0;
             w += t.w * t.w * t.im;
         }
         tc.mass = w > 0 ? 1.0 / w : 0.0;  // 0: on fixed nodes only, nothing to move

@@ -142,6 +142,10 @@ public:
     // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still
     // touched.
     void ignoreCut(int tool, int cut);
+    // Nodes that lie outside the material (nNodes, 1 = outside; empty: none), as a cut's virtual
+    // nodes do. The projection corrects a point through its other nodes when they carry
+    // kMinFreeWeight of it.
+    void setOutsideNodes(std::vector<std::uint8_t> outside);
     const ContactPoints& points() const;
 
     // Contact forces at node positions x and velocities v (3 x nNodes) at time t, added into f

@@ -151,4 +151,18 @@ std::vector<double> pieceVolumes(const Model& m) {
     return volumes;
 }
 
+std::vector<std::uint8_t> partialNodes(const Model& m) {
+    if (!(m.fraction.size() && m.fraction.minCoeff() < 1)) return {};
+    std::vector<std::uint8_t> partial(static_cast<size_t>(m.nodes()), 1);
+    std::vector<std::uint8_t> used(static_cast<size_t>(m.nodes()), 0);
+    for (int e = 0; e < m.elements(); ++e)
+        for (int a = 0; a < 4; ++a) {
+            const auto i = static_cast<size_t>(m.tets(a, e));
+            used[i] = 1;
+            if (m.fraction(e) >= 1) partial[i] = 0;
+        }
+    for (size_t i = 0; i < used.size(); ++i) partial[i] &= used[i];
+    return partial;
+}
+
 }  // namespace cutsim

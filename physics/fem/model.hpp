@@ -109,4 +109,9 @@ std::vector<double> pieceVolumes(const Model& model);
 // The mesh this model was built from (rest positions), e.g. for output.
 TetMesh restMesh(const Model& model);
 
+// Nodes all of whose elements stand for part of their volume (fraction < 1), e.g. a cut's virtual
+// nodes and an MI lattice's outside nodes (nNodes, 1 = such a node). Empty when every element is
+// whole.
+std::vector<std::uint8_t> partialNodes(const Model& model);
+
 }  // namespace cutsim
