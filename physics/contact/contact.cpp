@@ -176,6 +176,7 @@ void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
     m.placed.assign(static_cast<size_t>(m.pts.points()), -1);
     m.placing = 0;
     m.refits = 0;
+    m.sinceChange = 0;
     m.restPts.resize(3, 0);
     if (rest) {
         m.restPts.resize(3, m.pts.points());
@@ -253,6 +254,8 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
     }
     // 1. how far each surface node moved from its reference; each piece lies in its
     // tree's root box grown by wSum times its farthest (one pass over the surface's nodes)
+    const bool scan = sinceChange < kScanSteps;
+    if (sinceChange < kScanSteps) ++sinceChange;
     if (static_cast<int>(leaves.size()) != nt) {
         build(x);
         for (auto& pc : pieces) pc->drift = 0, pc->refitted = true;
@@ -338,6 +341,11 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
                 continue;
             }
             if (sh.plane ? !(belowPlane(pc->around, planeN, planeO) < band) : !Intersect(pc->around, banded)) continue;
+            if (scan && !pc->built) {  // each triangle's own box is tested below
+                for (const int t : pc->tris)
+                    if (ignored < 0 || P.triCut[static_cast<size_t>(t)] != ignored) triangles.push_back(t);
+                continue;
+            }
             buildTrees(*pc);
             // a piece that moved far as a whole (sagging, falling) is refitted in one pass, which
             // brings its drift back down; else only where the shape may reach

@@ -36,6 +36,11 @@ inline constexpr double kLeafFat = 0.05;
 // least fattening), whose points a piece keeps between queries.
 inline constexpr double kNearBand = 2;
 
+// Steps after a surface change during which a shape near a piece scans the piece's triangles
+// instead of building its trees: a blade cuts at every step of its stroke, and inserting every
+// triangle into a new tree at each of them cost more than testing each triangle's box.
+inline constexpr int kScanSteps = 8;
+
 // One shape the surface can touch: a part of a tool (moving on its keyframes) or a static collider.
 struct Shape {
     int tool = -1;       // owning tool, or -1
@@ -179,6 +184,7 @@ struct ContactWorld::Impl {
     std::vector<int> resetting;  // their surface nodes to reset
     std::vector<int> triStamp;   // last batch that queued each triangle (nTris)
     int refits = 0;
+    int sinceChange = 0;  // gathers since the surface last changed
     std::vector<int> placed;  // last gather that placed each point in xp (nPoints)
     int placing = 0;
     Eigen::Matrix3Xd xp;     // point positions (3 x nPoints) [m], computed for candidates only
