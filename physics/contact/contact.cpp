@@ -591,6 +591,10 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             const double cap = tc.friction * tc.lambda, len = t.norm();
             if (len > cap) t *= cap / len;
             applyTo(v, tc, t - tc.tangent);
+            // and on the step's slide: x moved with the velocity before friction, so the step's
+            // tangential motion is what friction undoes (else a sticking contact creeps by
+            // dt^2 times the driving acceleration each step)
+            if (dt > 0) applyTo(x, tc, dt * (t - tc.tangent));
             change = std::max(change, (t - tc.tangent).norm() / tc.mass);
             tc.tangent = t;
         }

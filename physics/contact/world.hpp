@@ -39,7 +39,7 @@ inline constexpr double kNearBand = 2;
 // Steps after a surface change during which a shape near a piece scans the piece's triangles
 // instead of building its trees: a blade cuts at every step of its stroke, and inserting every
 // triangle into a new tree at each of them cost more than testing each triangle's box.
-inline constexpr int kScanSteps = 8;
+inline constexpr int kScanSteps = 32;
 
 // One shape the surface can touch: a part of a tool (moving on its keyframes) or a static collider.
 struct Shape {
@@ -184,7 +184,7 @@ struct ContactWorld::Impl {
     std::vector<int> resetting;  // their surface nodes to reset
     std::vector<int> triStamp;   // last batch that queued each triangle (nTris)
     int refits = 0;
-    int sinceChange = 0;  // gathers since the surface last changed
+    int sinceChange = 0;      // gathers since the surface last changed
     std::vector<int> placed;  // last gather that placed each point in xp (nPoints)
     int placing = 0;
     Eigen::Matrix3Xd xp;     // point positions (3 x nPoints) [m], computed for candidates only

@@ -152,6 +152,37 @@ TEST(Collider, CutPiecesRestOnEachOther) {
     EXPECT_GT(run(false).first, 0.05);  // without contact it falls through the bottom half
 }
 
+// The column of CutPiecesRestOnEachOther cut 2.9 degrees off level (tan = 0.051): with a piece
+// friction of 0.3 the top half sticks on the slope (it moves under 0.05 mm from 0.2 s to 0.8 s,
+// its settling done), with 0.03 it slides (Coulomb: a = g (sin - mu cos) = 0.2 m/s^2, near a
+// terminal 10 mm/s under the 20/s mass damping). The friction impulse also undoes the step's
+// tangential slide; without that the stuck half crept 5.6 mm in that time.
+TEST(Collider, CutPiecesStickOnAGentleSlopeAndSlideWithLittleFriction) {
+    auto slide = [](double mu) {
+        const double a = 2.9 * std::acos(-1.0) / 180;
+        json j = json::parse(R"({
+          "object": { "box": { "size": [0.02, 0.02, 0.04], "cells": [2, 2, 4] } },
+          "material": { "E": 30000, "nu": 0.3, "rho": 1000, "damping": 20 },
+          "fixed": [ { "plane": { "point": [0, 0, 0], "normal": [0, 0, 1], "distance": 0.001 } } ],
+          "loads": { "gravity": [0, 0, -9.81] },
+          "contact": { "pieces": true },
+          "duration": 0.8,
+          "capture": { "enabled": false }
+        })");
+        j["cutting"]["cuts"] =
+            json::array({{{"time", 0.0}, {"point", {0, 0, 0.0205}}, {"normal", {std::sin(a), 0, std::cos(a)}}}});
+        j["contact"]["piece_friction"] = mu;
+        Simulation sim = makeSim(j);
+        sim.advance(0.2);
+        const Eigen::Vector3d start = freeCentre(sim);
+        sim.advance(0.8);
+        EXPECT_EQ(sim.status(), RunStatus::Finished) << sim.message();
+        return (freeCentre(sim) - start).x();
+    };
+    EXPECT_LT(std::abs(slide(0.3)), 5e-5);  // [m]
+    EXPECT_GT(slide(0.03), 3e-3);
+}
+
 // blade.json severs the liver's front lobe by 0.47 s; it falls 3.5 cm onto the floor and comes to
 // rest on it: from 1 s to 2.5 s its centre of mass stays 1.3-1.9 cm above the floor (about 1.7)
 // and no surface point goes 1 mm into it; by 2.5 s its vibration has decayed as the scene's mass
