@@ -2,14 +2,16 @@
 // `bench stability` (BENCHMARKS.md, "Accuracy against cost" and "Stability"):
 //   - MI background meshes (thesis ch. 6): the cantilever given only by its surface, embedded in
 //     lattices of several resolutions, aligned with the bar and shifted so interface tets exist;
-//   - each lumping option after a cut (thesis sec. 2.3.3): the cantilever with a notch cut by XFEM,
-//     against the same notch meshed conformingly and converged;
+//   - each route through a cut (thesis sec. 2.3.3, 5.2): the cantilever with a notch cut by XFEM
+//     (each lumping, the step floor, the hybrid) or by conforming subdivision (alone, with local
+//     improvement, with the hybrid), against the same notch meshed conformingly and converged;
 //   - the SOFA liver sagging under gravity against a converged backward-Euler equilibrium on a mesh
 //     refined twice (each tet into 8).
 #include "bench.hpp"
 #include "util/stopwatch.hpp"
 
 #include "bench/random_cuts.hpp"
+#include "cut/baselines.hpp"
 #include "cut/xfem.hpp"
 #include "embed/mi.hpp"
 #include "mesh/embedding.hpp"
@@ -22,6 +24,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <cmath>
@@ -176,21 +179,88 @@ CutSurface notchSurface(const Cantilever& c) {
 // with dt_sim = 0.95 of it, matched before and after the cut.
 enum class NotchRoute : std::uint8_t { Plain, Floor, Hybrid };
 
-// The 10r x r x r cantilever notched by an XFEM cut at rest with the given lumping.
-Model notchedXfem(const Cantilever& c, int r, MassLumping lumping, int* crossed, NotchRoute route = NotchRoute::Plain) {
+// The 10r x r x r cantilever notched by an XFEM cut at rest with the given lumping. *seconds gets
+// the time per cut: the cut, the local step-analysis update and the floor or hybrid (the engine's
+// bookkeeping of the uncut model is built before, once per object as a scene does).
+Model notchedXfem(const Cantilever& c, int r, MassLumping lumping, int* crossed, NotchRoute route = NotchRoute::Plain,
+                  double* seconds = nullptr) {
     Model m = cantileverModel(c, r);
     State s = makeState(m);
     CutOptions co;
     co.lumping = lumping;
     CutEngine eng(co);
+    eng.prepare(m);
     TimestepAnalyzer ta(m);
     const double dt0 = route == NotchRoute::Plain ? 0.0 : ta.exact(m).dt;
     if (route == NotchRoute::Hybrid) matchCriticalCertified(m, ta, 0.95 * dt0, {}, true);
+    const Stopwatch sw;
     const CutResult res = eng.cut(m, s, notchSurface(c));
     if (crossed) *crossed = res.crossed;
-    if (route != NotchRoute::Plain) ta.update(m, res.changedElements, res.changedNodes);
+    ta.update(m, res.changedElements, res.changedNodes);
     if (route == NotchRoute::Floor) holdStepFloorCertified(m, ta, 0.95 * dt0);
     if (route == NotchRoute::Hybrid) matchCriticalCertified(m, ta, 0.95 * dt0);
+    if (seconds) *seconds = sw.seconds();
+    return m;
+}
+
+// The same notch by the thesis's conforming pipeline (sec. 5.2) on the same bar: the plane split
+// through the whole section, opened only above the notch's bottom edge (ConformingOptions::limits),
+// snapping at 0.1 (it moves no node here: the plane lies 1/4 or 1/2 a cell off the lattice); then
+// nothing, the local improvement (budgeted as in `bench cutstep`, or its full setting, against the
+// uncut mesh's step), or the hybrid with dt_sim = 0.95 of the uncut exact step. *seconds: the cut,
+// the improvement, the model's rebuild and its step analysis, the hybrid's matching.
+enum class SubdivisionRoute : std::uint8_t { Plain, Improve, ImproveFull, Hybrid };
+const char* subdivisionRouteName(SubdivisionRoute r) {
+    switch (r) {
+    case SubdivisionRoute::Plain: return "subdivision";
+    case SubdivisionRoute::Improve: return "subdivision+improve";
+    case SubdivisionRoute::ImproveFull: return "subdivision+improve-full";
+    case SubdivisionRoute::Hybrid: return "subdivision+hybrid";
+    }
+    return "";
+}
+
+Model notchedSubdivision(const Cantilever& c, int r, SubdivisionRoute route, double* seconds, json* parts,
+                         ConformingReport* report) {
+    const TetMesh uncut = boxMesh(c.L, c.h, c.h, 10 * r, r, r);
+    const CutPlane plane{Eigen::Vector3d(kNotchX * c.L, 0, 0), Eigen::Vector3d::UnitX()};
+    ConformingOptions co;
+    co.limits = {CutPlane{Eigen::Vector3d(0, 0, kNotchZ * c.h), Eigen::Vector3d::UnitZ()}};
+    NearPlaneOptions near;
+    if (route == SubdivisionRoute::Improve) near = NearPlaneOptions::budgeted(exactDtOf(uncut, c.material));
+    if (route == SubdivisionRoute::ImproveFull)
+        near = NearPlaneOptions{.dtCritical = exactDtOf(uncut, c.material), .reach = 2.0};
+    const double dtSim = route == SubdivisionRoute::Hybrid ? 0.95 * exactCriticalDt(cantileverModel(c, r)).dt : 0.0;
+    Stopwatch sw;
+    ConformingResult cut = conformingCut(uncut, plane, co);
+    const double tCut = sw.lap();
+    if (route == SubdivisionRoute::Improve || route == SubdivisionRoute::ImproveFull)
+        improveNearPlane(cut.mesh, plane, c.material, near);
+    const double tImprove = sw.lap();
+    Model m = buildModel(cut.mesh, c.material);
+    clampAndLoad(m, c.L);
+    TimestepAnalyzer ta(m);
+    const double tModel = sw.lap();
+    if (route == SubdivisionRoute::Hybrid) matchCriticalCertified(m, ta, dtSim, {}, true);
+    const double tHybrid = sw.lap();
+    if (seconds) *seconds = sw.seconds();
+    if (parts) *parts = {{"cut", tCut}, {"improve", tImprove}, {"model_and_estimates", tModel}, {"hybrid", tHybrid}};
+    if (report) *report = cut.report;
+    return m;
+}
+
+// The fastest of `reps` builds of a notched model, build(&seconds, &parts): its time per cut [s]
+// (noise only adds) and that build's parts.
+template <class Build>
+Model fastestOf(int reps, double* seconds, json* parts, Build build) {
+    Model m;
+    *seconds = INFINITY;
+    for (int k = 0; k < reps; ++k) {
+        double t = 0;
+        json p;
+        Model mk = build(&t, &p);
+        if (t < *seconds) *seconds = t, *parts = std::move(p), m = std::move(mk);
+    }
     return m;
 }
 
@@ -248,13 +318,19 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
                                                            {"uncut_reference", ctx.frequencyReference}};
     }
     char name[160];
-    json cuts = json::array();
+    json cuts = json::array(), subdivided = json::array();
     // XFEM on the even meshes, each lumping option, at 0.9 of the cut model's exact limit.
     const int top = ctx.tiny ? 2 : std::max(2, ctx.maxRes);
+    const int reps = ctx.tiny ? 1 : 5;
+    json parts;
     for (int r = 2; r <= top; r += 2) {
+        const double dtUncut = exactCriticalDt(cantileverModel(ctx.bar, r)).dt;
         for (MassLumping l : {MassLumping::RowSum, MassLumping::WeightedDiagonal, MassLumping::Enrichment}) {
             int crossed = 0;
-            const Model m = notchedXfem(ctx.bar, r, l, &crossed);
+            double sec = 0;
+            const Model m = fastestOf(reps, &sec, &parts, [&](double* t, json*) {
+                return notchedXfem(ctx.bar, r, l, &crossed, NotchRoute::Plain, t);
+            });
             const double dtExact = exactCriticalDt(m).dt;
             const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
             std::snprintf(name, sizeof name, "xfem %s %dx%dx%d f=0.9", lumpingName(l), 10 * r, r, r);
@@ -264,13 +340,18 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
                             {"crossed", crossed},
                             {"tets", m.elements()},
                             {"dt_exact", dtExact},
+                            {"dt_ratio", dtExact / dtUncut},
+                            {"cut_seconds", sec},
                             {"linear_static_tip", linearStaticTip(m)},
                             {"frequency", firstBendingFrequency(m)}});
         }
         // Enrichment with the step kept by the floor and by the hybrid: the error each costs.
         for (const NotchRoute route : {NotchRoute::Floor, NotchRoute::Hybrid}) {
             const bool hybrid = route == NotchRoute::Hybrid;
-            const Model m = notchedXfem(ctx.bar, r, MassLumping::Enrichment, nullptr, route);
+            double sec = 0;
+            const Model m = fastestOf(reps, &sec, &parts, [&](double* t, json*) {
+                return notchedXfem(ctx.bar, r, MassLumping::Enrichment, nullptr, route, t);
+            });
             const double dtExact = exactCriticalDt(m).dt;  // the hybrid's: of its FEM part
             const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
             std::snprintf(name, sizeof name, "xfem enrichment+%s %dx%dx%d f=0.9", hybrid ? "hybrid" : "floor", 10 * r,
@@ -280,11 +361,42 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
             json row = {{"config", name},
                         {"tets", m.elements()},
                         {"dt_exact", dtExact},
+                        {"dt_ratio", dtExact / dtUncut},
+                        {"cut_seconds", sec},
                         {"added_mass", m.addedMass.size() ? m.addedMass.sum() : 0.0},
                         {"matched", m.matchedList.size()}};
             if (!hybrid)  // the linear solves see K only: the hybrid's matched elements are not in it
                 row["linear_static_tip"] = linearStaticTip(m), row["frequency"] = firstBendingFrequency(m);
             cuts.push_back(row);
+        }
+        // The conforming pipeline of sec. 5.2 on the same bar: the step each stage gains, its error.
+        for (const SubdivisionRoute route : {SubdivisionRoute::Plain, SubdivisionRoute::Improve,
+                                             SubdivisionRoute::ImproveFull, SubdivisionRoute::Hybrid}) {
+            const bool hybrid = route == SubdivisionRoute::Hybrid;
+            double sec = 0;
+            ConformingReport rep;
+            const Model m = fastestOf(reps, &sec, &parts, [&](double* t, json* p) {
+                return notchedSubdivision(ctx.bar, r, route, t, p, &rep);
+            });
+            const double dtExact = exactCriticalDt(m).dt;
+            const StepOptions opt{Integrator::SymplecticEuler, 0.9 * dtExact};
+            std::snprintf(name, sizeof name, "%s %dx%dx%d f=0.9", subdivisionRouteName(route), 10 * r, r, r);
+            add(runStaticPoint(ctx, m, opt, name, stat));
+            // test size: the static point alone (the slivers' step makes these runs the dearest;
+            // the hybrid's softened bar needs more than the test size's 0.5 s to fit a period)
+            if (!ctx.tiny) add(runFrequencyPoint(ctx, m, opt, name, freq));
+            json row = {{"config", name},
+                        {"tets", m.elements()},
+                        {"split", rep.splitTets},
+                        {"snapped", rep.snappedNodes},
+                        {"duplicated", rep.duplicatedNodes},
+                        {"dt_exact", dtExact},
+                        {"dt_ratio", dtExact / dtUncut},
+                        {"cut_seconds", sec},
+                        {"cut_seconds_parts", parts},
+                        {"matched", m.matchedList.size()}};
+            if (!hybrid) row["linear_static_tip"] = linearStaticTip(m), row["frequency"] = firstBendingFrequency(m);
+            subdivided.push_back(row);
         }
     }
     // The same notch meshed conformingly, explicit and backward Euler.
@@ -302,7 +414,10 @@ std::vector<BenchPoint> notchPoints(const AccuracyContext& ctx) {
             add(runFrequencyPoint(ctx, m, be, name, freq));
         }
     }
-    if (ctx.references) (*ctx.references)["cantilever_notch_static"]["xfem"] = cuts;
+    if (ctx.references) {
+        (*ctx.references)["cantilever_notch_static"]["xfem"] = cuts;
+        (*ctx.references)["cantilever_notch_static"]["subdivision"] = subdivided;
+    }
     return pts;
 }
 

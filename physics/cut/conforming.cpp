@@ -65,6 +65,11 @@ ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const
     if (!(nNorm > 0) || !std::isfinite(nNorm) || !plane.point.allFinite())
         throw InputError("cut plane: the normal must be a finite non-zero vector and the point finite");
     const Eigen::Vector3d n = plane.normal / nNorm;
+    for (const CutPlane& l : opts.limits)
+        if (!(l.normal.norm() > 0) || !l.normal.allFinite() || !l.point.allFinite())
+            throw InputError("cut limit: the normal must be a finite non-zero vector and the point finite");
+    if (!opts.limits.empty() && opts.keep != KeepSide::Both)
+        throw InputError("bounded cut: only KeepSide::Both (the sides stay joined beyond the limits)");
     const int nn = mesh.nodes(), ne = mesh.elements();
 
     ConformingResult res;
@@ -212,6 +217,13 @@ ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const
 
     // ---- (c) separate: the negative side gets its own copy of every node on the plane ----
     const int total = static_cast<int>(X.size());
+    // Bounded cut: nodes on a limit or beyond it stay shared (the crack front and the uncut part).
+    std::vector<std::uint8_t> opens(static_cast<size_t>(total), 1);
+    for (const CutPlane& l : opts.limits) {
+        const Eigen::Vector3d ln = l.normal.normalized();
+        for (int v = 0; v < total; ++v)
+            if (ln.dot(X[v] - l.point) <= tol) opens[v] = 0;
+    }
     std::vector<int> copyOf(static_cast<size_t>(total), -1);
     std::vector<int> newId(static_cast<size_t>(total), -1);
     std::vector<Eigen::Vector3d> outX;
@@ -222,7 +234,7 @@ ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const
         Eigen::Vector4i tt = out.tets[t];
         for (int a = 0; a < 4; ++a) {
             const int v = tt[a];
-            int& id = (opts.keep == KeepSide::Both && s < 0 && sign[v] == 0) ? copyOf[v] : newId[v];
+            int& id = (opts.keep == KeepSide::Both && s < 0 && sign[v] == 0 && opens[v]) ? copyOf[v] : newId[v];
             if (id < 0) {
                 id = static_cast<int>(outX.size());
                 outX.push_back(X[v]);

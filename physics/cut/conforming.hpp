@@ -1,7 +1,8 @@
 // Conforming plane cut with node snapping: the subdivision baseline the XFEM cut is compared
 // against (thesis sec. 5.2 and Table 6.1, docs/method.md sec. 5). Nodes near the plane are snapped onto
 // it, crossed tets are split into tets that share the edge intersection points with their
-// neighbours, and the nodes on the plane are duplicated so the two sides come apart.
+// neighbours, and the nodes on the plane are duplicated so the two sides come apart. A bounded cut
+// (ConformingOptions::limits, e.g. a notch) splits the same tets but opens only part of the plane.
 #pragma once
 
 #include "mesh/mesh.hpp"
@@ -32,6 +33,12 @@ struct ConformingOptions {
     double onPlaneTolerance = 1e-12;  // |distance| <= this * bounding-box diagonal counts as on the
                                       // plane, so no cut point lands on a node [-]
     KeepSide keep = KeepSide::Both;
+    // A bounded cut (keep must be Both): the plane's tets are split as for the infinite plane, but a
+    // node on it is duplicated only when it lies strictly (beyond onPlaneTolerance) on the positive
+    // side of every limit, so the crack opens there alone and its front stays joined. Snapping is
+    // the infinite plane's; a node snapped onto the plane is judged at its snapped position. Empty:
+    // the whole plane opens. conformingCuts applies the limits to every plane.
+    std::vector<CutPlane> limits;
 };
 
 struct ConformingReport {
@@ -43,7 +50,8 @@ struct ConformingReport {
     int collapsedTets = 0;    // tets flattened into the plane by snapping, removed (zero volume)
     int splitTets = 0;        // tets the plane crossed, each split into 2 to 6 tets
     int cutPoints = 0;        // new nodes where the plane crosses an edge
-    int duplicatedNodes = 0;  // nodes on the plane copied for the negative side (KeepSide::Both)
+    int duplicatedNodes = 0;  // nodes on the plane copied for the negative side (KeepSide::Both;
+                              // with limits, those inside them)
     double minVolume = 0;     // smallest tet volume of the result [m^3]
     double volumeBefore = 0;  // total volume of the input [m^3]
     double volumeAfter = 0;   // total volume of the result [m^3] (kept sides only)
@@ -57,7 +65,8 @@ struct ConformingResult {
 
 // Cuts mesh by the plane. Every tet of the result is positively oriented with a volume > 0; with
 // nothing snapped the kept volume equals the input's (both sides) or the analytic part (one side)
-// up to round-off. Throws InputError for a zero normal.
+// up to round-off. Throws InputError for a zero normal (the plane's or a limit's), or for limits
+// with keep other than Both.
 ConformingResult conformingCut(const TetMesh& mesh, const CutPlane& plane, const ConformingOptions& opts = {});
 
 // Applies the planes one after the other (the four-plane liver cut of thesis sec. 5.2), each with

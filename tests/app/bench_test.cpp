@@ -153,6 +153,25 @@ void checkMiLumpingAndLiver(const json& j) {
             EXPECT_LT((*p)["error"].get<double>(), 1.0) << p->dump();
         }
     }
+    // The conforming pipeline on the same bar: the plane x = 0.3125 (a quarter cell past the
+    // lattice) splits the 4 cubes it crosses (24 tets) and snaps nothing; cube edges, face and body
+    // diagonals cut it in a 5 x 5 grid, whose 2 rows above z = 0.05 open. The slivers cut the
+    // step; the improvement raises it, the hybrid keeps 0.95 of the uncut step.
+    const auto& sub = ns["subdivision"];
+    ASSERT_EQ(sub.size(), 4u);
+    for (const json& x : sub) {
+        EXPECT_EQ(x["split"].get<int>(), 24) << x.dump();
+        EXPECT_EQ(x["snapped"].get<int>(), 0) << x.dump();
+        EXPECT_EQ(x["duplicated"].get<int>(), 10) << x.dump();
+        const json* p = findPoint(j, "cantilever_notch_static", x["config"].get<std::string>());
+        ASSERT_TRUE(p) << x.dump();
+        EXPECT_TRUE((*p)["error"].is_number()) << p->dump();
+    }
+    EXPECT_LT(sub[0]["dt_ratio"].get<double>(), 0.5);
+    EXPECT_GT(sub[1]["dt_ratio"].get<double>(), sub[0]["dt_ratio"].get<double>());
+    EXPECT_GT(sub[3]["matched"].get<int>(), 0);
+    EXPECT_GE(sub[3]["dt_ratio"].get<double>(), 0.95 * (1 - 1e-9));
+
     // Enrichment lumping keeps the uncut step (isolated virtual elements keep their parent's
     // eigenvalues); row sum gives far corners of small pieces small masses and a shorter step.
     const double dtEnr =

@@ -20,14 +20,6 @@ double sideVolume(const ConformingResult& r, int side) {
     return v;
 }
 
-double boundaryArea(const TetMesh& m) {
-    const Eigen::Matrix3Xi F = boundaryFaces(m);
-    double a = 0;
-    for (Eigen::Index f = 0; f < F.cols(); ++f)
-        a += 0.5 * (m.X.col(F(1, f)) - m.X.col(F(0, f))).cross(m.X.col(F(2, f)) - m.X.col(F(0, f))).norm();
-    return a;
-}
-
 // Every face is used by one or two tets, and a face used once lies on the unit box's boundary or
 // on the cut plane: a hanging node would leave a face inside the box used once.
 void expectConforming(const TetMesh& m, const CutPlane& p) {
@@ -86,7 +78,7 @@ TEST(ConformingCut, AxisPlaneOnUnitBoxGivesAnalyticVolumesAndBoundary) {
     EXPECT_GT(r.report.minVolume, 0);
     expectPositive(r.mesh);
     // Box boundary 6 plus the cut's two faces of area 1 each.
-    EXPECT_NEAR(boundaryArea(r.mesh), 8.0, 1e-12);
+    EXPECT_NEAR(test::boundaryArea(r.mesh), 8.0, 1e-12);
     EXPECT_EQ(connectedPieces(r.mesh), 2);
     expectConforming(r.mesh, p);
     // Every cut point lies on the plane and is copied once for the negative side.
@@ -231,7 +223,7 @@ TEST(ConformingCut, SeveralPlanesInSequence) {
     const ConformingResult r = conformingCuts(box, planes, o);
     EXPECT_EQ(connectedPieces(r.mesh), 5);
     EXPECT_NEAR(r.report.volumeAfter, 1.0, 1e-12);
-    EXPECT_NEAR(boundaryArea(r.mesh), 6.0 + 2 * 4, 1e-12);
+    EXPECT_NEAR(test::boundaryArea(r.mesh), 6.0 + 2 * 4, 1e-12);
     expectPositive(r.mesh);
     EXPECT_THROW(conformingCut(box, CutPlane{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}), InputError);
 }

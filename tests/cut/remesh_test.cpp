@@ -9,14 +9,6 @@
 namespace cutsim {
 namespace {
 
-double boundaryArea(const TetMesh& m) {
-    const Eigen::Matrix3Xi F = boundaryFaces(m);
-    double a = 0;
-    for (Eigen::Index f = 0; f < F.cols(); ++f)
-        a += 0.5 * (m.X.col(F(1, f)) - m.X.col(F(0, f))).cross(m.X.col(F(2, f)) - m.X.col(F(0, f))).norm();
-    return a;
-}
-
 TEST(Remesh, BoxHalfKeepsTheAnalyticVolumeAndBoundary) {
     if (!haveTetGen()) GTEST_SKIP() << "built without TetGen";
     const TetMesh box = test::boxMesh(1, 1, 1, 3, 3, 3);
@@ -25,7 +17,7 @@ TEST(Remesh, BoxHalfKeepsTheAnalyticVolumeAndBoundary) {
     const RemeshResult r = remeshCut(box, CutPlane{Eigen::Vector3d(0.5, 0, 0), Eigen::Vector3d::UnitX()}, o);
     EXPECT_EQ(r.report.pieces, 1);
     EXPECT_NEAR(totalVolume(r.mesh), 0.5, 1e-9);
-    EXPECT_NEAR(boundaryArea(r.mesh), 4.0, 1e-9);  // [0.5,1] x [0,1] x [0,1]
+    EXPECT_NEAR(test::boundaryArea(r.mesh), 4.0, 1e-9);  // [0.5,1] x [0,1] x [0,1]
     for (int e = 0; e < r.mesh.elements(); ++e) ASSERT_GT(tetSignedVolume(r.mesh, e), 0) << "tet " << e;
     // Six box faces reach TetGen as six polygons, not as the split triangles.
     EXPECT_EQ(r.report.facets, 6);

@@ -91,6 +91,14 @@ int runCutsim(const std::string& args, std::string* out, std::string* err) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+double boundaryArea(const TetMesh& m) {
+    const Eigen::Matrix3Xi F = boundaryFaces(m);
+    double a = 0;
+    for (Eigen::Index f = 0; f < F.cols(); ++f)
+        a += 0.5 * (m.X.col(F(1, f)) - m.X.col(F(0, f))).cross(m.X.col(F(2, f)) - m.X.col(F(0, f))).norm();
+    return a;
+}
+
 void fixBelow(Model& m, int axis, double value) {
     std::vector<int> nodes;
     for (int i = 0; i < m.nodes(); ++i)

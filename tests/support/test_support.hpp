@@ -25,6 +25,9 @@ TetMesh unitTet();
 // conforming across cubes), all positively oriented.
 TetMesh boxMesh(double lx, double ly, double lz, int nx, int ny, int nz);
 
+// Total area of the boundary faces (faces used by one tet).
+double boundaryArea(const TetMesh& m);
+
 // Writes text (binary-exact) to path and returns path; reads a whole file back.
 std::string writeText(const std::string& path, const std::string& text);
 std::string readText(const std::string& path);
