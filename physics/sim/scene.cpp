@@ -521,6 +521,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
         s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
         s.cutting.stepFloor = c.number("step_floor", Cutting{}.stepFloor, 0, 1);
+        s.cutting.floorHybrid = c.string("floor_method", "mass", {"mass", "hybrid"}) == "hybrid";
         const Cutting dflt;
         s.cutting.mergeDebris = c.boolean("merge_debris", dflt.mergeDebris);
         s.cutting.relaxIterations = c.integer("relax_iterations", dflt.relaxIterations, 0, 100);

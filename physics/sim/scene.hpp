@@ -118,6 +118,10 @@ struct Cutting {
     // explicit schemes only): local mass scaling (timestep/floor.hpp), certified by the exact
     // step when exactAfterCut, topped up globally when that is still under it.
     double stepFloor = 0.95;
+    // cutting.floor_method "hybrid": before the mass, the elements whose R1R step is under the
+    // floor are moved by shape matching (timestep/hybrid.hpp), so mass goes only where matching
+    // them did not lift the step ("mass": mass alone).
+    bool floorHybrid = false;
     bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
     int relaxIterations = CutOptions{}.relaxIterations;  // CutOptions::relaxIterations
     double lightShare = CutOptions{}.lightShare;         // CutOptions::lightShare [-]

@@ -765,6 +765,8 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
         !sc_.hybrid && dtFloor > 0 && std::isfinite(dtFloor) && sc_.integrator != Integrator::BackwardEuler;
     StepFloorResult floor;
     HybridResult hybrid;
+    HybridResult floorMatched;  // cutting.floor_method "hybrid": what is under the floor is matched first
+    if (holdFloor && sc_.cutting.floorHybrid) floorMatched = matchCritical(model_, ta_, dtFloor, HybridOptions{1.0});
     if (holdFloor) floor = holdStepFloor(model_, ta_, dtFloor);
     if (sc_.hybrid && !sc_.cutting.exactAfterCut)
         hybrid = matchCritical(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold});
@@ -848,7 +850,8 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
                                          {"elements_under", floor.elements},
                                          {"sweeps", floor.sweeps},
                                          {"topped_up", topUp.addedMass > 0},
-                                         {"seconds", floor.seconds}}
+                                         {"matched", floorMatched.added},
+                                         {"seconds", floor.seconds + floorMatched.seconds}}
                                   : json(nullptr)},
          {"hybrid", sc_.hybrid ? json{{"added", hybrid.added}, {"matched", hybrid.matched}, {"seconds", hybrid.seconds}}
                                : json(nullptr)},

@@ -354,6 +354,25 @@ TEST(CutStep, FloorHoldsWhereTheCutLostTheStep) {
     EXPECT_EQ(b["status"], "ok");
 }
 
+// cutting.floor_method "hybrid": the wedge cut's elements under the floor are matched by shape
+// first; the floor still holds (certified by the exact step), with less mass than mass alone.
+TEST(CutStep, HybridFloorMatchesFirstAndAddsLessMass) {
+    const json mass = run(wedgeScene());
+    json j = wedgeScene();
+    j["cutting"]["floor_method"] = "hybrid";
+    const json r = run(j);
+    EXPECT_EQ(r["status"], "ok");
+    ASSERT_EQ(r["cuts"].size(), 1u);
+    const json& c = r["cuts"][0];
+    EXPECT_GT(c["step_floor"]["matched"].get<int>(), 0);
+    EXPECT_GE(c["dt_ratio"].get<double>(), 0.95 * (1 - 1e-6));
+    EXPECT_LT(r["mass"]["step_floor_added"].get<double>(), mass["mass"]["step_floor_added"].get<double>());
+    EXPECT_EQ(mass["cuts"][0]["step_floor"]["matched"].get<int>(), 0);
+    json bad = wedgeScene();
+    bad["cutting"]["floor_method"] = "wax";
+    EXPECT_NE(errorOf([&] { parseScene(bad, "bar.json"); }).find("cutting.floor_method"), std::string::npos);
+}
+
 // The elements the wedge cut made critical (R1R step under 1.1 dt) are answered by the floor: listed
 // with the cut's time, no longer critical, and passed to frames for capture.answered_seconds only.
 TEST(CutStep, AnsweredElementsAreShownForAWhile) {
