@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 #include <unordered_map>
 #include <utility>
 
@@ -22,7 +21,7 @@ EmbeddedSurface CutEngine::surface(const Model& m) const {
     std::vector<Eigen::Vector4d> weights;
     std::vector<Eigen::Vector3i> tris;
     std::vector<int> cutId;
-    std::map<VertexKey, int> welded;  // one vertex per place and node set
+    std::unordered_map<VertexKey, int, VertexKeyHash> welded;  // one vertex per place and node set
 
     auto vertex = [&](int e, const Eigen::Vector4d& w) {
         auto [it, added] = welded.emplace(vertexKey(m.tets, e, w), static_cast<int>(elem.size()));

@@ -14,7 +14,6 @@
 #include <bit>
 #include <cmath>
 #include <cstddef>
-#include <map>
 #include <unordered_map>
 #include <string>
 #include <utility>
@@ -235,7 +234,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
     };
     // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
     // elements, so a piece's cut face is connected and shades smoothly.
-    std::map<VertexKey, int> welded;
+    std::unordered_map<VertexKey, int, VertexKeyHash> welded;
     auto vertex = [&](int p, int e, const Eigen::Vector4d& w, bool inside) {
         // Clipped to the parent's inner faces: only round-off is negative there; beyond a boundary
         // face a visual surface's weights are extrapolated, as are a carrier's (inside false).

@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <utility>
 
 namespace cutsim {
@@ -25,5 +27,18 @@ inline VertexKey vertexKey(const Eigen::Matrix4Xi& tets, int e, const Eigen::Vec
     std::sort(k.begin(), k.end());
     return k;
 }
+
+// Hash of a VertexKey, for welding in a hash map (the vertices' numbering follows the order they
+// are first met, not the map's).
+struct VertexKeyHash {
+    size_t operator()(const VertexKey& k) const {
+        std::uint64_t h = 1469598103934665603ULL;  // FNV-1a over the pairs' words
+        for (const auto& [node, q] : k) {
+            h = (h ^ static_cast<std::uint64_t>(static_cast<std::uint32_t>(node))) * 1099511628211ULL;
+            h = (h ^ static_cast<std::uint64_t>(q)) * 1099511628211ULL;
+        }
+        return static_cast<size_t>(h ^ (h >> 29));
+    }
+};
 
 }  // namespace cutsim
