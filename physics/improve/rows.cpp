@@ -36,19 +36,23 @@ void KeptRows::scatter(const Tet& t, const Mat34& g, double V, const Slots& slot
 }
 
 void KeptRows::rescatter(const Tet& t, const Mat34& g0, double v0, const Mat34& g1, double v1, const Slots& slot) {
+    // K_ba = K_ab^T: the upper blocks are computed, each written to both places.
     for (int a = 0; a < 4; ++a) {
         vs[t[a]] += v1 - v0;
         const Eigen::Vector3d la0 = -v0 * lame * g0.col(a), ma0 = -v0 * mu * g0.col(a);
         const Eigen::Vector3d la1 = v1 * lame * g1.col(a), ma1 = v1 * mu * g1.col(a);
-        double* row = blk[t[a]].front().data();
-        for (int b = 0; b < 4; ++b) {
+        for (int b = a; b < 4; ++b) {
             const Eigen::Vector3d gb0 = g0.col(b), gb1 = g1.col(b);
             const double d = ma0.dot(gb0) + ma1.dot(gb1);
-            double* K = row + 9 * slot[4 * a + b];
+            double* K = blk[t[a]][slot[4 * a + b]].data();  // column-major
+            double* L = blk[t[b]][slot[4 * b + a]].data();
             for (int c = 0; c < 3; ++c)
-                for (int r = 0; r < 3; ++r)
-                    K[3 * c + r] +=
+                for (int r = 0; r < 3; ++r) {
+                    const double k =
                         (la0[r] * gb0[c] + gb0[r] * ma0[c]) + (la1[r] * gb1[c] + gb1[r] * ma1[c]) + (r == c ? d : 0.0);
+                    K[3 * c + r] += k;
+                    if (b != a) L[3 * r + c] += k;
+                }
         }
     }
 }
