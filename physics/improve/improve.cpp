@@ -793,6 +793,7 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
         Eigen::Matrix3Xd X;
         std::future<double> dt;
     };
+    ScaledStiffness op;  // a pending solve's: it outlives it, and the next is built after its judgement
     std::optional<Pending> pending;
     auto judgePending = [&] {
         Pending p = std::move(*pending);
@@ -809,7 +810,6 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
         return end;
     };
     if (!inputBeside) judgeInput();
-    ScaledStiffness op;
     for (int round = 1; round <= opts.maxRounds; ++round) {
         if (opts.targetDt > 0 && bestDt >= opts.targetDt) break;
         if (imp.outOfTime()) break;
@@ -831,9 +831,9 @@ ImproveReport improveMesh(TetMesh& mesh, const ImproveOptions& opts) {
         } else {
             imp.scaledStiffness(op);
             if (threads > 1) {
-                auto solve = [s = std::move(op)] {
+                auto solve = [&op] {
                     omp_set_num_threads(1);
-                    return exactCriticalDt(s).dt;
+                    return exactCriticalDt(op).dt;
                 };
                 pending = Pending{round, imp.mesh(), imp.positions(), std::async(std::launch::async, std::move(solve))};
             } else {
