@@ -115,4 +115,20 @@ Eigen::Vector3d ReferenceBoundary::projectToRing(int i, const Eigen::Vector3d& p
     return best;
 }
 
+double ReferenceBoundary::movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0) const {
+    double worst = 0;
+    std::vector<int> patch;
+    for (const auto& t : faces) {
+        if (X.col(t[0]) == X0.col(t[0]) && X.col(t[1]) == X0.col(t[1]) && X.col(t[2]) == X0.col(t[2])) continue;
+        patch.clear();
+        for (int v : t)
+            for (int g : ring[v]) patch.push_back(g);
+        const Eigen::Vector3d p0 = X.col(t[0]), p1 = X.col(t[1]), p2 = X.col(t[2]);
+        const Eigen::Vector3d samples[7] = {
+            p0, p1, p2, (p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
+        for (const auto& s : samples) worst = std::max(worst, distance(s, patch));
+    }
+    return worst;
+}
+
 }  // namespace cutsim

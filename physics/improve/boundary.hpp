@@ -29,6 +29,10 @@ struct ReferenceBoundary {
     Eigen::Vector3d projectToCrease(int i, const Eigen::Vector3d& p, const Eigen::Matrix3Xd& X0) const;
     // Closest point on node i's original faces.
     Eigen::Vector3d projectToRing(int i, const Eigen::Vector3d& p) const;
+    // Largest distance from a sample of the boundary at positions X (vertices, edge midpoints,
+    // centroids) to the old faces around its face's vertices: a bound on the distance to the old
+    // surface (X0: original positions). Faces whose vertices did not move are at distance 0.
+    double movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0) const;
 };
 
 }  // namespace cutsim

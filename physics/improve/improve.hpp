@@ -45,7 +45,8 @@ struct ImproveOptions {
     int threads = 1;                     // threads that smooth disjoint parts at once; a result depends
                                          // on this count, not on timing (0: one per core)
     // Called after each round with the round, the seconds so far and the exact step of the
-    // round's mesh; for a progress bar.
+    // round's mesh (of a round that cannot beat the best: its R1R step, a bound above); for a
+    // progress bar.
     std::function<void(int round, double seconds, double dtExact)> progress;
 };
 
@@ -73,8 +74,9 @@ struct ImproveReport {
     struct Point {
         double seconds, dtExact;
     };
-    std::vector<Point> history;  // exact step after each round (round 0: the input); the
-                                 // smallest R1R step when !exactSteps
+    std::vector<Point> history;  // exact step after each round (round 0: the input) that could
+                                 // beat the best (its R1R step above it); the smallest R1R step
+                                 // of every round when !exactSteps
 };
 
 // Largest distance from the boundary of `to` (its vertices, edge midpoints and face centroids) to

@@ -15,30 +15,28 @@ namespace cutsim {
 
 namespace {
 
-// The scaled operator as a block CSR over the free nodes; y = A x in parallel over rows.
+// The scaled operator (ScaledStiffness); y = A x in parallel over rows.
 struct ScaledStiffnessOp {
     using Scalar = double;
-    std::vector<int> rowStart, col;  // block CSR over free nodes
-    std::vector<double> val;         // 9 per block, column-major
-    Eigen::Index n = 0;              // 3 * free nodes
+    const ScaledStiffness& s;
 
-    Eigen::Index rows() const { return n; }
-    Eigen::Index cols() const { return n; }
+    Eigen::Index rows() const { return s.dofs(); }
+    Eigen::Index cols() const { return s.dofs(); }
     void perform_op(const double* x, double* y) const {
-        const int nr = static_cast<int>(rowStart.size()) - 1;
+        const int nr = static_cast<int>(s.rowStart.size()) - 1;
 #pragma omp parallel for schedule(static) if (nr > 4000)
         for (int r = 0; r < nr; ++r) {
             Eigen::Vector3d acc = Eigen::Vector3d::Zero();
-            for (int k = rowStart[r]; k < rowStart[r + 1]; ++k)
-                acc.noalias() += Eigen::Map<const Eigen::Matrix3d>(val.data() + 9 * k) *
-                                 Eigen::Map<const Eigen::Vector3d>(x + 3 * col[k]);
+            for (int k = s.rowStart[r]; k < s.rowStart[r + 1]; ++k)
+                acc.noalias() += Eigen::Map<const Eigen::Matrix3d>(s.val.data() + 9 * k) *
+                                 Eigen::Map<const Eigen::Vector3d>(x + 3 * s.col[k]);
             Eigen::Map<Eigen::Vector3d>(y + 3 * r) = acc;
         }
     }
 };
 
 // The operator over the free nodes (invMass > 0) of m, listed in freeNodes.
-void buildScaledOp(const Model& m, const StiffnessRows& rows, ScaledStiffnessOp& op, std::vector<int>& freeNodes) {
+void buildScaledOp(const Model& m, const StiffnessRows& rows, ScaledStiffness& op, std::vector<int>& freeNodes) {
     // Free nodes get compact indices; fixed DOFs are removed from the eigenproblem.
     std::vector<int> compact(m.nodes(), -1);
     freeNodes.clear();
@@ -48,7 +46,6 @@ void buildScaledOp(const Model& m, const StiffnessRows& rows, ScaledStiffnessOp&
             freeNodes.push_back(i);
         }
     const int nf = static_cast<int>(freeNodes.size());
-    op.n = 3 * nf;
     op.rowStart.assign(nf + 1, 0);
     for (int r = 0; r < nf; ++r) {
         int cnt = 0;
@@ -75,17 +72,22 @@ void buildScaledOp(const Model& m, const StiffnessRows& rows, ScaledStiffnessOp&
 }  // namespace
 
 ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts) {
-    ScaledStiffnessOp op;
+    ScaledStiffness op;
     std::vector<int> freeNodes;
     buildScaledOp(m, rows, op, freeNodes);
+    return exactCriticalDt(op, opts);
+}
+
+ExactResult exactCriticalDt(const ScaledStiffness& s, const ExactOptions& opts) {
+    ScaledStiffnessOp op{s};
     ExactResult res;
-    res.freeDofs = static_cast<int>(op.n);
-    if (op.n == 0) {
+    res.freeDofs = s.dofs();
+    if (res.freeDofs == 0) {
         res.dt = dtFromLambda(0);
         return res;
     }
     // Largest algebraic eigenvalue (eq. 3.10). Spectra needs nev < ncv <= n.
-    const int ncv = std::min<int>(std::max(opts.ncv, 3), op.n);
+    const int ncv = std::min(std::max(opts.ncv, 3), res.freeDofs);
     Spectra::SymEigsSolver<ScaledStiffnessOp> eigs(op, 1, ncv);
     eigs.init();
     computeEigs(eigs, "exact time step", Spectra::SortRule::LargestAlge, opts.maxIterations, opts.tol);
@@ -112,10 +114,11 @@ struct TopModes {
     std::vector<int> freeNodes;  // node of each block of 3 DOFs
 };
 TopModes topModes(const Model& m, const StiffnessRows& rows, int k, int ncvMin, double tol, int maxIterations) {
-    ScaledStiffnessOp op;
+    ScaledStiffness s;
     TopModes t;
-    buildScaledOp(m, rows, op, t.freeNodes);
-    const int n = static_cast<int>(op.n);
+    buildScaledOp(m, rows, s, t.freeNodes);
+    ScaledStiffnessOp op{s};
+    const int n = s.dofs();
     if (n == 0) return t;
     k = std::clamp(k, 1, n - 1);  // n >= 3: one free node
     const int ncv = std::min(std::max(2 * k + 8, ncvMin), n);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <string>
 
@@ -214,7 +215,9 @@ void tridiagonalize(double (&a)[N][N], double (&d)[N], double (&e)[N - 1]) {
 // The same on blocks of matrices, one per lane of an AVX-512 register of doubles, as the force
 // kernel (fem/forces.cpp): every estimator element runs the same fixed-size arithmetic, so 8 of
 // them go through it together. GCC/Clang vector extensions; lanes take exactly the scalar steps
-// (masked where the scalar code branches), so they agree with it to rounding.
+// (masked where the scalar code branches), so they agree with it to rounding. Only the upper
+// triangle is read and updated: the update keeps a symmetric matrix symmetric to the bit (its two
+// products swap places), so this equals the full update for the symmetric matrices it is given.
 template <int N>
 void tridiagonalizeLanes(Lane (&a)[N][N], Lane (&d)[N], Lane (&e)[N - 1]) {
     for (int k = 0; k < N - 2; ++k) {
@@ -233,14 +236,15 @@ void tridiagonalizeLanes(Lane (&a)[N][N], Lane (&d)[N], Lane (&e)[N - 1]) {
         Lane p[N], vp = Lane{};
         for (int i = 0; i < m; ++i) {
             Lane s = Lane{};
-            for (int j = 0; j < m; ++j) s += a[k + 1 + i][k + 1 + j] * v[j];
+            for (int j = 0; j < i; ++j) s += a[k + 1 + j][k + 1 + i] * v[j];
+            for (int j = i; j < m; ++j) s += a[k + 1 + i][k + 1 + j] * v[j];
             p[i] = beta * s;
             vp += v[i] * p[i];
         }
         const Lane K = 0.5 * beta * vp;
         for (int i = 0; i < m; ++i) p[i] -= K * v[i];
         for (int i = 0; i < m; ++i)
-            for (int j = 0; j < m; ++j) a[k + 1 + i][k + 1 + j] -= v[i] * p[j] + p[i] * v[j];
+            for (int j = i; j < m; ++j) a[k + 1 + i][k + 1 + j] -= v[i] * p[j] + p[i] * v[j];
         e[k] = reduced ? x[0] : alpha;
     }
     e[N - 2] = a[N - 2][N - 1];
@@ -340,6 +344,12 @@ void largestEigenvalues(const Mat12* A, int n, double* lambda) {
         }
         largestEigenvaluesLanes<12>(a, count, lambda + b);
     }
+}
+
+void largestEigenvaluesInterleaved(const double* a, int count, double* lambda) {
+    Lane A[12][12];
+    std::memcpy(A, a, sizeof A);
+    largestEigenvaluesLanes<12>(A, count, lambda);
 }
 
 // ---- per-element estimators (thesis ch. 4, docs/method.md sec. 3) ----

@@ -65,6 +65,15 @@ struct ExactResult {
 };
 ExactResult exactCriticalDt(const Model& m, const StiffnessRows& rows, const ExactOptions& opts = {});
 ExactResult exactCriticalDt(const Model& m, const ExactOptions& opts = {});
+// M^-1/2 K M^-1/2 over the free nodes as a block CSR: row r's blocks are k in
+// [rowStart[r], rowStart[r + 1]), of free node col[k], 9 doubles column-major at val[9 k].
+struct ScaledStiffness {
+    std::vector<int> rowStart, col;
+    std::vector<double> val;
+    int dofs() const { return rowStart.empty() ? 0 : 3 * (static_cast<int>(rowStart.size()) - 1); }
+};
+// The same from such an operator, for a caller that keeps its own rows (the mesh improver).
+ExactResult exactCriticalDt(const ScaledStiffness& op, const ExactOptions& opts = {});
 
 // Selective mass scaling to a target step, as explicit codes hold their step: mass is added to the
 // nodes of every mode above lambda_target = (2 / dtTarget)^2 until the exact step reaches dtTarget
@@ -113,6 +122,9 @@ double largestEigenvalue(const Mat12& A);
 // The same for A[0 .. n-1], 8 at a time on vector lanes (the estimators' path); equal to
 // largestEigenvalue to rounding.
 void largestEigenvalues(const Mat12* A, int n, double* lambda);
+// The same for up to 8 matrices stored interleaved, a[8 (12 i + j) + l] = A_l(i, j); count of
+// them in use, the other lanes finite. Saves a caller that assembles them the copy.
+void largestEigenvaluesInterleaved(const double* a, int count, double* lambda);
 
 // Per-element estimates of the critical step [s] (docs/method.md sec. 3; +inf when nothing is free).
 struct ElementEstimates {
