@@ -320,8 +320,12 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             planeN = cd.normal();
             planeO = cd.pose.position;
         } else {
-            const btBroadphaseProxy* proxy = objects[o]->getBroadphaseHandle();
-            box = btDbvtVolume::FromMM(proxy->m_aabbMin, proxy->m_aabbMax);
+            // the shape's own box: the broad phase grows the boxes it updates by Bullet's contact
+            // breaking threshold (2 cm, for metre-sized rigid bodies), which made a 1 mm blade 1.5 cm
+            // under a resting piece reach it
+            btVector3 lo, hi;
+            objects[o]->getCollisionShape()->getAabb(objects[o]->getWorldTransform(), lo, hi);
+            box = btDbvtVolume::FromMM(lo, hi);
         }
         // a piece away from the shape costs one box test; near it, the leaves within the piece's
         // drift of the shape's box are visited, their moved nodes reset (surface_tree.cpp), and

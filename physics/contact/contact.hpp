@@ -3,7 +3,8 @@
 //
 // Representation: the surface is a cloud of contact points (its vertices plus points on its edges
 // and faces, at most `spacing` apart). A btDbvt over triangle boxes is queried with each tool
-// part's box (from the btCollisionWorld's broad phase); the candidate triangles' points get their
+// part's box (Bullet's box of its shape at its pose, without the 2 cm contact breaking threshold
+// the btCollisionWorld's broad phase adds for metre-sized bodies); the candidate triangles' points get their
 // signed distance to the tool, in closed form for spheres, capsules and boxes and from Bullet's
 // GJK/EPA for hulls (btGjkEpaSolver2::SignedDistance, as Bullet's soft-body nodes do).
 // The cost follows what touches: each step bounds how far any point drifted from where the tree
