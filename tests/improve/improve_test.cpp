@@ -345,10 +345,12 @@ TEST(CmdBenchImprove, TinyRunGivesEveryMethodARow) {
     EXPECT_GT(m["cutsim"]["gain"].get<double>(), 1.5);
     EXPECT_TRUE(m.contains("tetgen -rO10/7"));
     EXPECT_TRUE(m.contains("gmsh"));  // a row, with its numbers or the reason it failed
-    // The improved liver sags as the input does (error within 10%) at a lower cost.
+    // The improved liver sags as the input does (error within 10%) at a lower cost: fewer steps
+    // per simulated second (its step is larger; wall times are the benchmark's, not a test's).
     const nlohmann::json& sag = j["liver_sag"];
     EXPECT_LE(sag[1]["error"].get<double>(), 1.1 * sag[0]["error"].get<double>());
-    EXPECT_LT(sag[1]["wall_per_sim_second"].get<double>(), sag[0]["wall_per_sim_second"].get<double>());
+    EXPECT_GT(sag[1]["dt"].get<double>(), 1.5 * sag[0]["dt"].get<double>());
+    EXPECT_GT(sag[1]["wall_per_sim_second"].get<double>(), 0);
     EXPECT_LT(std::abs(j["bar_frequency"]["frequency_change"].get<double>()), 0.005);
 }
 
