@@ -112,11 +112,10 @@ void ContactWorld::ignoreCut(int tool, int cut) {
     m.ignoredCut.at(static_cast<size_t>(tool)) = cut;
 }
 
-void ContactWorld::setOutsideNodes(std::vector<std::uint8_t> outside) { impl_->outside = std::move(outside); }
-
-void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest) {
+void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest, std::vector<std::uint8_t> outside) {
     Impl& m = *impl_;
     m.clearTree();
+    m.outside = std::move(outside);
     m.pts = std::move(pts);
     m.xp.resize(3, m.pts.points());
     m.stamp.assign(static_cast<size_t>(m.pts.points()), -1);
@@ -537,7 +536,7 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
     // Node masses capped below at the mean of the contact's free nodes: with pure 1/m the light
     // control points of a small cut share (weight w, mass m) would take a correction of up to
     // depth / w, several element sizes; the cap keeps the correction geometric (as limitStretch does).
-    // Nodes outside the material (setOutsideNodes) take no correction when the point's other free
+    // Nodes outside the material (setSurface's `outside`) take no correction when the point's other free
     // nodes carry kMinFreeWeight of it: they belong to partial elements only, whose lumping keeps a
     // parent's eigenvalues on light nodes (xfem.hpp), so their modes sit near the step's limit, and
     // stopping them on contact every step fed a vibration that mass damping could not remove (a

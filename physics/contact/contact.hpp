@@ -136,17 +136,16 @@ public:
     ContactWorld& operator=(const ContactWorld&) = delete;
 
     // (Re)builds the contact points, e.g. after a cut changed the surface. `rest`: the mesh's rest
-    // positions (3 x nNodes) [m], needed for contact between pieces (null: none).
-    void setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest = nullptr);
+    // positions (3 x nNodes) [m], needed for contact between pieces (null: none). `outside`: nodes
+    // that lie outside the material (nNodes, 1 = outside; empty: none), as a cut's virtual nodes do
+    // (CutEngine::virtualNodes); the projection corrects a point through its other nodes when they
+    // carry kMinFreeWeight of it.
+    void setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest = nullptr, std::vector<std::uint8_t> outside = {});
     // Tool `tool` no longer touches the faces cut `cut` made (-1: touches all). A blade slides in
     // its own cut: those faces lie within its thickness, and pressing them apart puts force
     // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still
     // touched.
     void ignoreCut(int tool, int cut);
-    // Nodes that lie outside the material (nNodes, 1 = outside; empty: none), as a cut's virtual
-    // nodes do. The projection corrects a point through its other nodes when they carry
-    // kMinFreeWeight of it.
-    void setOutsideNodes(std::vector<std::uint8_t> outside);
     const ContactPoints& points() const;
 
     // Contact forces at node positions x and velocities v (3 x nNodes) at time t, added into f

@@ -14,6 +14,13 @@
 
 namespace cutsim {
 
+std::vector<std::uint8_t> CutEngine::virtualNodes(const Model& m) const {
+    if (!cuts()) return {};
+    std::vector<std::uint8_t> v = partialNodes(m);
+    for (size_t i = 0; i < v.size(); ++i) v[i] &= originalNode(static_cast<int>(i)) != static_cast<int>(i);
+    return v;
+}
+
 EmbeddedSurface CutEngine::surface(const Model& m) const {
     if (!prepared_) return boundarySurface(m.tets, m.X);
     static const ConvexPiece whole = referenceTet();

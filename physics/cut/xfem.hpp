@@ -146,6 +146,10 @@ public:
     int strokeRegions() const { return static_cast<int>(stroke_.surface.regions.size()); }
     int parentOf(int e) const { return prepared_ ? parent_[static_cast<size_t>(e)] : e; }
     int originalNode(int n) const { return prepared_ ? origNode_[static_cast<size_t>(n)] : n; }
+    // The virtual nodes of m (nNodes, 1 = virtual; empty before any cut): copies a cut made of a node
+    // for the far side of an element, on partial elements only, so they lie outside the material of
+    // every element they move (ContactWorld::setSurface's `outside`).
+    std::vector<std::uint8_t> virtualNodes(const Model& m) const;
     const CutOptions& options() const { return opts_; }
 
 private:

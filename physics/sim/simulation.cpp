@@ -436,16 +436,6 @@ void Simulation::chooseAndApply(bool initial) {
     so_ = sc_.stepOptions(c.dt, alphaElem_);
 }
 
-// A cut's virtual nodes: copies the cut made of a node for the far side of an element, on
-// partial elements only, so they lie outside the material of every element they move (MI's outside
-// lattice nodes are left out: its contact points sit mostly on them). Empty without cuts.
-std::vector<std::uint8_t> Simulation::virtualNodes() const {
-    if (!cutter_ || !cutter_->cuts()) return {};
-    std::vector<std::uint8_t> v = partialNodes(model_);
-    for (size_t i = 0; i < v.size(); ++i) v[i] &= cutter_->originalNode(static_cast<int>(i)) != static_cast<int>(i);
-    return v;
-}
-
 void Simulation::setupContact() {
     // Contact: a Bullet world only when the scene has tools, colliders or contact between pieces.
     // The projection model has no stiffness; the penalty model's stays below the limit that keeps
@@ -485,8 +475,8 @@ void Simulation::setupContact() {
     ContactPoints pts = contactPoints(touched, model_.tets, model_.X, spacing);
     c.massRef = referenceMass(pts, model_.invMass);
     scaleByMass(pts, model_.invMass, c.massRef);
-    contact_->setSurface(std::move(pts), &model_.X);
-    contact_->setOutsideNodes(virtualNodes());
+    contact_->setSurface(std::move(pts), &model_.X,
+                         cutter_ ? cutter_->virtualNodes(model_) : std::vector<std::uint8_t>{});
     if (!penalty) {
         c.stiffnessLimit = std::numeric_limits<double>::quiet_NaN();  // none: no stiffness
         return;
@@ -814,8 +804,9 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
         if (contact_) {
             ContactPoints pts = contactPoints(*touched, model_.tets, model_.X, contactSettings_.spacing);
             scaleByMass(pts, model_.invMass, contactSettings_.massRef);
-            contact_->setSurface(std::move(pts), &model_.X);
-            contact_->setOutsideNodes(virtualNodes());
+            // a cut's virtual nodes take no contact correction (MI's outside lattice nodes do: its
+            // surface points sit mostly on them)
+            contact_->setSurface(std::move(pts), &model_.X, cutter_->virtualNodes(model_));
         }
         if (opt_.renderSurface && !visual_) surface_ = std::move(touched);
         rec_.stages[Stage::Contact] += sw.lap();

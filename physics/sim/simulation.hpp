@@ -178,7 +178,6 @@ private:
     void embedVisualSurface(const SurfaceMesh& vis);
     void chooseAndApply(bool initial);
     void setupContact();
-    std::vector<std::uint8_t> virtualNodes() const;
     void ensureCutter();
     bool applyDueCuts();
     bool applyBlades();
