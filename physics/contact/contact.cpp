@@ -112,6 +112,29 @@ void ContactWorld::ignoreCut(int tool, int cut) {
     m.ignoredCut.at(static_cast<size_t>(tool)) = cut;
 }
 
+bool ContactWorld::Slot::contains(const Eigen::Vector3d& x) const {
+    const Eigen::Vector3d d = x - origin;
+    if (polygons.empty() || !(std::abs(u.cross(v).dot(d)) <= halfWidth)) return false;
+    const Eigen::Vector2d q(d.dot(u), d.dot(v));
+    for (const auto& poly : polygons) {
+        // inside a convex polygon of either orientation: the same side of every edge
+        int pos = 0, neg = 0;
+        for (size_t i = 0, n = poly.size(); i < n; ++i) {
+            const Eigen::Vector2d e = poly[(i + 1) % n] - poly[i], r = q - poly[i];
+            const double c = e.x() * r.y() - e.y() * r.x();
+            pos += c > 0, neg += c < 0;
+        }
+        if (poly.size() >= 3 && (pos == 0 || neg == 0)) return true;
+    }
+    return false;
+}
+
+void ContactWorld::setSlot(int tool, Slot slot) {
+    Impl& m = *impl_;
+    m.slots.resize(m.tools.size());
+    m.slots.at(static_cast<size_t>(tool)) = std::move(slot);
+}
+
 void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest, std::vector<std::uint8_t> outside) {
     Impl& m = *impl_;
     m.clearTree();
@@ -331,6 +354,10 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         // those that reach the box are the candidates
         const int ignored =
             sh.tool < 0 || ignoredCut.empty() || P.triCut.empty() ? -1 : ignoredCut[static_cast<size_t>(sh.tool)];
+        const ContactWorld::Slot* slot = sh.tool >= 0 && static_cast<size_t>(sh.tool) < slots.size() &&
+                                                 !slots[static_cast<size_t>(sh.tool)].polygons.empty()
+                                             ? &slots[static_cast<size_t>(sh.tool)]
+                                             : nullptr;
         // a static collider's band: points within it are kept by pieces that query the trees now
         const bool fixedShape = sh.tool < 0;
         const double band = fixedShape ? nearBand : 0.0;
@@ -447,6 +474,7 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             ++st.tested;
             if (!(d < speculative) || !std::isfinite(d)) continue;
             if (!n.allFinite() || std::abs(n.norm() - 1) > 1e-6) continue;
+            if (slot && slot->contains(xp.col(p))) continue;
             Touch tc;
             tc.point = p;
             tc.shape = static_cast<int>(o);

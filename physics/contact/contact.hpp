@@ -146,6 +146,20 @@ public:
     // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still
     // touched.
     void ignoreCut(int tool, int cut);
+    // The slot tool `tool` has cut: the area its edge swept in the plane through `origin` with unit
+    // axes u, v (normal u x v), as convex polygons in (u, v) [m]. The model's crack has no
+    // thickness, so the blade does not touch the points within `halfWidth` of that plane whose
+    // projection lies in the swept area: it slides in its cut. Without this its faces push every
+    // point that a cut leaves inside the blade's thickness out sideways in one step, up to half
+    // the thickness, which on elements of a few blade thicknesses is a strain of tens of percent
+    // and drove the fine meshes' cut regions unstable (docs/method.md, Contact). Empty polygons: none.
+    struct Slot {
+        Eigen::Vector3d origin = Eigen::Vector3d::Zero(), u = Eigen::Vector3d::UnitX(), v = Eigen::Vector3d::UnitY();
+        double halfWidth = 0;                                // [m]
+        std::vector<std::vector<Eigen::Vector2d>> polygons;  // convex, (u, v) [m]
+        bool contains(const Eigen::Vector3d& x) const;
+    };
+    void setSlot(int tool, Slot slot);
     const ContactPoints& points() const;
 
     // Contact forces at node positions x and velocities v (3 x nNodes) at time t, added into f

@@ -122,6 +122,8 @@ public:
     CutResult sweep(Model& m, State& s, const BladeEdge& from, const BladeEdge& to,
                     const std::vector<int>* candidates = nullptr);
     void endStroke();  // the next sweep starts a new stroke (new plane, new cut id)
+    // The open stroke's plane and the area its edge has swept so far (null: no stroke open).
+    const CutSurface* strokeSurface() const { return stroke_.active ? &stroke_.surface : nullptr; }
 
     // The surface to draw and collide with: the original boundary clipped to each virtual
     // element, plus the cut faces (EmbeddedSurface::cutFace), all riding their elements. Vertices

@@ -58,7 +58,8 @@ void computeForces(const Model& model, State& state, const double* alpha = nullp
 // with equal node masses keeps its momentum and centre of mass. Returns the most elements
 // corrected in a round. Serial: it runs only in steps where the force stage saw an element that
 // may be below its watch stretch.
-int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch);
+// sMinPartial > sMin: the bound of the elements with fraction < 1 (StepOptions::holdPartial).
+int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch, double sMinPartial = 0);
 
 // Quasi-static relaxation of `nodes` with the other nodes held: `iterations` Gauss-Seidel sweeps,
 // each node moved by K_aa^-1 f_a (its corotated diagonal stiffness block from its elements against

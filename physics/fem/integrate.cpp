@@ -253,15 +253,23 @@ const double* Stepper::forceFactors(const Model& m, const double* alpha) {
     return matchAlpha_.data();
 }
 
+// The stretch bound of partial elements, or 0 when none is held apart (StepOptions::holdPartial).
+double Stepper::partialStretch(const Model& m, const StepOptions& opt) const {
+    if (!opt.holdPartial || !(opt.minStretch > 0) || !(opt.minStretch < kPartialMinStretch)) return 0;
+    return m.fraction.size() && m.fraction.minCoeff() < 1 ? kPartialMinStretch : 0;
+}
+
 void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {
-    if (opt.minStretch > 0 && nearFlat > 0) s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_);
+    if (opt.minStretch > 0 && nearFlat > 0)
+        s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_, partialStretch(m, opt));
 }
 
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {
     forceSeconds_ = 0;
     const double dt = opt.dt, c = m.massDamping;
     const double* alpha = forceFactors(m, opt.alphaElem ? opt.alphaElem->data() : nullptr);
-    const double watch = opt.minStretch > 0 ? opt.minStretch + kStretchWatchMargin : 0;
+    const double watch =
+        opt.minStretch > 0 ? std::max(opt.minStretch, partialStretch(m, opt)) + kStretchWatchMargin : 0;
     const int n = m.nodes();
     const int nearBefore = s.flags.nearFlat;  // Newmark moves before its force stage
     s.flags = {};

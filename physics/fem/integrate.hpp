@@ -41,13 +41,19 @@ const char* integratorName(Integrator i);
 
 struct StepOptions {
     Integrator integrator = Integrator::SymplecticEuler;
-    double dt = 1e-4;                                // time step [s]
-    double alpha = 1.0;                              // Newmark's global damping factor on the acceleration, (0, 1]
-    const Eigen::VectorXd* alphaElem = nullptr;      // per-element factor alpha_e (nElems), scales element
-                                                     // forces; (dt_crit_e / dt)^2 where dt > dt_crit_e (eq. 3.16)
-    double minStretch = 0;                           // > 0: project elements whose smallest principal stretch is
-                                                     // below it back to it after the position update
-                                                     // (fem/forces.hpp limitStretch); 0: off
+    double dt = 1e-4;                            // time step [s]
+    double alpha = 1.0;                          // Newmark's global damping factor on the acceleration, (0, 1]
+    const Eigen::VectorXd* alphaElem = nullptr;  // per-element factor alpha_e (nElems), scales element
+                                                 // forces; (dt_crit_e / dt)^2 where dt > dt_crit_e (eq. 3.16)
+    double minStretch = 0;                       // > 0: project elements whose smallest principal stretch is
+                                                 // below it back to it after the position update
+                                                 // (fem/forces.hpp limitStretch); 0: off
+    // With minStretch on, the elements that carry only part of their volume (fraction < 1: cut
+    // pieces, mesh-intersection interface elements) are held at kPartialMinStretch or minStretch,
+    // the larger: their far control points lie outside their material and weigh a share of a
+    // node, so a piece squeezed to a fifth of its size by the stress it inherited, or by a blade,
+    // inverts and is thrown out by the corotational force (docs/method.md, Cutting at any size).
+    bool holdPartial = true;
     ImplicitSolver solver = ImplicitSolver::Direct;  // backward Euler only
     double cgTolerance = 1e-9;                       // CG: relative residual |A v - b| / |b| to stop at
 };
@@ -55,6 +61,8 @@ struct StepOptions {
 // The force stage watches for elements whose smallest stretch may be within this margin above
 // minStretch, so that the limiting pass runs only in steps that can need it.
 inline constexpr double kStretchWatchMargin = 0.3;
+// The least stretch of a partial element when stretch limiting is on (StepOptions::holdPartial).
+inline constexpr double kPartialMinStretch = 0.5;
 
 // Per-element damping factors for a step dt from per-element critical steps (thesis eq. 3.16).
 Eigen::VectorXd elementAlpha(const Eigen::VectorXd& dtCritElem, double dt);
@@ -93,6 +101,7 @@ private:
     const double* forceFactors(const Model& m, const double* alpha);
     void lightMeans(const Model& m, const State& s);
     void dampLight(const Model& m, State& s, double dt) const;
+    double partialStretch(const Model& m, const StepOptions& opt) const;
 };
 
 // Checks positions and velocities for non-finite values (state.flags.nonFinite).

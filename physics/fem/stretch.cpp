@@ -57,7 +57,7 @@ double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<doub
 
 }  // namespace
 
-int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratch) {
+int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scratch, double sMinPartial) {
     // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
     // is linear in x along its gradient while the singular vectors hold, so a few sweeps suffice.
     // A correction can push a neighbour below the limit: the next round scans the elements around
@@ -65,7 +65,10 @@ int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratc
     constexpr int kRounds = 4, kSweeps = 8;
     constexpr double kTol = 1e-9;
     Eigen::Matrix<double, 3, 4> g;
+    const bool partial = sMinPartial > sMinAll;
+    auto bound = [&](int e) { return partial && m.fraction(e) < 1 ? sMinPartial : sMinAll; };
     auto below = [&](int e) {
+        const double sMin = bound(e);
         return smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
                smallestStretch(m, s, e, g) < sMin * (1 - kTol);
     };
@@ -97,6 +100,7 @@ int limitStretch(const Model& m, State& s, double sMin, std::vector<int>& scratc
         for (int sweep = 0; sweep < kSweeps; ++sweep) {
             bool moved = false;
             for (const int e : scratch) {
+                const double sMin = bound(e);
                 const double C = smallestStretch(m, s, e, g) - sMin;
                 if (C >= -kTol * sMin) continue;
                 const int* n = m.tets.col(e).data();

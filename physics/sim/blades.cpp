@@ -13,6 +13,20 @@ namespace cutsim {
 // coverage (State::x) are both in the deformed configuration, so the broad phase is refitted on
 // state.x. The engine keeps one stroke at a time: it ends when its blade leaves the tissue (no
 // element's box meets its swept box) or another blade starts cutting.
+// The slot blade i slides in: the area its open stroke swept (ContactWorld::setSlot), or none.
+void Simulation::syncSlot(int i) {
+    ContactWorld::Slot slot;
+    const CutSurface* cs = stroke_ == i && sc_.cutting.bladeSlot ? cutter_->strokeSurface() : nullptr;
+    if (cs) {
+        slot.origin = cs->point;
+        planeAxes(cs->normal, slot.u, slot.v);
+        // the blade's half thickness, and a tenth of it for the contacts speculated just outside
+        slot.halfWidth = 0.55 * sc_.tools[static_cast<size_t>(i)].size.z();
+        slot.polygons = cs->regions;
+    }
+    contact_->setSlot(i, std::move(slot));
+}
+
 bool Simulation::applyBlades() {
     if (!bladePhase_) return true;
     const double t0 = state_.time, t1 = state_.time + choice_.dt;
@@ -36,7 +50,11 @@ bool Simulation::applyBlades() {
             const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
             bladeEdge(tool, t1, lastEdge_[b].a, lastEdge_[b].b);  // where the next step starts from
         }
-        if (stroke_ >= 0) cutter_->endStroke(), stroke_ = -1;
+        if (stroke_ >= 0) {
+            const int was = stroke_;
+            cutter_->endStroke(), stroke_ = -1;
+            syncSlot(was);
+        }
         return true;
     }
     bladePhase_->refit(model_.tets, state_.x);
@@ -52,16 +70,22 @@ bool Simulation::applyBlades() {
         for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
         bladePhase_->query(lo, hi, candidates_);
         if (candidates_.empty()) {
-            if (stroke_ == i) cutter_->endStroke(), stroke_ = -1;
+            if (stroke_ == i) cutter_->endStroke(), stroke_ = -1, syncSlot(i);
             continue;
         }
         if (stroke_ != i) {
-            if (stroke_ >= 0) cutter_->endStroke();
+            if (stroke_ >= 0) {
+                const int was = stroke_;
+                cutter_->endStroke();
+                stroke_ = i;
+                syncSlot(was);
+            }
             stroke_ = i;
         }
         beforeTopologyChange();  // a sweep may split elements (r.changed() tells after it)
         const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
         if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
+        syncSlot(i);
         if (!r.changed()) continue;
         bladePhase_->refit(model_.tets, state_.x);  // the new elements, for the next blade
         ++rec_.bladeCutSteps;

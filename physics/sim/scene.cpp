@@ -526,6 +526,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.cutting.mergeDebris = c.boolean("merge_debris", dflt.mergeDebris);
         s.cutting.relaxIterations = c.integer("relax_iterations", dflt.relaxIterations, 0, 100);
         s.cutting.lightShare = c.number("light_share", dflt.lightShare, 0, 0.5);
+        s.cutting.bladeSlot = c.boolean("blade_slot", dflt.bladeSlot);
         if (c.has("compare")) {
             const json& cmp = c.raw("compare");
             c.touch("compare");

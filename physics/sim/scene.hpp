@@ -125,6 +125,7 @@ struct Cutting {
     bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
     int relaxIterations = CutOptions{}.relaxIterations;  // CutOptions::relaxIterations
     double lightShare = CutOptions{}.lightShare;         // CutOptions::lightShare [-]
+    bool bladeSlot = false;                              // a blade slides in the area it swept (ContactWorld::setSlot)
     std::vector<std::string> compare;                    // baselines run on the rest mesh with the same planes:
                                                          // subdivision | remesh
     std::vector<CutDef> cuts;                            // in time order

@@ -181,6 +181,7 @@ private:
     void ensureCutter();
     bool applyDueCuts();
     bool applyBlades();
+    void syncSlot(int i);
     void check();
     void sampleEnergy();
     void fail(RunStatus s, const std::string& why);

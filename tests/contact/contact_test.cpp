@@ -130,6 +130,42 @@ TEST(Contact, ToolIgnoresTheFacesOfItsCut) {
     }
 }
 
+// A blade slides in the slot it has cut (ContactWorld::setSlot): the points within its half
+// width of the slot's plane whose projection lies in the swept area are not touched. The sphere
+// of ToolIgnoresTheFacesOfItsCut presses five vertices; a slot over the centre one alone leaves the
+// four of the ring (4 k (r - l) h / l), one beside it or too thin to reach the surface, all five.
+TEST(Contact, ToolSlidesInItsSlot) {
+    Slab s;
+    const double k = 500, r = 0.015, h = 0.011;
+    const Eigen::Vector3d mid(0.05, 0.05, 0.02);
+    const double l = std::sqrt(0.01 * 0.01 + h * h);
+    const double ring = 4 * k * (r - l) * h / l;
+    const std::vector<Eigen::Vector2d> square{{-0.005, -0.005}, {0.005, -0.005}, {0.005, 0.005}, {-0.005, 0.005}};
+    struct Case {
+        Eigen::Vector3d origin;
+        double halfWidth;
+        int contacts;
+    };
+    // the plane through mid spanned by x and z: the surface (z = 0.02) crosses it along the x axis
+    for (const Case& c : {Case{mid, 1e-3, 4}, Case{mid + Eigen::Vector3d(0.02, 0, 0), 1e-3, 5},
+                          Case{mid + Eigen::Vector3d(0, 2e-3, 0), 1e-3, 5}}) {
+        ContactWorld w({sphereAt(mid + Eigen::Vector3d(0, 0, h), r, k)});
+        w.setSurface(contactPoints(s.surf, s.mesh.tets, s.mesh.X, 0));
+        ContactWorld::Slot slot;
+        slot.origin = c.origin;
+        slot.u = Eigen::Vector3d::UnitX();
+        slot.v = Eigen::Vector3d::UnitZ();
+        slot.halfWidth = c.halfWidth;
+        slot.polygons = {square};
+        EXPECT_EQ(slot.contains(mid), c.contacts == 4);
+        w.setSlot(0, slot);
+        s.f.setZero();
+        w.addForces(s.mesh.X, s.v, 0, 1e-4, s.f);
+        EXPECT_EQ(w.last().contacts, c.contacts);
+        EXPECT_NEAR(w.last().reaction[0].z(), ring + (c.contacts == 4 ? 0 : k * (r - h)), 1e-9);
+    }
+}
+
 TEST(Contact, BoxAndCapsuleDepthsComeFromGjkEpa) {
     Slab s;
     const double k = 2000, d = 4e-4;

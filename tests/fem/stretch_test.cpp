@@ -57,6 +57,25 @@ TEST(Forces, StretchLimitProjectsByHand) {
     EXPECT_EQ(limitStretch(m, s, 0.1, scratch), 0);
 }
 
+// A partial element (fraction < 1: a cut piece, a mesh-intersection interface element) is held
+// at the larger bound: the same tet squeezed to z = 0.3 h is left alone at sMin 0.2, and brought
+// to z = 0.5 h exactly (the same projection as above) when it stands for half its volume.
+TEST(Forces, StretchLimitHoldsPartialElementsAtTheirBound) {
+    TetMesh t = test::unitTet();
+    t.X *= 0.01;
+    Model m = buildModel(t, Material{});
+    fixNodes(m, {0, 1, 2});
+    State s = makeState(m);
+    s.x.col(3) << 0, 0, 0.003;
+    std::vector<int> scratch;
+    EXPECT_EQ(limitStretch(m, s, 0.2, scratch, kPartialMinStretch), 0);  // a whole element: 0.3 > 0.2
+    EXPECT_EQ(s.x(2, 3), 0.003);
+    m.fraction(0) = 0.5;
+    EXPECT_EQ(limitStretch(m, s, 0.2, scratch, kPartialMinStretch), 1);
+    EXPECT_NEAR(s.x(2, 3), 0.005, 1e-15);
+    EXPECT_NEAR(smallestStretchOf(m, s, 0), 0.5, 1e-12);
+}
+
 // On a free tet with equal node masses the correction keeps momentum and the centre of mass, and
 // leaves the smallest stretch at the limit (a little above: the singular vectors turn).
 TEST(Forces, StretchLimitKeepsMomentum) {
