@@ -23,6 +23,19 @@ foreach(f include/cutsim/sim/simulation.hpp include/cutsim/sim/scene.hpp include
   endif()
 endforeach()
 
+# pkg-config, from the prefix the package was installed into
+find_program(PKG_CONFIG pkg-config)
+if(PKG_CONFIG)
+  set(ENV{PKG_CONFIG_PATH} ${WORK}/prefix/${LIBDIR}/pkgconfig)
+  run("pkg-config cutsim" ${PKG_CONFIG} --cflags --libs cutsim)
+  string(STRIP "${out}" pc)
+  string(REGEX MATCH "-I[^ ]*include/cutsim" inc "${pc}")
+  string(REPLACE "-I" "" inc "${inc}")
+  if(NOT pc MATCHES "-lcutsim_physics" OR NOT EXISTS ${inc}/sim/simulation.hpp)
+    message(FATAL_ERROR "pkg-config --cflags --libs cutsim: ${pc}")
+  endif()
+endif()
+
 set(args -S ${SOURCE}/examples/embed -B ${WORK}/build -DCMAKE_PREFIX_PATH=${WORK}/prefix -DCMAKE_BUILD_TYPE=Release)
 if(COMPILER)
   list(APPEND args -DCMAKE_CXX_COMPILER=${COMPILER})
