@@ -1,5 +1,8 @@
 #!/usr/bin/env bash
-# Configures and builds a tree; extra CMake arguments pass through.
+# Configures and builds a tree; extra CMake arguments pass through (they come last, so
+# -DCUTSIM_ARCH=portable makes a binary for any x86-64 machine). Release trees are built for this
+# machine's CPU (CUTSIM_ARCH=native): they run where they are built, and the step's kernels are
+# written for wide vector registers (docs/build.md compares the step's speed).
 #   scripts/build.sh [ARGS]          Release in build/: every target (the cutsim program, the tests,
 #                                    the benchmarks, the baselines, the Python module)
 #   scripts/build.sh --demo [ARGS]   Release in build/: the cutsim program only (scripts/demo.sh)
@@ -9,7 +12,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 B=build
-type=(-DCMAKE_BUILD_TYPE=Release)
+type=(-DCMAKE_BUILD_TYPE=Release -DCUTSIM_ARCH=native)
 all=(-DCUTSIM_TESTS=ON -DCUTSIM_BENCH=ON -DCUTSIM_PYTHON=ON -DCUTSIM_BASELINES=ON)
 targets=()
 case "${1:-}" in
