@@ -25,7 +25,9 @@ case "${1:-}" in
   *[!0-9]*) echo "usage: scripts/fuzz.sh [--release] [SECONDS | --build-only]" >&2; exit 2 ;;
   *) budget=$1 ;;
 esac
-cmake -S . -B "$B" -DCMAKE_CXX_COMPILER=clang++ "${config[@]}" -DCUTSIM_FUZZ=ON >/dev/null
+gen=()
+if [ ! -f "$B/CMakeCache.txt" ] && command -v ninja >/dev/null; then gen=(-G Ninja); fi
+cmake -S . -B "$B" "${gen[@]}" -DCMAKE_CXX_COMPILER=clang++ "${config[@]}" -DCUTSIM_FUZZ=ON >/dev/null
 cmake --build "$B" -j"$(nproc)"
 [ "$build_only" = 1 ] && exit 0
 data=$(sed -n 's/^CUTSIM_DATA_DIR:PATH=//p' "$B/CMakeCache.txt")

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds Release, runs the unit tests, the fuzz targets briefly, then the
 # unit tests again under AddressSanitizer + UBSan. Stress tests and benchmarks have their own
-# commands (README).
+# commands (README). Each configuration builds only what it runs: the fuzz build the physics
+# library and the fuzz targets, the sanitizer build the test programs and the cutsim program.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
@@ -13,8 +14,7 @@ if [ "${CUTSIM_SKIP_FUZZ:-0}" != 1 ]; then
   (cd build-fuzz && ctest -L fuzz --output-on-failure -j"$(nproc)")
 fi
 if [ "${CUTSIM_SKIP_SANITIZE:-0}" != 1 ]; then
-  cmake -S . -B build-asan -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCUTSIM_SANITIZE=ON -DCUTSIM_BENCH=OFF >/dev/null
-  cmake --build build-asan -j"$(nproc)"
+  scripts/build.sh --asan
   (cd build-asan && ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
      ctest -LE stress --output-on-failure -j"$(nproc)" --timeout 1800)
 fi
