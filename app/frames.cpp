@@ -10,6 +10,7 @@
 #include "renderer.hpp"
 #include "video.hpp"
 
+#include <array>
 #include <condition_variable>
 #include <deque>
 #include <exception>
@@ -36,25 +37,9 @@ namespace {
 // One frame waits while one is drawn; a third waits for the drawer (`waited`).
 class RenderSink final : public FrameSink {
 public:
-    RenderSink(const SceneDef& sc, const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt,
-               double dt, const EmbeddedSurface* surface, bool pipelined)
-        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), scene_(sc, model, elementDt, dt, surface),
-          pipelined_(pipelined) {
+    // Starts the drawing thread, which makes the GL context and the renderer meanwhile.
+    RenderSink(const SceneDef& sc, bool pipelined) : sc_(sc), pipelined_(pipelined) {
         times_.pipelined = pipelined;
-        std::filesystem::create_directories(dir_);
-        if (sc.capture.video) {
-            if (render::findOnPath("ffmpeg").empty()) {
-                std::fprintf(stderr,
-                             "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
-            } else if (sc.capture.width % 2 || sc.capture.height % 2) {
-                std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
-            } else {
-                videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
-                video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc.capture.width, sc.capture.height,
-                                                                sc.capture.playbackFps > 0 ? sc.capture.playbackFps
-                                                                                           : sc.capture.fps);
-            }
-        }
         render::RenderOptions ro;
         ro.width = sc.capture.width;
         ro.height = sc.capture.height;
@@ -63,14 +48,26 @@ public:
         ro.floor = sc.capture.floor;
         ro.hud = sc.capture.hud;
         ro.samples = sc.capture.samples;
-        std::promise<void> ready;
-        std::future<void> made = ready.get_future();
-        drawer_ = std::thread([this, ro, &ready] { drawLoop(ro, ready); });
-        try {
-            made.get();  // the renderer's constructor throws there when no GL context can be made
-        } catch (...) {
-            drawer_.join();
-            throw;
+        made_ = ready_.get_future();
+        drawer_ = std::thread([this, ro] { drawLoop(ro); });
+    }
+
+    void begin(const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt, double dt,
+               const EmbeddedSurface* surface) override {
+        made_.get();  // the renderer's constructor threw there when no GL context could be made
+        scene_ = std::make_unique<SceneSnapshot>(sc_, model, elementDt, dt, surface);
+        dir_ = std::filesystem::path(outDir) / "frames";
+        std::filesystem::create_directories(dir_);
+        if (!sc_.capture.video) return;
+        if (render::findOnPath("ffmpeg").empty()) {
+            std::fprintf(stderr, "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
+        } else if (sc_.capture.width % 2 || sc_.capture.height % 2) {
+            std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
+        } else {
+            videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
+            video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc_.capture.width, sc_.capture.height,
+                                                            sc_.capture.playbackFps > 0 ? sc_.capture.playbackFps
+                                                                                        : sc_.capture.fps);
         }
     }
 
@@ -78,7 +75,7 @@ public:
 
     void frame(const Model& model, const State& state, const FrameInfo& info) override {
         const Stopwatch t;
-        const RenderSnapshot& snap = scene_.update(model, state, info);
+        const RenderSnapshot& snap = scene_->update(model, state, info);
         RenderSnapshot copy;
         double waited = 0;
         {
@@ -108,7 +105,7 @@ public:
 
     void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt,
                          double dt) override {
-        scene_.topologyChanged(model, std::move(surface), elementDt, dt);
+        scene_->topologyChanged(model, std::move(surface), elementDt, dt);
     }
 
     void finish() override {
@@ -139,16 +136,16 @@ private:
         int index = 0;
     };
 
-    void drawLoop(const render::RenderOptions& ro, std::promise<void>& ready) {
+    void drawLoop(const render::RenderOptions& ro) {
         std::unique_ptr<render::Renderer> renderer;
         try {
             renderer = std::make_unique<render::Renderer>(ro);
             info_ = {renderer->glVendor(), renderer->glRenderer(), renderer->glVersion()};
         } catch (...) {
-            ready.set_exception(std::current_exception());
+            ready_.set_exception(std::current_exception());
             return;
         }
-        ready.set_value();
+        ready_.set_value();
         std::unique_lock lock(mutex_);
         for (;;) {
             changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
@@ -215,9 +212,11 @@ private:
     }
 
     const SceneDef& sc_;
-    std::filesystem::path dir_;
-    SceneSnapshot scene_;  // the caller's thread only
     bool pipelined_;
+    std::filesystem::path dir_;
+    std::unique_ptr<SceneSnapshot> scene_;  // the caller's thread only
+    std::promise<void> ready_;              // the renderer is made (or failed)
+    std::future<void> made_;
     render::PngWriter pngs_{8};  // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     std::string videoPath_;
@@ -237,18 +236,11 @@ private:
 }  // namespace
 #endif
 
-std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
-                                         const Eigen::VectorXd& elementDt, double dt, const EmbeddedSurface* surface,
-                                         bool pipelined) {
+std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, bool pipelined) {
 #ifdef CUTSIM_HAVE_RENDER
-    try {
-        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt, surface, pipelined);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
-        return nullptr;
-    }
+    return std::make_unique<RenderSink>(scene, pipelined);
 #else
-    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt, (void)surface, (void)pipelined;
+    (void)scene, (void)pipelined;
     std::fprintf(stderr, "frames: this build has no renderer; running without frames\n");
     return nullptr;
 #endif

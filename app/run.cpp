@@ -109,15 +109,19 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Simulation::Options so;
     so.threads = opt.threads;
     so.renderSurface = capturing || sc.capture.cutObj;
+    // the renderer is made on the drawing thread while the simulation is built
+    std::unique_ptr<FrameSink> sink = capturing ? makeFrameSink(sc, opt.pipelined) : nullptr;
     Simulation sim(sc, so);
 
     // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
     StagedFolder folder(opt.out);
     const fs::path out = folder.staging();
-    std::unique_ptr<FrameSink> sink;
-    if (capturing)
-        sink = makeFrameSink(sc, out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface(),
-                             opt.pipelined);
+    if (sink) try {
+            sink->begin(out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
+            sink.reset();
+        }
     const double setupSeconds = wall.seconds();
     double surfaceSeconds = 0;  // the drawn surface split after cuts (Simulation::surface())
 
