@@ -1,35 +1,48 @@
-// `cutsim bench capture`: frames per second of the capture path of a scene, split into its parts:
-// the snapshot from the state (physics), drawing with the HUD, reading the frame back, and the
-// hand-off to the video encoder (its writer thread encodes meanwhile), and the CPU time a frame
-// costs this process and ffmpeg: on 2 cores, 60 fps needs their sum under 33 ms. The state stays at the
-// scene's start, so the number is the capture path alone, not the simulation.
+// `cutsim bench capture`: what capture costs in real runs. Each scene runs to its end as `cutsim
+// run` runs it (its deformation, cuts and frames, PNGs and video as its capture settings ask) at
+// the size asked, and its report.json gives the per-frame cost of each part of the capture (the
+// snapshot of the frame's state, drawing with the HUD, reading the frame back, the hand-off to the
+// PNG and video writers, their drain at the end), the physics stages, and how much of the two the
+// pipeline hid: wall time against their sum and against the larger of them.
 #include "bench.hpp"
 #include "commands.hpp"
+#include "run.hpp"
 
-#include "sim/simulation.hpp"
-#include "snapshot/scene_snapshot.hpp"
+#include "sim/scene.hpp"
 #include "util/stopwatch.hpp"
 
-#ifdef CUTSIM_HAVE_RENDER
-#include "renderer.hpp"
-#include "png_writer.hpp"
-#include "video.hpp"
-#endif
-
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
+#include <fstream>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <sys/resource.h>
+#include <unistd.h>
 
 namespace cutsim::app {
 namespace {
 
-// CPU time of this process (all its threads, llvmpipe's too) or of its waited-for children [s].
+using nlohmann::json;
+
+struct CaptureArgs {
+    std::vector<std::string> scenes{"assets/scenes/demo.json"};
+    std::vector<std::string> sets;
+    int width = 1280, height = 720;
+    bool hud = true;
+    bool video = true;
+    bool serial = false;
+    int runs = 1;
+    int threads = 0;
+    std::string keep;  // keep the last run's output folder here
+};
+
+// CPU time of this process's threads or of its waited-for children (ffmpeg) [s].
 double cpuSeconds(int who) {
     rusage u{};
     getrusage(who, &u);
@@ -37,78 +50,70 @@ double cpuSeconds(int who) {
     return s(u.ru_utime) + s(u.ru_stime);
 }
 
-struct CaptureArgs {
-    std::string scene = "assets/scenes/demo.json";
-    int frames = 60;
-    int width = 1280, height = 720;
-    bool hud = true;
-    bool video = true;
-    int samples = 0;  // 0: the scene's capture.samples
-    bool smooth = true;
-    std::string save;  // PNG of the last timed frame
-};
+double loadAverage() {
+    double l[1] = {0};
+    return getloadavg(l, 1) == 1 ? l[0] : -1;
+}
 
 int runCapture(const CaptureArgs& a) {
-#ifndef CUTSIM_HAVE_RENDER
-    (void)a;
-    throw std::runtime_error("this cutsim was built without the renderer (-DCUTSIM_RENDER=OFF)");
-#else
-    const SceneDef sc = loadScene(a.scene);
-    Simulation::Options so;
-    so.renderSurface = true;
-    Simulation sim(sc, so);
-    SceneSnapshot scene(sc, sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
-    render::RenderOptions ro;
-    ro.width = a.width;
-    ro.height = a.height;
-    ro.hud = a.hud;
-    ro.samples = a.samples > 0 ? a.samples : sc.capture.samples;
-    ro.smoothEdges = a.smooth;
-    ro.xray = sc.capture.xray;
-    ro.floor = sc.capture.floor;
-    render::Renderer renderer(ro);
-    std::unique_ptr<render::VideoEncoder> video;
-    const std::string mp4 = (std::filesystem::temp_directory_path() / "cutsim_bench_capture.mp4").string();
-    if (a.video && !render::findOnPath("ffmpeg").empty() && a.width % 2 == 0 && a.height % 2 == 0)
-        video = std::make_unique<render::VideoEncoder>(mp4, a.width, a.height, sc.capture.fps);
-    const FrameInfo fi = frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN());
-
-    // Warm-up (shader compilation, ImGui's hidden first frame), then the timed frames.
-    double snapT = 0, drawT = 0, readT = 0, handT = 0, cpu0 = 0;
-    for (int f = -3; f < a.frames; ++f) {
-        if (f == 0) cpu0 = cpuSeconds(RUSAGE_SELF);
-        const Stopwatch t0;
-        const RenderSnapshot& snap = scene.update(sim.model(), sim.state(), fi);
-        const double t1 = t0.seconds();
-        renderer.draw(snap);
-        const double t2 = t0.seconds();
-        render::Image img = video ? video->spareFrame() : render::Image{};
-        renderer.read(img);
-        const double t3 = t0.seconds();
-        if (!a.save.empty() && f == a.frames - 1) render::writePng(a.save, img);
-        if (video) video->addFrame(std::move(img));
-        const double t4 = t0.seconds();
-        if (f < 0) continue;
-        snapT += t1;
-        drawT += t2 - t1;
-        readT += t3 - t2;
-        handT += t4 - t3;
+    namespace fs = std::filesystem;
+    const fs::path tmp = fs::temp_directory_path() / ("cutsim_bench_capture_" + std::to_string(::getpid()));
+    std::printf("scene,run,mode,width,height,frames,wall_s,setup_s,physics_s,render_s,encode_s,snapshot_ms,draw_ms,"
+                "read_ms,handoff_ms,finish_ms,capture_ms_per_frame,waited_s,wall_over_max,wall_over_sum,"
+                "cpu_ms_per_frame,ffmpeg_cpu_ms_per_frame,load\n");
+    int status = 0;
+    for (const std::string& file : a.scenes) {
+        std::vector<std::string> sets = a.sets;
+        sets.insert(sets.end(),
+                    {"capture.width=" + std::to_string(a.width), "capture.height=" + std::to_string(a.height),
+                     std::string("capture.hud=") + (a.hud ? "true" : "false"),
+                     std::string("capture.video=") + (a.video ? "true" : "false")});
+        const SceneDef sc = loadScene(file, sets);
+        if (!sc.capture.enabled) throw InputError(file + ": capture is off; nothing to measure");
+        for (int r = 0; r < a.runs; ++r) {
+            RunOptions ro;
+            ro.out = (tmp / "out").string();
+            ro.quiet = true;
+            ro.threads = a.threads;
+            ro.pipelined = !a.serial;
+            const double load = loadAverage();
+            const double cpu0 = cpuSeconds(RUSAGE_SELF), child0 = cpuSeconds(RUSAGE_CHILDREN);
+            const int code = runScene(sc, ro);
+            const double cpu = cpuSeconds(RUSAGE_SELF) - cpu0, child = cpuSeconds(RUSAGE_CHILDREN) - child0;
+            std::ifstream in(fs::path(ro.out) / "report.json");
+            const json rep = json::parse(in);
+            if (code != 0 || !rep.contains("capture")) {
+                std::fprintf(stderr, "%s: %s (exit %d)\n", file.c_str(), rep.value("status", "?").c_str(), code);
+                status = code ? code : 1;
+                continue;
+            }
+            const json& st = rep["stages"];
+            const json& c = rep["capture"];
+            double physics = 0;
+            for (const char* k : {"loads", "contact", "cut", "forces", "integrate", "checks", "timestep"})
+                physics += st.value(k, 0.0);
+            const double render = st.value("render", 0.0), encode = st.value("encode", 0.0);
+            const double wall = rep.value("wall_time", 0.0), setup = c.value("setup_seconds", 0.0);
+            const int n = std::max(1, c.value("frames", 0));
+            auto ms = [&](const char* k) { return 1e3 * c.value(k, 0.0) / n; };
+            std::printf("%s,%d,%s,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.3f,%.3f,%.1f,"
+                        "%.1f,%.2f\n",
+                        sc.name.c_str(), r, a.serial ? "serial" : "pipelined", a.width, a.height, n, wall, setup,
+                        physics, render, encode, ms("snapshot_seconds"), ms("draw_seconds"), ms("read_seconds"),
+                        ms("handoff_seconds"), ms("finish_seconds"), 1e3 * (render + encode) / n,
+                        c.value("waited_seconds", 0.0), wall / std::max(physics, render + encode),
+                        wall / (physics + render + encode), 1e3 * cpu / n, 1e3 * child / n, load);
+            std::fflush(stdout);
+            if (!a.keep.empty() && r + 1 == a.runs) {
+                fs::remove_all(a.keep);
+                fs::create_directories(fs::path(a.keep).parent_path().empty() ? fs::path(".")
+                                                                              : fs::path(a.keep).parent_path());
+                fs::rename(ro.out, a.keep);
+            }
+        }
     }
-    const double cpuT = cpuSeconds(RUSAGE_SELF) - cpu0;
-    const Stopwatch tf;
-    if (video) video->finish();
-    const double finishT = tf.seconds();
-    const double encoderCpu = cpuSeconds(RUSAGE_CHILDREN) / (a.frames + 3);  // ffmpeg, warm-up frames too
-    std::filesystem::remove(mp4);
-    const double n = a.frames, total = snapT + drawT + readT + handT;
-    std::printf("scene,width,height,hud,samples,frames,snapshot_ms,draw_ms,read_ms,handoff_ms,frame_ms,fps,"
-                "cpu_ms_per_frame,encoder_cpu_ms_per_frame,encoder_drain_s,renderer\n");
-    std::printf("%s,%d,%d,%d,%d,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%.2f,%.2f,%.2f,%s\n", sc.name.c_str(), a.width,
-                a.height, a.hud ? 1 : 0, renderer.samples(), a.frames, 1e3 * snapT / n, 1e3 * drawT / n,
-                1e3 * readT / n, 1e3 * handT / n, 1e3 * total / n, n / total, 1e3 * cpuT / n, 1e3 * encoderCpu, finishT,
-                renderer.glRenderer().c_str());
-    return 0;
-#endif
+    fs::remove_all(tmp);
+    return status;
 }
 
 }  // namespace
@@ -117,21 +122,19 @@ void addCaptureBench() {
     addBenchSubcommand([](CLI::App& bench) {
         auto a = std::make_shared<CaptureArgs>();
         auto* c = bench.add_subcommand(
-            "capture", "Capture frames per second of a scene's first frame: snapshot, draw (with the HUD), read-back "
-                       "and hand-off to the video encoder, in ms per frame (CSV)");
-        c->add_option("SCENE", a->scene, "Scene file")->capture_default_str();
-        c->add_option("--frames", a->frames, "Timed frames (after 3 warm-up frames)")
-            ->check(CLI::Range(1, 100000))
-            ->capture_default_str();
+            "capture", "Capture in real runs: each scene run to its end with its frames, deformation and cuts; per "
+                       "frame the snapshot, draw (with the HUD), read-back and hand-off to the PNG and video "
+                       "writers, the physics stages, and how much the pipeline overlapped them (CSV)");
+        c->add_option("SCENES", a->scenes, "Scene files")->capture_default_str();
+        c->add_option("--set", a->sets, "Override a scene value: key.path=value (JSON value)");
         c->add_option("--width", a->width, "Frame width [px]")->check(CLI::Range(16, 8192))->capture_default_str();
         c->add_option("--height", a->height, "Frame height [px]")->check(CLI::Range(16, 8192))->capture_default_str();
-        c->add_option("--samples", a->samples,
-                      "MSAA samples (1: smoothed lines and silhouettes instead); default: the scene's capture.samples")
-            ->check(CLI::Range(1, 16));
-        c->add_flag("!--no-smooth-edges", a->smooth, "Without anti-aliased lines and silhouettes");
-        c->add_option("--save", a->save, "Write the last timed frame to this PNG");
         c->add_flag("!--no-hud", a->hud, "Without the HUD");
-        c->add_flag("!--no-video", a->video, "Without the hand-off to ffmpeg");
+        c->add_flag("!--no-video", a->video, "Without the video");
+        c->add_flag("--serial", a->serial, "Draw each frame before stepping on (no pipeline), to compare");
+        c->add_option("--runs", a->runs, "Runs of each scene")->check(CLI::Range(1, 1000))->capture_default_str();
+        c->add_option("--threads", a->threads, "Physics threads (0: chosen by measuring)")->check(CLI::Range(0, 1024));
+        c->add_option("--keep", a->keep, "Keep the last run's output folder (frames, video, report.json) here");
         c->callback([a] { setExitCode(benchGuarded([&] { return runCapture(*a); })); });
     });
 }

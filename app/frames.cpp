@@ -1,6 +1,7 @@
 #include "frames.hpp"
 
-#include <chrono>
+#include "util/stopwatch.hpp"
+
 #include <cstdio>
 #include <filesystem>
 
@@ -8,20 +9,37 @@
 #include "png_writer.hpp"
 #include "renderer.hpp"
 #include "video.hpp"
+
+#include <array>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <future>
+#include <mutex>
+#include <thread>
+#include <vector>
 #endif
 
 namespace cutsim::app {
 
+nlohmann::json CaptureTimes::toJson() const {
+    return {{"frames", frames},         {"pipelined", pipelined},  {"snapshot_seconds", snapshot},
+            {"draw_seconds", draw},     {"read_seconds", read},    {"handoff_seconds", handoff},
+            {"finish_seconds", finish}, {"waited_seconds", waited}};
+}
+
 #ifdef CUTSIM_HAVE_RENDER
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
+// The frames are drawn, read back and handed to the PNG and video writers on a thread of their
+// own (the GL context is current there), while the caller's thread goes on stepping: a frame's
+// snapshot is copied at its time, so what is drawn is that frame's state whatever the threads do.
+// One frame waits while one is drawn; a third waits for the drawer (`waited`).
 class RenderSink final : public FrameSink {
 public:
-    RenderSink(const SceneDef& sc, const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt,
-               double dt, const EmbeddedSurface* surface)
-        : sc_(sc), dir_(std::filesystem::path(outDir) / "frames"), scene_(sc, model, elementDt, dt, surface) {
+    // Starts the drawing thread, which makes the GL context and the renderer meanwhile.
+    RenderSink(const SceneDef& sc, bool pipelined) : sc_(sc), pipelined_(pipelined) {
+        times_.pipelined = pipelined;
         render::RenderOptions ro;
         ro.width = sc.capture.width;
         ro.height = sc.capture.height;
@@ -30,84 +48,199 @@ public:
         ro.floor = sc.capture.floor;
         ro.hud = sc.capture.hud;
         ro.samples = sc.capture.samples;
-        renderer_ = std::make_unique<render::Renderer>(ro);
+        made_ = ready_.get_future();
+        drawer_ = std::thread([this, ro] { drawLoop(ro); });
+    }
+
+    void begin(const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt, double dt,
+               const EmbeddedSurface* surface) override {
+        made_.get();  // the renderer's constructor threw there when no GL context could be made
+        scene_ = std::make_unique<SceneSnapshot>(sc_, model, elementDt, dt, surface);
+        dir_ = std::filesystem::path(outDir) / "frames";
         std::filesystem::create_directories(dir_);
-        if (sc.capture.video) {
-            if (render::findOnPath("ffmpeg").empty()) {
-                std::fprintf(stderr,
-                             "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
-            } else if (sc.capture.width % 2 || sc.capture.height % 2) {
-                std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
-            } else {
-                videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
-                video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc.capture.width, sc.capture.height,
-                                                                sc.capture.playbackFps > 0 ? sc.capture.playbackFps
-                                                                                           : sc.capture.fps);
-            }
+        if (!sc_.capture.video) return;
+        if (render::findOnPath("ffmpeg").empty()) {
+            std::fprintf(stderr, "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
+        } else if (sc_.capture.width % 2 || sc_.capture.height % 2) {
+            std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
+        } else {
+            videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
+            video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc_.capture.width, sc_.capture.height,
+                                                            sc_.capture.playbackFps > 0 ? sc_.capture.playbackFps
+                                                                                        : sc_.capture.fps);
         }
     }
 
+    ~RenderSink() override { stopDrawer(); }
+
     void frame(const Model& model, const State& state, const FrameInfo& info) override {
-        renderer_->draw(scene_.update(model, state, info));
-        const bool png = sc_.capture.pngEvery > 0 && frames_ % sc_.capture.pngEvery == 0;
-        render::Image img = video_ && !png ? video_->spareFrame() : render::Image{};
-        renderer_->read(img);
-        const auto t0 = Clock::now();
-        char name[32];
-        std::snprintf(name, sizeof name, "frame_%06d.png", frames_);
-        if (video_ && png)
-            video_->addFrame(img);
-        else if (video_)
-            video_->addFrame(std::move(img));
-        if (png) pngs_.push((dir_ / name).string(), std::move(img));
-        ++frames_;
-        encode_ = std::chrono::duration<double>(Clock::now() - t0).count();
+        const Stopwatch t;
+        const RenderSnapshot& snap = scene_->update(model, state, info);
+        RenderSnapshot copy;
+        double waited = 0;
+        {
+            std::unique_lock lock(mutex_);
+            const Stopwatch w;
+            changed_.wait(lock, [&] { return queue_.empty() || error_; });
+            waited = w.seconds();
+            times_.waited += waited;
+            rethrow();
+            if (!spare_.empty()) {
+                copy = std::move(spare_.back());
+                spare_.pop_back();
+            }
+        }
+        copy = snap;  // the buffers of a drawn frame reused
+        std::unique_lock lock(mutex_);
+        queue_.push_back({std::move(copy), frames_++});
+        times_.snapshot += t.seconds() - waited;
+        changed_.notify_all();
+        if (!pipelined_) {
+            const Stopwatch w;
+            changed_.wait(lock, [&] { return (queue_.empty() && !busy_) || error_; });
+            times_.waited += w.seconds();
+            rethrow();
+        }
     }
 
     void topologyChanged(const Model& model, EmbeddedSurface surface, const Eigen::VectorXd& elementDt,
                          double dt) override {
-        scene_.topologyChanged(model, std::move(surface), elementDt, dt);
+        scene_->topologyChanged(model, std::move(surface), elementDt, dt);
     }
 
     void finish() override {
+        const Stopwatch t;
+        {
+            std::unique_lock lock(mutex_);
+            changed_.wait(lock, [&] { return (queue_.empty() && !busy_) || error_; });
+            rethrow();
+        }
         pngs_.flush();
         if (video_) video_->finish();
+        std::lock_guard lock(mutex_);
+        times_.finish += t.seconds();
     }
     int frames() const override { return frames_; }
     std::string videoPath() const override { return video_ ? videoPath_ : ""; }
-    double lastEncodeSeconds() const override { return encode_; }
+    CaptureTimes times() const override {
+        std::lock_guard lock(mutex_);
+        return times_;
+    }
     nlohmann::json renderer() const override {
-        return {{"vendor", renderer_->glVendor()},
-                {"renderer", renderer_->glRenderer()},
-                {"version", renderer_->glVersion()}};
+        return {{"vendor", info_[0]}, {"renderer", info_[1]}, {"version", info_[2]}};
     }
 
 private:
+    struct Job {
+        RenderSnapshot snap;
+        int index = 0;
+    };
+
+    void drawLoop(const render::RenderOptions& ro) {
+        std::unique_ptr<render::Renderer> renderer;
+        try {
+            renderer = std::make_unique<render::Renderer>(ro);
+            info_ = {renderer->glVendor(), renderer->glRenderer(), renderer->glVersion()};
+        } catch (...) {
+            ready_.set_exception(std::current_exception());
+            return;
+        }
+        ready_.set_value();
+        std::unique_lock lock(mutex_);
+        for (;;) {
+            changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
+            if (queue_.empty()) return;  // stopped and nothing left
+            Job job = std::move(queue_.front());
+            queue_.pop_front();
+            if (error_) continue;  // drain: the caller rethrows
+            busy_ = true;
+            lock.unlock();
+            double draw = 0, read = 0, handoff = 0;
+            std::exception_ptr err;
+            try {
+                drawOne(*renderer, job, draw, read, handoff);
+            } catch (...) {
+                err = std::current_exception();
+            }
+            lock.lock();
+            busy_ = false;
+            if (err && !error_) error_ = err;
+            times_.draw += draw;
+            times_.read += read;
+            times_.handoff += handoff;
+            ++times_.frames;
+            spare_.push_back(std::move(job.snap));
+            changed_.notify_all();
+        }
+    }
+
+    void drawOne(render::Renderer& renderer, const Job& job, double& draw, double& read, double& handoff) {
+        Stopwatch t;
+        renderer.draw(job.snap);
+        draw = t.lap();
+        const bool png = sc_.capture.pngEvery > 0 && job.index % sc_.capture.pngEvery == 0;
+        render::Image img = png ? pngs_.spare() : video_ ? video_->spareFrame() : render::Image{};
+        renderer.read(img);
+        read = t.lap();
+        if (video_ && png) {
+            render::Image copy = video_->spareFrame();
+            copy = img;  // into the spare's buffer
+            video_->addFrame(std::move(copy));
+        } else if (video_) {
+            video_->addFrame(std::move(img));
+        }
+        if (png) {
+            char name[32];
+            std::snprintf(name, sizeof name, "frame_%06d.png", job.index);
+            pngs_.push((dir_ / name).string(), std::move(img));
+        }
+        handoff = t.lap();
+    }
+
+    void stopDrawer() {
+        if (!drawer_.joinable()) return;
+        {
+            std::lock_guard lock(mutex_);
+            stop_ = true;
+        }
+        changed_.notify_all();
+        drawer_.join();
+    }
+
+    void rethrow() {  // with the lock held
+        if (error_) std::rethrow_exception(error_);
+    }
+
     const SceneDef& sc_;
+    bool pipelined_;
     std::filesystem::path dir_;
-    SceneSnapshot scene_;
-    std::unique_ptr<render::Renderer> renderer_;
+    std::unique_ptr<SceneSnapshot> scene_;  // the caller's thread only
+    std::promise<void> ready_;              // the renderer is made (or failed)
+    std::future<void> made_;
     render::PngWriter pngs_{8};  // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     std::string videoPath_;
+    std::array<std::string, 3> info_;  // GL_VENDOR, GL_RENDERER, GL_VERSION
     int frames_ = 0;
-    double encode_ = 0;
+
+    mutable std::mutex mutex_;  // guards what follows
+    std::condition_variable changed_;
+    std::deque<Job> queue_;
+    std::vector<RenderSnapshot> spare_;
+    bool busy_ = false, stop_ = false;
+    std::exception_ptr error_;
+    CaptureTimes times_;
+    std::thread drawer_;
 };
 
 }  // namespace
 #endif
 
-std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, const Model& model,
-                                         const Eigen::VectorXd& elementDt, double dt, const EmbeddedSurface* surface) {
+std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, bool pipelined) {
 #ifdef CUTSIM_HAVE_RENDER
-    try {
-        return std::make_unique<RenderSink>(scene, outDir, model, elementDt, dt, surface);
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
-        return nullptr;
-    }
+    return std::make_unique<RenderSink>(scene, pipelined);
 #else
-    (void)scene, (void)outDir, (void)model, (void)elementDt, (void)dt, (void)surface;
+    (void)scene, (void)pipelined;
     std::fprintf(stderr, "frames: this build has no renderer; running without frames\n");
     return nullptr;
 #endif

@@ -109,14 +109,21 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Simulation::Options so;
     so.threads = opt.threads;
     so.renderSurface = capturing || sc.capture.cutObj;
+    // the renderer is made on the drawing thread while the simulation is built
+    std::unique_ptr<FrameSink> sink = capturing ? makeFrameSink(sc, opt.pipelined) : nullptr;
     Simulation sim(sc, so);
 
     // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
     StagedFolder folder(opt.out);
     const fs::path out = folder.staging();
-    std::unique_ptr<FrameSink> sink;
-    if (capturing)
-        sink = makeFrameSink(sc, out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+    if (sink) try {
+            sink->begin(out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+        } catch (const std::exception& e) {
+            std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
+            sink.reset();
+        }
+    const double setupSeconds = wall.seconds();
+    double surfaceSeconds = 0;  // the drawn surface split after cuts (Simulation::surface())
 
     // A frame of the state now; its render and encode time go to the run's stages.
     // With capture.vtu, a .vtu per captured frame and a .pvd series naming them with their times.
@@ -138,15 +145,27 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         if (!sink) return;
         if (sim.topologyVersion() != drawnVersion) {
             // the cut surface and the new per-element limits, once per frame however many steps cut
+            const Stopwatch ts;
             drawnVersion = sim.topologyVersion();
             sink->topologyChanged(sim.model(), *sim.surface(), sim.analyzer().estimates().r1r, sim.dt());
+            surfaceSeconds += ts.seconds();
         }
         // no wall-clock rates in captured frames: they would make every run's frames differ (report.json has them)
-        const FrameInfo fi = frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN());
-        const Stopwatch tr;
-        sink->frame(sim.model(), sim.state(), fi);
-        sim.record().stages[Stage::Render] += tr.seconds() - sink->lastEncodeSeconds();
-        sim.record().stages[Stage::Encode] += sink->lastEncodeSeconds();
+        sink->frame(sim.model(), sim.state(), frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN()));
+    };
+    // The capture's time in the run's stages (render: the surface split after cuts, the snapshots,
+    // drawing and reading back; encode: the hand-off to the writers and their drain) and its parts
+    // in report.json's "capture".
+    auto captureReport = [&](json& report) {
+        if (!sink) return;
+        const CaptureTimes ct = sink->times();
+        sim.record().stages[Stage::Render] = surfaceSeconds + ct.render();
+        sim.record().stages[Stage::Encode] = ct.encode();
+        report["stages"] = sim.record().stages.toJson();
+        report["capture"] = ct.toJson();
+        report["capture"]["surface_seconds"] = surfaceSeconds;
+        report["capture"]["setup_seconds"] = setupSeconds;
+        report["renderer"] = sink->renderer();
     };
 
     Progress progress(sc.duration, opt.quiet);
@@ -163,8 +182,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     }
     if (const int sig = interrupt.signal()) {
         // stopped between steps: the frames so far and a report that says so, under FOLDER.incomplete
-        sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
         json report = sim.report({{"wall_time", wall.seconds()}, {"frames", 0}, {"video", ""}});
+        captureReport(report);
+        sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
         report["status"] = "interrupted";
         report["exit_code"] = 128 + sig;
         report["message"] = std::string("stopped by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") +
@@ -180,11 +200,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     sim.compareCutMethods();
     const bool ok = sim.status() == RunStatus::Finished;
     if (ok) frame();
-    if (sink) {
-        const Stopwatch tr;
-        sink->finish();
-        sim.record().stages[Stage::Encode] += tr.seconds();
-    }
+    if (sink) sink->finish();
     progress.update(sim.state().time, sim.state().steps, true);
 
     // Outputs: the final mesh with per-element fields, then the report; then the folder moves into place.
@@ -198,7 +214,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     json report = sim.report({{"wall_time", wall.seconds()},
                               {"frames", sink ? sink->frames() : 0},
                               {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
-    if (sink) report["renderer"] = sink->renderer();
+    captureReport(report);
     writeFileAtomic((out / "report.json").string(), jsonText(report));
     folder.commit();
     if (!opt.quiet || !ok)  // a failure is always said

@@ -9,10 +9,11 @@
 namespace cutsim::app {
 
 struct RunOptions {
-    std::string out;     // output folder
-    bool render = true;  // false: no GL context, no frames
-    int threads = 0;     // 0: chosen by measuring (sim/simulation.cpp ThreadTuner)
-    bool quiet = false;  // no progress output
+    std::string out;        // output folder
+    bool render = true;     // false: no GL context, no frames
+    int threads = 0;        // 0: chosen by measuring (sim/simulation.cpp ThreadTuner)
+    bool quiet = false;     // no progress output
+    bool pipelined = true;  // frames drawn while the physics steps on (false: each before the next step)
 };
 
 // Runs a scene; returns the process exit code (ExitCode: 0 ok, 3 diverged, 4 refused step).

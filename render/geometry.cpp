@@ -70,32 +70,44 @@ void toolTriangles(const ToolShape& t, std::vector<MeshVertex>& out) {
     }
 }
 
+bool SurfaceTopology::update(const RenderSnapshot& snap) {
+    const int n = snap.vertices(), nf = snap.faces();
+    if (n == vertices && triangles.cols() == nf &&
+        std::equal(triangles.data(), triangles.data() + triangles.size(), snap.triangles.data()))
+        return false;
+    triangles = snap.triangles;
+    vertices = n;
+    start.assign(static_cast<size_t>(n) + 1, 0);
+    for (int f = 0; f < nf; ++f)
+        for (int k = 0; k < 3; ++k) ++start[static_cast<size_t>(snap.triangles(k, f)) + 1];
+    for (int v = 0; v < n; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
+    faces.resize(static_cast<size_t>(start.back()));
+    std::vector<int> fill(start.begin(), start.end() - 1);
+    for (int f = 0; f < nf; ++f)
+        for (int k = 0; k < 3; ++k) faces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
+    const std::vector<int> ids(triangles.data(), triangles.data() + triangles.size());
+    halfEdges(ids, half);
+    return true;
+}
+
 // The surface's triangle corners with their normals: given per vertex, or from the area-weighted
 // normals of the faces around the vertex that meet this face at less than the crease angle, so
 // box edges and cut rims stay sharp while curved surfaces shade smoothly.
-void surfaceVertices(const RenderSnapshot& snap, bool useMap, std::vector<MeshVertex>& verts) {
+void surfaceVertices(const RenderSnapshot& snap, const SurfaceTopology& topo, bool useMap,
+                     std::vector<MeshVertex>& verts) {
     const int n = snap.vertices();
     const bool hasCut = snap.cutFace.size() == static_cast<size_t>(snap.faces());
     const bool given = snap.normals.cols() == n;
     const int nf = snap.faces();
     Eigen::Matrix3Xf faceN(3, given ? 0 : nf);
-    std::vector<int> start, vertexFaces;  // vertex -> faces (CSR)
-    if (!given) {
-        start.assign(static_cast<size_t>(n) + 1, 0);
+    if (!given)
         for (int f = 0; f < nf; ++f) {
             const auto t = snap.triangles.col(f);
             faceN.col(f) = (snap.positions.col(t[1]) - snap.positions.col(t[0]))
                                .cross(snap.positions.col(t[2]) - snap.positions.col(t[0]))
                                .cast<float>();
-            for (int k = 0; k < 3; ++k) ++start[static_cast<size_t>(t[k]) + 1];
         }
-        for (int v = 0; v < n; ++v) start[static_cast<size_t>(v) + 1] += start[static_cast<size_t>(v)];
-        vertexFaces.resize(static_cast<size_t>(start.back()));
-        std::vector<int> fill(start.begin(), start.end() - 1);
-        for (int f = 0; f < nf; ++f)
-            for (int k = 0; k < 3; ++k)
-                vertexFaces[static_cast<size_t>(fill[static_cast<size_t>(snap.triangles(k, f))]++)] = f;
-    }
+    const std::vector<int>&start = topo.start, &vertexFaces = topo.faces;
     constexpr float kCosCrease = 0.64f;  // about 50 degrees
     verts.clear();
     verts.reserve(3 * static_cast<size_t>(nf));
@@ -121,6 +133,17 @@ void surfaceVertices(const RenderSnapshot& snap, bool useMap, std::vector<MeshVe
     }
 }
 
+void halfEdges(const std::vector<int>& ids, std::vector<std::pair<std::uint64_t, int>>& half) {
+    const size_t nc = ids.size() - ids.size() % 3;
+    half.clear();
+    for (size_t c = 0; c < nc; ++c) {
+        auto a = static_cast<std::uint32_t>(ids[c]), b = static_cast<std::uint32_t>(ids[c - c % 3 + (c + 1) % 3]);
+        if (a > b) std::swap(a, b);
+        half.emplace_back((std::uint64_t{a} << 32) | b, static_cast<int>(c));
+    }
+    std::sort(half.begin(), half.end());
+}
+
 // The silhouette of a triangle soup seen from `eye`: edges between a face turned towards the eye and
 // one turned away, and open edges of a front face. Each segment carries the front face's corners,
 // so a smoothed line along it blends the lit surface into what lies behind: edge anti-aliasing
@@ -141,14 +164,13 @@ void silhouetteLines(const std::vector<MeshVertex>& soup, std::vector<int>& ids,
             ids[size_t(order[r])] = id;
         }
     }
+    halfEdges(ids, half);
+    silhouetteLines(soup, half, eye, out);
+}
+
+void silhouetteLines(const std::vector<MeshVertex>& soup, const std::vector<std::pair<std::uint64_t, int>>& half,
+                     const Vec3f& eye, std::vector<MeshVertex>& out) {
     auto corner = [&](size_t c) { return Vec3f(soup[c].p[0], soup[c].p[1], soup[c].p[2]); };
-    half.clear();
-    for (size_t c = 0; c < nc; ++c) {
-        auto a = static_cast<std::uint32_t>(ids[c]), b = static_cast<std::uint32_t>(ids[c - c % 3 + (c + 1) % 3]);
-        if (a > b) std::swap(a, b);
-        half.emplace_back((std::uint64_t{a} << 32) | b, static_cast<int>(c));
-    }
-    std::sort(half.begin(), half.end());
     auto front = [&](size_t f) {
         const Vec3f a = corner(3 * f);
         return (corner(3 * f + 1) - a).cross(corner(3 * f + 2) - a).dot(eye - a) > 0;

@@ -34,6 +34,8 @@ public:
     PngWriter& operator=(const PngWriter&) = delete;
 
     void push(std::string path, Image img);
+    // A written frame, to be filled again (its buffer reused), or an empty one.
+    Image spare();
     void flush();  // waits until every queued frame is written
     std::size_t written() const;
 
@@ -44,7 +46,8 @@ private:
     mutable std::mutex mutex_;
     std::condition_variable changed_;
     std::deque<std::pair<std::string, Image>> queue_;
-    int busy_ = 0;  // frames being encoded
+    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation is ~1 ms of page faults)
+    int busy_ = 0;              // frames being encoded
     bool stop_ = false;
     std::size_t written_ = 0;
     std::exception_ptr error_;

@@ -181,7 +181,12 @@ struct Renderer::Gl {
     GLuint msFbo = 0, msColour = 0, msDepth = 0;     // multisampled target (MSAA)
     GLuint outFbo = 0, outColour = 0, outDepth = 0;  // read back; drawn into directly with one sample
     GLuint meshProg = 0, lineProg = 0;
-    GLuint vao = 0, vbo = 0;
+    GLuint vao = 0;
+    // One buffer per draw of a frame, kept between frames: rewriting a buffer a pending draw reads
+    // would wait for it, and new storage each draw is page faults.
+    std::vector<GLuint> vbos;
+    std::vector<GLsizeiptr> vboBytes;
+    size_t nextVbo = 0;  // the draw's buffer; 0 at the start of a frame
     ImGuiContext* imgui = nullptr;
     std::vector<MeshVertex> verts;     // reused between frames
     std::vector<MeshVertex> critTris;  // critical elements' faces and edges, this frame
@@ -190,17 +195,32 @@ struct Renderer::Gl {
     std::vector<MeshVertex> silhouette;                    // this frame's silhouette segments
     std::vector<MeshVertex> quads;                         // smoothed segments as triangles
     std::vector<std::pair<std::uint64_t, int>> halfEdges;  // scratch of silhouetteLines
+    SurfaceTopology topo;                                  // of the last surface drawn
     std::vector<int> ids;
     // Uniform locations.
     GLint mView = -1, mProj = -1, mUseMap = -1, mMap = -1, mMapN = -1, mMin = -1, mMax = -1, mColour = -1,
           mCutColour = -1, mLit = -1, mAlpha = -1, mEdgeHalf = -1;
     GLint lView = -1, lProj = -1, lColour = -1;
 
+    // Binds the next buffer of this frame with `bytes` of data.
+    void upload(const void* data, GLsizeiptr bytes) {
+        if (nextVbo == vbos.size()) {
+            vbos.push_back(0);
+            vboBytes.push_back(0);
+            glGenBuffers(1, &vbos.back());
+        }
+        glBindBuffer(GL_ARRAY_BUFFER, vbos[nextVbo]);
+        if (vboBytes[nextVbo] < bytes) {
+            vboBytes[nextVbo] = bytes + bytes / 2;  // room for a frame with a little more
+            glBufferData(GL_ARRAY_BUFFER, vboBytes[nextVbo], nullptr, GL_DYNAMIC_DRAW);
+        }
+        glBufferSubData(GL_ARRAY_BUFFER, 0, bytes, data);
+        ++nextVbo;
+    }
     // Uploads and draws interleaved mesh vertices (triangles, or segments with GL_LINES).
     void drawMesh(const std::vector<MeshVertex>& v, GLenum mode = GL_TRIANGLES) {
         if (v.empty()) return;
-        glBindBuffer(GL_ARRAY_BUFFER, vbo);
-        glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)), v.data(), GL_STREAM_DRAW);
+        upload(v.data(), static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)));
         const GLsizei stride = sizeof(MeshVertex);
         glEnableVertexAttribArray(0);
         glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, stride, reinterpret_cast<void*>(offsetof(MeshVertex, p)));
@@ -219,8 +239,7 @@ struct Renderer::Gl {
     // Uploads and draws line segments (xyz pairs).
     void drawLines(const std::vector<float>& l) {
         if (l.empty()) return;
-        glBindBuffer(GL_ARRAY_BUFFER, vbo);
-        glBufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(l.size() * sizeof(float)), l.data(), GL_STREAM_DRAW);
+        upload(l.data(), static_cast<GLsizeiptr>(l.size() * sizeof(float)));
         glEnableVertexAttribArray(0);
         glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 3 * sizeof(float), nullptr);
         for (GLuint a = 1; a < 6; ++a) glDisableVertexAttribArray(a);
@@ -270,7 +289,6 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     g.lProj = loc(g.lineProg, "uProj");
     g.lColour = loc(g.lineProg, "uColour");
     glGenVertexArrays(1, &g.vao);
-    glGenBuffers(1, &g.vbo);
 
     // ImGui with its own context per renderer; no window system: the display size is ours.
     g.imgui = ImGui::CreateContext();
@@ -344,7 +362,7 @@ Renderer::~Renderer() {
     ImGui::SetCurrentContext(g.imgui);
     ImGui_ImplOpenGL3_Shutdown();
     ImGui::DestroyContext(g.imgui);
-    glDeleteBuffers(1, &g.vbo);
+    if (!g.vbos.empty()) glDeleteBuffers(static_cast<GLsizei>(g.vbos.size()), g.vbos.data());
     glDeleteVertexArrays(1, &g.vao);
     glDeleteProgram(g.meshProg);
     glDeleteProgram(g.lineProg);
@@ -443,28 +461,29 @@ void Renderer::drawSurface(const RenderSnapshot& snap, const View& v) {
     glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
     glUniform1f(g.mAlpha, 1.0f);
 
-    surfaceVertices(snap, useMap, g.verts);
+    g.topo.update(snap);
+    surfaceVertices(snap, g.topo, useMap, g.verts);
     // Pushed back a little so wireframe lines on it win the depth test.
     glEnable(GL_POLYGON_OFFSET_FILL);
     glPolygonOffset(1.0f, 1.0f);
     g.drawMesh(g.verts);
     glDisable(GL_POLYGON_OFFSET_FILL);
-    if (smoothEdges()) {
-        g.ids.assign(snap.triangles.data(), snap.triangles.data() + snap.triangles.size());
-        drawSilhouette(v);
-    }
+    if (smoothEdges()) drawSilhouette(v, &g.topo.half);
 }
 
 bool Renderer::smoothEdges() const { return opts_.smoothEdges && samples_ == 1; }
 
 // The silhouette of the soup in Gl::verts as smoothed segments, with the mesh program's uniforms
 // as they are.
-void Renderer::drawSilhouette(const View& v) {
+void Renderer::drawSilhouette(const View& v, const std::vector<std::pair<std::uint64_t, int>>* half) {
     Gl& g = *gl_;
     const Eigen::Matrix3f r = v.view.topLeftCorner<3, 3>();
     const Vec3f eye = -(r.transpose() * v.view.topRightCorner<3, 1>());
     g.silhouette.clear();
-    silhouetteLines(g.verts, g.ids, eye, g.halfEdges, g.silhouette);
+    if (half)
+        silhouetteLines(g.verts, *half, eye, g.silhouette);
+    else
+        silhouetteLines(g.verts, g.ids, eye, g.halfEdges, g.silhouette);
     drawSmoothSegments(v);
 }
 
@@ -614,6 +633,7 @@ void Renderer::draw(const RenderSnapshot& snap) {
     makeCurrent();
     Gl& g = *gl_;
     const View v = viewOf(snap);
+    g.nextVbo = 0;
     glBindFramebuffer(GL_FRAMEBUFFER, samples_ > 1 ? g.msFbo : g.outFbo);
     glViewport(0, 0, opts_.width, opts_.height);
     glClearColor(v.bg.x(), v.bg.y(), v.bg.z(), 1.0f);

@@ -10,6 +10,8 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace cutsim::render {
 
@@ -92,7 +94,8 @@ private:
     View viewOf(const RenderSnapshot& snap) const;
     void drawSurface(const RenderSnapshot& snap, const View& v);
     void drawTools(const RenderSnapshot& snap, const View& v);
-    void drawSilhouette(const View& v);
+    // Of the soup in Gl::verts: its edges sorted (half), or found from Gl::ids.
+    void drawSilhouette(const View& v, const std::vector<std::pair<std::uint64_t, int>>* half = nullptr);
     void drawSmoothSegments(const View& v);  // Gl::silhouette
     void drawColourLines(const std::vector<float>& xyz, const Eigen::Vector4f& colour, const View& v);
     bool smoothEdges() const;  // smoothed lines and silhouettes in use

@@ -1,4 +1,5 @@
-// `cutsim run` captures: PNG frames can be decimated or left to the video alone.
+// `cutsim run` captures: PNG frames can be decimated or left to the video alone; frames drawn
+// beside the physics are those drawn one by one.
 #include "png_writer.hpp"
 #include "video.hpp"
 #include "test_support.hpp"
@@ -6,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -90,6 +92,38 @@ TEST(Capture, PlaybackFpsSetsTheVideoRate) {
     std::string r;
     in >> r;
     EXPECT_EQ(r, "10/1");
+}
+
+// critical_cuts through its first cut (t = 0.3 s): the pipelined capture draws each frame's own
+// state, so its PNGs are byte for byte those of frames drawn before the next step.
+TEST(Capture, PipelinedFramesAreTheSerialOnes) {
+    const std::string pipelined = outDir("pipelined"), serial = outDir("serial");
+    const std::string run = "bench capture " + test::source("assets/scenes/critical_cuts.json") +
+                            " --width 64 --height 48 --no-video --set duration=0.4 --keep ";
+    std::string out, err;
+    ASSERT_EQ(test::runCutsim(run + pipelined, &out, &err), 0) << err;
+    EXPECT_NE(out.find(",pipelined,"), std::string::npos) << out;
+    ASSERT_EQ(test::runCutsim(run + serial + " --serial", &out, &err), 0) << err;
+    EXPECT_NE(out.find(",serial,"), std::string::npos) << out;
+    auto report = [](const std::string& dir) {
+        std::ifstream in(dir + "/report.json");
+        return nlohmann::json::parse(in);
+    };
+    const auto a = report(pipelined), b = report(serial);
+    EXPECT_EQ(a["state_hash"], b["state_hash"]);
+    ASSERT_EQ(a["frames"], b["frames"]);
+    ASSERT_GE(a["frames"].get<int>(), 13);  // t = 0, 1/30, ..., 12/30 and the last state
+    EXPECT_EQ(a["cuts"].size(), 1u);
+    EXPECT_TRUE(a["capture"]["pipelined"].get<bool>());
+    EXPECT_FALSE(b["capture"]["pipelined"].get<bool>());
+    EXPECT_EQ(a["capture"]["frames"], a["frames"]);
+    for (int f = 0; f < a["frames"].get<int>(); ++f) {
+        char name[40];
+        std::snprintf(name, sizeof name, "/frames/frame_%06d.png", f);
+        EXPECT_EQ(test::readText(pipelined + name), test::readText(serial + name)) << name;
+    }
+    fs::remove_all(pipelined);
+    fs::remove_all(serial);
 }
 
 }  // namespace
