@@ -293,29 +293,28 @@ int runScale(const ScaleArgs& a) {
     if (!a.plot.empty()) {
         if (!haveGnuplot()) throw InputError("--plot needs gnuplot (Debian package gnuplot-nox)");
         const std::string dir = plotDataDir("scale");
-        // one data file per scene: elements and seconds per step, TetGen livers on 1 and 2 threads
+        // one data file per scene and mesh kind: elements and seconds per step on one thread
         std::ostringstream g;
-        g << "set logscale xy\nset xlabel 'elements'\nset ylabel 'seconds per step'\nset key top left\nset grid\n"
+        g << "set logscale xy\nset xlabel 'elements'\nset ylabel 'seconds per step, 1 thread'\nset key top left\nset "
+             "grid\n"
              "set format y '%.0e'\nplot ";
         bool first = true;
         int pt = 5;
         for (const std::string& sname : scenarios)
-            for (const std::string kind : {"tetgen", "mi"})
-                for (int threads : {1, 2}) {
-                    const std::string file = dir + "/" + sname + "_" + kind + "_" + std::to_string(threads) + ".dat";
-                    std::ofstream d(file);
-                    int rows = 0;
-                    for (const auto& r : runs)
-                        if (r["mesh"] == kind && r["scene"] == sname && r["threads"] == threads && r.contains("stages"))
-                            d << r["elements"] << ' ' << r["seconds_per_step"] << '\n', ++rows;
-                    if (rows == 0) continue;
-                    g << (first ? "" : ", ") << "'" << file << "' using 1:2 with linespoints pt " << pt++ << " dt "
-                      << threads << " title '" << sname << ", " << kind << ", " << threads << " thread"
-                      << (threads > 1 ? "s" : "") << "'";
-                    first = false;
-                }
+            for (const std::string kind : {"tetgen", "mi"}) {
+                const std::string file = dir + "/" + sname + "_" + kind + ".dat";
+                std::ofstream d(file);
+                int rows = 0;
+                for (const auto& r : runs)
+                    if (r["mesh"] == kind && r["scene"] == sname && r["threads"] == 1 && r.contains("stages"))
+                        d << r["elements"] << ' ' << r["seconds_per_step"] << '\n', ++rows;
+                if (rows == 0) continue;
+                g << (first ? "" : ", ") << "'" << file << "' using 1:2 with linespoints pt " << pt++ << " dt "
+                  << (kind == "mi" ? 2 : 1) << " title '" << sname << ", " << kind << "'";
+                first = false;
+            }
         g << "\n";
-        runGnuplot(dir, "pngcairo size 900,600 font ',10'", g.str(), a.plot);
+        runGnuplot(dir, "set terminal pngcairo size 900,600 font ',10' noenhanced", g.str(), a.plot);
     }
     if (a.json) {
         std::cout << jsonText({{"steps", a.steps}, {"runs", runs}, {"exponents", fits}});
