@@ -58,6 +58,17 @@ TEST(Tetra, BrokenSurfacesAreRefusedWithTheirDefect) {
         << refusal("broken/sofa_dragon.obj");
 }
 
+// The command exits 2 naming the file and the defect, and writes nothing.
+TEST(Tetra, TheCommandRefusesABrokenSurface) {
+    const std::string out = test::workDir() + "/camel.msh";
+    std::string err;
+    EXPECT_EQ(
+        test::runCutsim("tetra " + test::data("broken/igl_camelhead.off") + " --size 0.05 --out " + out, nullptr, &err),
+        2);
+    EXPECT_NE(err.find("igl_camelhead.off: the surface is open"), std::string::npos) << err;
+    EXPECT_FALSE(fs::exists(out));
+}
+
 // object.tetra builds once, then reads the cache; a second scene with the same surface and size
 // gets the same mesh.
 TEST(Tetra, TheSceneFormCachesByContent) {
