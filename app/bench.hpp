@@ -197,6 +197,7 @@ void addHapticBench();     // cmd_bench_haptic.cpp
 void addCaptureBench();    // cmd_bench_capture.cpp
 void addImproveBench();    // cmd_bench_improve.cpp
 void addCutStepBench();    // cmd_bench_cutstep.cpp
+void addScaleBench();      // cmd_bench_scale.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);

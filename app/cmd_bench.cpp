@@ -758,6 +758,7 @@ void registerBenchExtensions() {
     addCaptureBench();        // cmd_bench_capture.cpp: capture frames per second
     addImproveBench();        // cmd_bench_improve.cpp: mesh improvement against TetGen and Gmsh
     addCutStepBench();        // cmd_bench_cutstep.cpp: Tables 5.5 and 5.6, the step through cuts
+    addScaleBench();          // cmd_bench_scale.cpp: how cost grows with the mesh
     addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
 }
 

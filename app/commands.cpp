@@ -36,6 +36,7 @@ void registerCommands(CLI::App& app) {
     addSweepCommand(app);
     addMiCommand(app);
     addImproveCommand(app);
+    addTetraCommand(app);
     addRenderCommand(app);
     addViewCommand(app);
     addCheckCommand(app);

@@ -26,5 +26,6 @@ void addCheckCommand(CLI::App& app);    // cmd_check.cpp: compare a scene's fram
 void addMiCommand(CLI::App& app);       // cmd_mi.cpp: mesh intersection of a surface
 void addSweepCommand(CLI::App& app);    // cmd_sweep.cpp: a scene over a product of overrides
 void addImproveCommand(CLI::App& app);  // cmd_improve.cpp: mesh improvement for a larger step
+void addTetraCommand(CLI::App& app);    // cmd_tetra.cpp: a surface to a simulation-ready tet mesh
 
 }  // namespace cutsim::app

@@ -72,10 +72,18 @@ void writeStateVtu(const Simulation& sim, const std::string& path) {
         crit[e] = r1r[e] < sim.scene().capture.criticalFactor * sim.dt() ? 1.0 : 0.0;
     const Eigen::VectorXd vm = vonMisesStress(model, sim.state());
     const Eigen::Matrix3Xd u = sim.state().x - model.X;
-    writeVtu(
-        path, deformed,
-        {{"dt_r1r", r1r}, {"critical", crit}, {"von_mises", std::vector<double>(vm.data(), vm.data() + vm.size())}},
-        {{"displacement", std::vector<double>(u.data(), u.data() + u.size()), 3}});
+    std::vector<Field> cells = {
+        {"dt_r1r", r1r}, {"critical", crit}, {"von_mises", std::vector<double>(vm.data(), vm.data() + vm.size())}};
+    std::vector<Field> points = {{"displacement", std::vector<double>(u.data(), u.data() + u.size()), 3}};
+    // object.reorder: the mesh file's numbering beside the run's (docs/scene-format.md)
+    if (sim.reordered()) {
+        std::vector<double> node(static_cast<size_t>(model.nodes())), element(r1r.size());
+        for (size_t n = 0; n < node.size(); ++n) node[n] = sim.inputNode(static_cast<int>(n));
+        for (size_t e = 0; e < element.size(); ++e) element[e] = sim.inputElement(static_cast<int>(e));
+        cells.push_back({"input_element", element});
+        points.push_back({"input_node", node});
+    }
+    writeVtu(path, deformed, cells, points);
 }
 
 // The drawn surface now (boundary, or after cuts the cut surface) as OBJ, cut faces in group "cut".

@@ -433,6 +433,24 @@ PYBIND11_MODULE(cutsim, m) {
                                    return a;
                                })
         .def_property_readonly(
+            "input_nodes",
+            [](PySimulation& s) {
+                py::array_t<int> a(s.sim().model().nodes());
+                for (int n = 0; n < s.sim().model().nodes(); ++n) a.mutable_at(n) = s.sim().inputNode(n);
+                return a;
+            },
+            "Each node's index in the mesh file (N): a scene's mesh file is put in spatial order on load "
+            "(object.reorder), so row i of positions is node input_nodes[i] of the file; nodes a cut made "
+            "give the node they were copied from")
+        .def_property_readonly(
+            "input_elements",
+            [](PySimulation& s) {
+                py::array_t<int> a(s.sim().model().elements());
+                for (int e = 0; e < s.sim().model().elements(); ++e) a.mutable_at(e) = s.sim().inputElement(e);
+                return a;
+            },
+            "Each element's index in the mesh file (M), as input_nodes")
+        .def_property_readonly(
             "element_steps", [](const py::object& self) { return elementStepsView(self); },
             "Each element's stable step estimate (reduced one ring) [s]: a read-only view as positions "
             "(frozen at a cut)")

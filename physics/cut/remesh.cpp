@@ -297,6 +297,19 @@ void runTetgen(tetgenio& in, const std::string& switches, const std::string& wha
 
 }  // namespace
 
+namespace {
+TetMesh meshOf(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector4i>& T,
+               const std::string& source) {
+    TetMesh out;
+    out.X.resize(3, static_cast<Eigen::Index>(X.size()));
+    for (size_t i = 0; i < X.size(); ++i) out.X.col(static_cast<Eigen::Index>(i)) = X[i];
+    out.tets.resize(4, static_cast<Eigen::Index>(T.size()));
+    for (size_t t = 0; t < T.size(); ++t) out.tets.col(static_cast<Eigen::Index>(t)) = T[t];
+    out.source = source;
+    return out;
+}
+}  // namespace
+
 TetMesh tetgenOptimize(const TetMesh& mesh, const std::string& switches) {
     tetgenio in;
     in.firstnumber = 0;
@@ -310,17 +323,25 @@ TetMesh tetgenOptimize(const TetMesh& mesh, const std::string& switches) {
     std::vector<Eigen::Vector3d> X;
     std::vector<Eigen::Vector4i> T;
     runTetgen(in, switches, mesh.source.empty() ? std::string("a tet mesh") : mesh.source, X, T);
-    TetMesh out;
-    out.X.resize(3, static_cast<Eigen::Index>(X.size()));
-    for (size_t i = 0; i < X.size(); ++i) out.X.col(static_cast<Eigen::Index>(i)) = X[i];
-    out.tets.resize(4, static_cast<Eigen::Index>(T.size()));
-    for (size_t t = 0; t < T.size(); ++t) out.tets.col(static_cast<Eigen::Index>(t)) = T[t];
-    out.source = mesh.source;
-    return out;
+    return meshOf(X, T, mesh.source);
+}
+
+TetMesh tetgenSurface(const SurfaceMesh& s, const std::string& switches) {
+    Plc plc;
+    for (int v = 0; v < s.vertices(); ++v) plc.points.push_back(s.V.col(v));
+    plc.facets.resize(static_cast<size_t>(s.faces()));
+    for (int f = 0; f < s.faces(); ++f) plc.facets[static_cast<size_t>(f)] = {{s.F(0, f), s.F(1, f), s.F(2, f)}};
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector4i> T;
+    tetrahedralizePlc(plc, switches, s.source.empty() ? std::string("a surface") : s.source, X, T);
+    return meshOf(X, T, s.source);
 }
 #else
 TetMesh tetgenOptimize(const TetMesh&, const std::string&) {
     throw RemeshError("TetGen's optimisation needs TetGen (Debian libtet1.5-dev); this build has none");
+}
+TetMesh tetgenSurface(const SurfaceMesh&, const std::string&) {
+    throw RemeshError("tetrahedralising a surface needs TetGen (Debian libtet1.5-dev); this build has none");
 }
 #endif
 

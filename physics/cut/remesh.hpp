@@ -26,6 +26,10 @@ bool haveTetGen();
 // baseline of `cutsim bench improve`. Throws RemeshError when TetGen fails or is absent.
 TetMesh tetgenOptimize(const TetMesh& mesh, const std::string& switches);
 
+// TetGen on a closed surface (switches e.g. "pq1.4a1e-7zQ"): the tets that fill it. Throws
+// RemeshError when TetGen refuses the surface or is absent.
+TetMesh tetgenSurface(const SurfaceMesh& s, const std::string& switches);
+
 struct RemeshOptions {
     // TetGen switches: p = the input is a piecewise linear complex (our closed surface),
     // q1.414 = radius-edge ratio bound sqrt(2) (TetGen's quality default, well shaped tets),

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <numeric>
 #include <unordered_map>
 #include <vector>
 #include <utility>
@@ -76,9 +77,14 @@ TetMesh refineTets(const TetMesh& mesh) {
     return out;
 }
 
-TetMesh spatialOrder(const TetMesh& mesh) {
+TetMesh spatialOrder(const TetMesh& mesh, std::vector<int>* nodeFrom, std::vector<int>* elementFrom) {
     const int ne = mesh.elements(), nn = mesh.nodes();
-    if (ne == 0) return mesh;
+    if (nodeFrom) nodeFrom->resize(static_cast<size_t>(nn));
+    if (elementFrom) elementFrom->resize(static_cast<size_t>(ne));
+    if (ne == 0) {
+        if (nodeFrom) std::iota(nodeFrom->begin(), nodeFrom->end(), 0);
+        return mesh;
+    }
     Eigen::Matrix3Xd c(3, ne);
     for (int e = 0; e < ne; ++e)
         c.col(e) = 0.25 * (mesh.X.col(mesh.tets(0, e)) + mesh.X.col(mesh.tets(1, e)) + mesh.X.col(mesh.tets(2, e)) +
@@ -119,7 +125,10 @@ TetMesh spatialOrder(const TetMesh& mesh) {
         if (n < 0) n = next++;  // nodes of no element keep their relative order, last
     out.X.resize(3, nn);
     if (!mesh.nodeIds.empty()) out.nodeIds.resize(static_cast<size_t>(nn));
+    if (elementFrom)
+        for (int e = 0; e < ne; ++e) (*elementFrom)[static_cast<size_t>(e)] = key[static_cast<size_t>(e)].second;
     for (int i = 0; i < nn; ++i) {
+        if (nodeFrom) (*nodeFrom)[static_cast<size_t>(newNode[static_cast<size_t>(i)])] = i;
         out.X.col(newNode[static_cast<size_t>(i)]) = mesh.X.col(i);
         if (!mesh.nodeIds.empty())
             out.nodeIds[static_cast<size_t>(newNode[static_cast<size_t>(i)])] = mesh.nodeIds[static_cast<size_t>(i)];

@@ -25,7 +25,9 @@ TetMesh refineTets(const TetMesh& mesh);
 // The same mesh with its elements in Z-order (Morton) of their centroids and its nodes in the order
 // the elements first use them: elements near in memory are near in space, so a thread's range of
 // elements shares few nodes with another's, and their nodes share cache lines. A mesher's output
-// order (TetGen's) is arbitrary. nodeIds follow their nodes.
-TetMesh spatialOrder(const TetMesh& mesh);
+// order (TetGen's) is arbitrary. nodeIds follow their nodes. nodeFrom and elementFrom, when given,
+// get the input index of each output node and element.
+TetMesh spatialOrder(const TetMesh& mesh, std::vector<int>* nodeFrom = nullptr,
+                     std::vector<int>* elementFrom = nullptr);
 
 }  // namespace cutsim

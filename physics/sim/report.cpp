@@ -54,6 +54,16 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
 
 }  // namespace
 
+int Simulation::inputNode(int n) const {
+    const int o = cutter_ ? cutter_->originalNode(n) : n;
+    return inputNode_.empty() ? o : inputNode_[static_cast<size_t>(o)];
+}
+
+int Simulation::inputElement(int e) const {
+    const int o = cutter_ ? cutter_->parentOf(e) : e;
+    return inputElement_.empty() ? o : inputElement_[static_cast<size_t>(o)];
+}
+
 void Simulation::compareCutMethods() {
     if (!sc_.cutting.compare.empty() && status_ == RunStatus::Finished)
         rec_.compare = cutsim::compareCutMethods(sc_, rest_);
@@ -137,17 +147,20 @@ json Simulation::report(const json& extra) const {
     report["dt_initial"] = {
         {"exact", initial_.exact}, {"certified", initial_.certified}, {"estimate", initial_.estimate}};
     report["critical_elements"] = critical_;
-    report["mesh"] = {{"file", !sc.surface.empty() ? sc.surface
-                               : sc.mesh.empty()   ? std::string("box")
-                                                   : sc.mesh},
+    report["mesh"] = {{"file", !sc.surface.empty()        ? sc.surface
+                               : !sc.tetraSurface.empty() ? sc.tetraSurface
+                               : sc.mesh.empty()          ? std::string("box")
+                                                          : sc.mesh},
                       {"nodes", rec_.initial.value("nodes", 0)},
                       {"elements", rec_.initial.value("elements", 0)},
                       {"fixed_nodes", rec_.initial.value("fixed_nodes", 0)},
                       {"nodes_final", model_.nodes()},
-                      {"elements_final", model_.elements()}};
+                      {"elements_final", model_.elements()},
+                      {"reordered", reordered()}};
     if (!embedding_.is_null()) report["embedding"] = embedding_;
     if (!visualReport_.is_null()) report["visual"] = visualReport_;
     if (!improvement_.is_null()) report["improve"] = improvement_;
+    if (!tetra_.is_null()) report["tetra"] = tetra_;
     if (!hybrid_.is_null()) {
         report["hybrid"] = hybrid_;
         report["hybrid"]["matched_final"] = model_.matchedList.size();

@@ -370,12 +370,20 @@ SceneDef parseScene(const json& j, const std::string& file) {
 
     {
         ObjectReader o = root.object("object");
-        if (int(o.has("mesh")) + int(o.has("box")) + int(o.has("surface")) != 1)
-            o.fail("mesh", "give exactly one of mesh (a tet mesh file), box and surface");
+        if (int(o.has("mesh")) + int(o.has("box")) + int(o.has("surface")) + int(o.has("tetra")) != 1)
+            o.fail("mesh", "give exactly one of mesh (a tet mesh file), box, surface and tetra");
         if (o.has("mesh") && o.raw("mesh").is_object()) {
             s.meshData = std::make_shared<const TetMesh>(readInlineMesh(o.object("mesh")));
         } else if (o.has("mesh")) {
             s.mesh = existingPath(o, "mesh", s.dir);
+        } else if (o.has("tetra")) {
+            // A surface filled with tets at load (`cutsim tetra`), cached by content.
+            ObjectReader te = o.object("tetra");
+            s.tetraSurface = existingPath(te, "surface", s.dir);
+            if (!te.has("size")) te.fail("size", "required: the target edge length [m]");
+            s.tetraSize = te.number("size", 0, 0, 1e300, true);
+            s.tetraImprove = te.boolean("improve", true);
+            te.finish();
         } else if (o.has("surface")) {
             // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.
             ObjectReader su = o.object("surface");
@@ -403,8 +411,13 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.translate = o.vec3("translate", s.translate);
         s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
         s.reorient = o.boolean("reorient", false);
+        if (o.has("reorder") && s.mesh.empty())
+            o.fail("reorder", "applies to a tet mesh file (object.mesh); boxes, inline meshes and surfaces keep "
+                              "their order");
+        s.reorder = o.boolean("reorder", true);
         if (o.has("improve")) {
             if (o.has("surface")) o.fail("improve", "applies to a tet mesh object (mesh or box), not to surface");
+            if (o.has("tetra")) o.fail("improve", "a tetra mesh is improved when built (object.tetra.improve)");
             if (o.raw("improve").is_boolean()) {
                 s.improve = o.boolean("improve", false);
             } else {

@@ -5,6 +5,7 @@
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "sim/tetra.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
 #include "util/memory.hpp"
@@ -127,12 +128,14 @@ void checkStepBudget(const SceneDef& sc, double dt, int elements) {
 // parallel step waits at every barrier for a descheduled thread and can be several times slower
 // than a serial one (BENCHMARKS.md, step). The two counts take turns in chunks of steps (a step's
 // cost drifts as the body deforms, so back-to-back windows would be biased) until each has run
-// kMinSteps steps and kWindowSeconds have passed; then the faster per step is held for
-// kHoldFactor times as many steps and measured again. All cores must win by kMargin: one thread
-// is the choice that cannot collapse. Results do not depend on the count (the force stage is
-// bitwise the same on any number of threads).
+// kMinSteps steps and kWindowSeconds have passed, or sooner when one is over kClearLoss times
+// slower per step; all cores must win by kMargin (one thread is the choice that cannot collapse).
+// The winner is then held until the time the measurement lost (the loser's steps at the
+// difference per step) is at most kCost of the time held, and at least kHoldFactor times the
+// measured steps: the turns cost at most about kCost against always running the better count.
+// Results do not depend on the count (the force stage is bitwise the same on any number of threads).
 struct Simulation::ThreadTuner {
-    static constexpr double kWindowSeconds = 0.03, kMargin = 0.9;
+    static constexpr double kWindowSeconds = 0.03, kMargin = 0.9, kClearLoss = 2, kCost = 0.04;
     static constexpr long kChunk = 16, kMinSteps = 64, kHoldFactor = 30;
     static constexpr int kSettle = 2;  // steps after a switch that are not timed (threads waking up)
     int many = 2;                      // all cores
@@ -163,15 +166,17 @@ struct Simulation::ThreadTuner {
         seconds[k] += stepSeconds;
         if (++inChunk < kChunk) return;
         inChunk = 0;
-        if (steps[0] >= kMinSteps && steps[1] >= kMinSteps && seconds[0] + seconds[1] >= kWindowSeconds) {
-            const bool manyWins = seconds[1] / double(steps[1]) < kMargin * seconds[0] / double(steps[0]);
-            use(manyWins ? many : 1);
-            measuring = false;
-            held = 0;
-            hold = kHoldFactor * (steps[0] + steps[1]);
-            return;
-        }
-        use(current == 1 ? many : 1);
+        if (steps[0] == 0 || steps[1] == 0) return use(current == 1 ? many : 1);
+        const double per[2] = {seconds[0] / double(steps[0]), seconds[1] / double(steps[1])};
+        const bool clear = per[1] > kClearLoss * per[0] || per[0] > kClearLoss * per[1];
+        if (!clear && !(steps[0] >= kMinSteps && steps[1] >= kMinSteps && seconds[0] + seconds[1] >= kWindowSeconds))
+            return use(current == 1 ? many : 1);
+        const int win = per[1] < kMargin * per[0] ? 1 : 0;
+        use(win == 1 ? many : 1);
+        measuring = false;
+        held = 0;
+        const double lost = double(steps[1 - win] + kSettle) * std::max(0.0, per[1 - win] - per[win]);
+        hold = std::max(kHoldFactor * (steps[0] + steps[1]), static_cast<long>(lost / (kCost * per[win])));
     }
 };
 
@@ -318,9 +323,10 @@ void Simulation::buildObject() {
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
         if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
     } else {
-        const bool box = sc.mesh.empty() && !sc.meshData;
+        const bool box = sc.mesh.empty() && !sc.meshData && sc.tetraSurface.empty();
         if (box) checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
         TetMesh mesh = sc.meshData ? TetMesh{sc.scale * sc.meshData->X, sc.meshData->tets, {}, sc.meshData->source}
+                       : !sc.tetraSurface.empty() ? tetraMesh()
                        : box ? boxMesh(sc.scale * sc.boxSize.x(), sc.scale * sc.boxSize.y(), sc.scale * sc.boxSize.z(),
                                        sc.boxCells.x(), sc.boxCells.y(), sc.boxCells.z())
                              : readTetMesh(sc.mesh, ro);
@@ -328,14 +334,26 @@ void Simulation::buildObject() {
         checkSize(mesh.X);
         if (!box) checkMemory(mesh.source, mesh.elements() * kBytesPerTet);
         if (sc.improve) improveOnLoad(mesh);
+        // A mesher's order is arbitrary: threads splitting the elements would share most nodes and
+        // two threads run slower than one. Spatial order keeps a thread's nodes its own.
+        if (!sc.mesh.empty() && sc.reorder) mesh = spatialOrder(mesh, &inputNode_, &inputElement_);
         model_ = buildModel(mesh, sc.material, sc.element);
         if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
     }
     model_.gravity = sc.gravity;
     model_.massDamping = sc.damping;
     model_.precision = sc.precision;
+    // Regions listing nodes name them as the mesh file numbers them.
+    std::vector<int> nodeOf(inputNode_.size());
+    for (size_t n = 0; n < inputNode_.size(); ++n) nodeOf[static_cast<size_t>(inputNode_[n])] = static_cast<int>(n);
+    auto regionNodes = [&](const Region& reg) {
+        std::vector<int> nodes = selectNodes(reg, model_.X);
+        if (reg.kind == Region::Kind::Nodes && !nodeOf.empty())
+            for (int& n : nodes) n = nodeOf[static_cast<size_t>(n)];
+        return nodes;
+    };
     for (const auto& reg : sc.fixed) {
-        const auto nodes = selectNodes(reg, model_.X);
+        const auto nodes = regionNodes(reg);
         if (nodes.empty()) throw InputError(sc.file + ": " + reg.path + ": selects no node");
         for (int n : nodes) model_.fixed[static_cast<size_t>(n)] = 1;
     }
@@ -344,7 +362,7 @@ void Simulation::buildObject() {
         throw InputError(sc.file + ": " + (sc.fixed.empty() ? std::string("object") : sc.fixed.back().path) + ": " +
                          fmt("every node of the object (%d) is fixed or massless: nothing can move", model_.nodes()));
     for (const auto& f : sc.forces) {
-        loadNodes_.push_back(selectNodes(f.region, model_.X));
+        loadNodes_.push_back(regionNodes(f.region));
         if (loadNodes_.back().empty()) throw InputError(sc.file + ": " + f.region.path + ": selects no node");
     }
     rec_.initial = {{"nodes", model_.nodes()},
@@ -352,6 +370,36 @@ void Simulation::buildObject() {
                     {"fixed_nodes", model_.nodes() - model_.freeDofs() / 3},
                     {"mass", model_.mass.sum()}};
     if (!sc.cutting.compare.empty()) rest_ = restMesh(model_);
+}
+
+// object.tetra: the surface's mesh from the cache, or built by `cutsim tetra`'s pipeline and cached.
+TetMesh Simulation::tetraMesh() {
+    Stopwatch sw;
+    TetraOptions o;
+    o.size = sc_.tetraSize;
+    o.improve = sc_.tetraImprove;
+    o.material = sc_.material;
+    bool cached = false;
+    TetraReport r;
+    std::string file;
+    TetMesh m;
+    try {
+        m = tetraCached(sc_.tetraSurface, sc_.scale, o, cached, r, file);
+    } catch (const InputError& e) {
+        throw InputError(sc_.file + ": object.tetra: " + e.what());
+    }
+    tetra_ = {{"surface", sc_.tetraSurface},
+              {"size", o.size},
+              {"cached", cached},
+              {"cache_file", file},
+              {"seconds", sw.seconds()}};
+    if (!cached)
+        tetra_.update({{"dt_before", r.dtBefore},
+                       {"dt_after", r.dtAfter},
+                       {"step_quality", r.dtAfter / r.dtScale},
+                       {"volume_error", (r.volumeMesh - r.volumeSurface) / r.volumeSurface},
+                       {"boundary_distance_rel", r.boundaryDistance / r.diagonal}});
+    return m;
 }
 
 // object.visual: the surface rides the rest mesh's elements. A vertex far outside every element

@@ -158,6 +158,12 @@ public:
     const ContactWorld* contact() const { return contact_.get(); }
     const ContactSettings& contactSettings() const { return contactSettings_; }
     const CutEngine* cutter() const { return cutter_.get(); }
+    // object.reorder: a mesh file's nodes and elements are put in spatial order on load. These give
+    // the index in the file of node n and element e (nodes and elements a cut made: of the node or
+    // element they were copied from); the identity when the object was not reordered.
+    bool reordered() const { return !inputNode_.empty(); }
+    int inputNode(int n) const;
+    int inputElement(int e) const;
     // The surface to draw: the MI object's embedded surface, the object.visual surface or the mesh
     // boundary, split by the cuts so far; null for a tet-mesh object without object.visual before
     // any cut (draw its boundary). Current after every
@@ -175,6 +181,7 @@ public:
 private:
     void buildObject();
     void improveOnLoad(TetMesh& mesh);
+    TetMesh tetraMesh();
     void embedVisualSurface(const SurfaceMesh& vis);
     void chooseAndApply(bool initial);
     void setupContact();
@@ -208,6 +215,8 @@ private:
     std::unique_ptr<EmbeddedSurface> visual_;           // object.visual in the uncut mesh, else null
     nlohmann::json visualReport_;                       // object.visual for the report (null: none)
     nlohmann::json improvement_;                        // object.improve for the report (null: not asked)
+    std::vector<int> inputNode_, inputElement_;         // object.reorder: file index of each node and element
+    nlohmann::json tetra_;                              // object.tetra for the report (null: not used)
     nlohmann::json hybrid_;                             // object.element "hybrid" on load, for the report (null: not)
     double hybridDtSim_ = 0;                            // the hybrid's dt_sim: 0.95 of the FEM object's exact step [s]
     TetMesh rest_;                                      // the uncut rest mesh, for cutting.compare

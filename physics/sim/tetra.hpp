@@ -1,0 +1,58 @@
+// From a closed surface to a simulation-ready tet mesh (`cutsim tetra`, scene key object.tetra):
+// the surface checked, filled by TetGen to a target edge length, improved for the stable step
+// (improve/improve.hpp), put in spatial order (mesh/generate.hpp spatialOrder).
+#pragma once
+
+#include "fem/material.hpp"
+#include "mesh/mesh.hpp"
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace cutsim {
+
+struct TetraOptions {
+    double size = 0;  // target edge length [m]: TetGen's volume bound is a regular tet of this edge
+    bool improve = true;
+    Material material;  // for the exact step (the improver's measure)
+    int threads = 1;    // the improver's threads (its result depends on the count)
+};
+
+struct TetraReport {
+    int surfaceTriangles = 0;
+    int degenerateTriangles = 0;  // of zero area, dropped before meshing
+    int tetsMeshed = 0;           // TetGen's tets
+    int nodes = 0, tets = 0;      // the result's
+    double dtBefore = 0;          // exact step of TetGen's mesh [s]
+    double dtAfter = 0;           // exact step of the result [s]
+    double regularEdge = 0;       // a: edge of the regular tet of the result's median element volume [m]
+    double dtScale = 0;           // a / c_p [s]: the result's exact step over it is the step quality
+    double volumeSurface = 0;     // enclosed by the surface [m^3]
+    double volumeMesh = 0;        // of the result [m^3]
+    double boundaryDistance = 0;  // farthest the result's boundary lies from the surface [m]
+    double diagonal = 0;          // the surface's bounding-box diagonal [m]
+    double minVolume = 0;         // smallest element volume of the result [m^3]
+    int inverted = 0;             // elements of the result with volume <= 0
+    std::vector<std::pair<std::string, double>> seconds;  // per phase: check, tetgen, improve, order [s]
+};
+
+struct TetraResult {
+    TetMesh mesh;
+    TetraReport report;
+};
+
+// Refuses (InputError naming the file and the defect) a surface that does not close a volume:
+// open, non-manifold or inconsistently oriented edges, duplicated triangles; TetGen refuses a
+// self-intersecting one (the message says so). Unreferenced vertices are dropped.
+TetraResult tetraFromSurface(SurfaceMesh surface, const TetraOptions& opts);
+
+// object.tetra: the mesh of surface file `path` at `scale` built by tetraFromSurface, or read from
+// the cache when built before with the same file content and options. The cache folder is
+// $CUTSIM_CACHE, else $XDG_CACHE_HOME/cutsim, else ~/.cache/cutsim (files tetra-<hash>.msh,
+// written through a temporary file and a rename). `cached` tells which; `report` is filled when
+// built.
+TetMesh tetraCached(const std::string& path, double scale, const TetraOptions& opts, bool& cached, TetraReport& report,
+                    std::string& cacheFile);
+
+}  // namespace cutsim
