@@ -17,6 +17,7 @@
 #include "mesh/embedding.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "timestep/cut_response.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
 #include "timestep/modes.hpp"
@@ -193,12 +194,16 @@ Model notchedXfem(const Cantilever& c, int r, MassLumping lumping, int* crossed,
     TimestepAnalyzer ta(m);
     const double dt0 = route == NotchRoute::Plain ? 0.0 : ta.exact(m).dt;
     if (route == NotchRoute::Hybrid) matchCriticalCertified(m, ta, 0.95 * dt0, {}, true);
+    CutResponseOptions ro;  // the product's after-cut response (timestep/cut_response.hpp)
+    ro.dtFloor = route == NotchRoute::Floor ? 0.95 * dt0 : 0.0;
+    ro.hybrid = route == NotchRoute::Hybrid;
+    ro.hybridDtSim = 0.95 * dt0;
+    ro.exact = route != NotchRoute::Plain;
+    CutResponse response(ro);
     const Stopwatch sw;
     const CutResult res = eng.cut(m, s, notchSurface(c));
     if (crossed) *crossed = res.crossed;
-    ta.update(m, res.changedElements, res.changedNodes);
-    if (route == NotchRoute::Floor) holdStepFloorCertified(m, ta, 0.95 * dt0);
-    if (route == NotchRoute::Hybrid) matchCriticalCertified(m, ta, 0.95 * dt0);
+    response.apply(m, ta, res.changedElements, res.changedNodes);
     if (seconds) *seconds = sw.seconds();
     return m;
 }

@@ -11,6 +11,7 @@
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/analyzer.hpp"
+#include "timestep/cut_response.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
 #include "util/json_text.hpp"
@@ -183,6 +184,12 @@ public:
     XfemRun(const BenchObject& o, XfemMode mode) : o_(o), m_(o.model), s_(makeState(m_)), ta_(m_), mode_(mode) {
         eng_.prepare(m_);  // once per object, as a scene does: not part of a cut's time
         if (mode_ == XfemMode::Hybrid) matchCriticalCertified(m_, ta_, kFloor * o_.dt0, {}, true);
+        CutResponseOptions ro;
+        ro.dtFloor = mode_ == XfemMode::Floor ? kFloor * o_.dt0 : 0.0;
+        ro.hybrid = mode_ == XfemMode::Hybrid;
+        ro.hybridDtSim = kFloor * o_.dt0;
+        ro.exact = mode_ != XfemMode::Plain;  // Plain: the step is measured after, not held
+        response_ = CutResponse(ro);
     }
     CutMeasure cut(const CutPlane& plane) override {
         CutMeasure r;
@@ -192,15 +199,10 @@ public:
         Stopwatch sw;
         const CutResult cr = eng_.cut(m_, s_, cs);
         r.cutSeconds = sw.lap();
-        ta_.update(m_, cr.changedElements, cr.changedNodes);
-        r.updateSeconds = sw.lap();
-        if (mode_ == XfemMode::Floor) {
-            holdStepFloorCertified(m_, ta_, kFloor * o_.dt0);
-            r.floorSeconds = sw.lap();
-        } else if (mode_ == XfemMode::Hybrid) {
-            matchCriticalCertified(m_, ta_, kFloor * o_.dt0);
-            r.floorSeconds = sw.lap();
-        }
+        // the product's after-cut response (timestep/cut_response.hpp)
+        const CutResponseResult res = response_.apply(m_, ta_, cr.changedElements, cr.changedNodes);
+        r.updateSeconds = res.updateSeconds - res.floor.seconds;
+        r.floorSeconds = res.floor.seconds + res.exactSeconds;
         r.addedMass = m_.addedMass.size() ? m_.addedMass.sum() / o_.mass : 0.0;
         measure(o_, m_, ta_, r);
         if (mode_ == XfemMode::Hybrid) r.critical = static_cast<int>(m_.matchedList.size());
@@ -215,6 +217,7 @@ private:
     TimestepAnalyzer ta_;
     CutEngine eng_;
     XfemMode mode_;
+    CutResponse response_;
 };
 
 // The rows of the tables; a further method is one more entry.

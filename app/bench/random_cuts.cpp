@@ -3,6 +3,7 @@
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"
 #include "timestep/analyzer.hpp"
+#include "timestep/cut_response.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
 #include "util/stopwatch.hpp"
@@ -10,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -87,6 +89,12 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
     co.lumping = ro.lumping;
     co.fuseReach = ro.fuseReach;
     CutEngine eng(co);
+    CutResponseOptions rs;  // the routes other than the global baseline, as the scene keys set them
+    if (ro.stepFloor > 0) rs.dtFloor = ro.stepFloor * dt0;
+    rs.floorHybrid = ro.floor == RandomCutOptions::Floor::HybridCertified;
+    rs.floorHybridThreshold = ro.hybridShare;
+    rs.exact = ro.stepFloor == 0 || ro.floor != RandomCutOptions::Floor::Local;
+    CutResponse response(rs);
     Stepper stepper;
     StepOptions opt;
     opt.dt = 0.9 * dt0;
@@ -125,29 +133,28 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
         ++out.cuts;
         out.maxVolumeError = std::max(out.maxVolumeError, std::abs(r.volumeAfter - r.volumeBefore) / r.volumeBefore);
         out.maxMassError = std::max(out.maxMassError, std::abs(r.massAfter - r.massBefore) / r.massBefore);
-        ta.update(m, r.changedElements, r.changedNodes);
-        if (ro.stepFloor > 0) {
-            Stopwatch sw;
-            if (ro.floor == RandomCutOptions::Floor::Global) {
-                keepStep(m, ta.rows(), ro.stepFloor * dt0);
-                ta.compute(m);
-            } else if (ro.floor == RandomCutOptions::Floor::HybridCertified) {
-                HybridOptions ho;
-                ho.threshold = ro.hybridShare;
-                matchCritical(m, ta, ro.stepFloor * dt0, ho);
+        Stopwatch sw;
+        double dtExact = std::numeric_limits<double>::quiet_NaN();
+        if (ro.stepFloor > 0 && ro.floor == RandomCutOptions::Floor::Global) {
+            // the baseline: mass from global modes only
+            ta.update(m, r.changedElements, r.changedNodes);
+            keepStep(m, ta.rows(), ro.stepFloor * dt0);
+            ta.compute(m);
+        } else {
+            // the product's after-cut response (timestep/cut_response.hpp)
+            const CutResponseResult res = response.apply(m, ta, r.changedElements, r.changedNodes);
+            out.toppedUp += res.topUp.addedMass > 0;
+            dtExact = res.exact;
+            if (ro.floor == RandomCutOptions::Floor::HybridCertified)
                 out.matchedShare = static_cast<double>(m.matchedList.size()) / m.elements();
-                out.toppedUp += holdStepFloorCertified(m, ta, ro.stepFloor * dt0).toppedUp;
-            } else if (ro.floor == RandomCutOptions::Floor::Certified) {
-                out.toppedUp += holdStepFloorCertified(m, ta, ro.stepFloor * dt0).toppedUp;
-            } else {
-                holdStepFloor(m, ta, ro.stepFloor * dt0);
-            }
+        }
+        if (ro.stepFloor > 0) {
             const double sec = sw.seconds();
             out.floorSeconds += sec;
             out.maxFloorSeconds = std::max(out.maxFloorSeconds, sec);
             out.addedMass = m.addedMass.size() ? m.addedMass.sum() / totalMass : 0.0;
         }
-        const double dt = ta.exact(m).dt;
+        const double dt = std::isnan(dtExact) ? ta.exact(m).dt : dtExact;
         out.minDtRatio = std::min(out.minDtRatio, dt / dt0);
         if (ro.stepFloor > 0 && dt < ro.stepFloor * dt0 * (1 - 1e-6)) ++out.cutsBelowFloor;
         opt.dt = ro.dtFactor * dt;

@@ -3,9 +3,13 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 
 namespace cutsim {
+
+using json = nlohmann::json;
 
 // Blade sweeps of the step [t, t + dt]: each blade's edge moves from where the last step left it
 // (a dragged blade cuts along the path it was dragged) to its pose at t + dt, and CutEngine::sweep
@@ -25,6 +29,41 @@ void Simulation::syncSlot(int i) {
         slot.polygons = cs->regions;
     }
     contact_->setSlot(i, std::move(slot));
+}
+
+// The open stroke ends: the slot closes, the exact step its blade steps deferred is solved (the
+// step may grow back to its fraction of it) and the stroke's costs go to the report.
+void Simulation::endStroke() {
+    if (stroke_ < 0) return;
+    const int was = stroke_;
+    cutter_->endStroke();
+    stroke_ = -1;
+    syncSlot(was);
+    const double dtDuring = dt();
+    const StageTimes before = rec_.stages;
+    settleExact();
+    const StrokeLog& L = strokeLog_;
+    if (L.latency.empty()) return;  // the blade met elements but split none
+    json stages = json::object();
+    for (Stage st : {Stage::Cuts, Stage::Timestep, Stage::Contact, Stage::Forces, Stage::Integrate})
+        stages[stageName(st)] = rec_.stages[st] - L.stages[st];
+    std::vector<double> lat = L.latency;
+    std::sort(lat.begin(), lat.end());
+    auto pct = [&](double q) {
+        return lat.empty() ? 0.0 : lat[std::min(lat.size() - 1, static_cast<size_t>(q * double(lat.size())))];
+    };
+    rec_.strokes.push_back(
+        {{"tool", was},
+         {"start", L.start},
+         {"end", state_.time},
+         {"steps", state_.steps - L.steps},
+         {"blade_steps", lat.size()},
+         {"stages", stages},
+         {"latency", {{"median", pct(0.5)}, {"p99", pct(0.99)}, {"max", lat.empty() ? 0.0 : lat.back()}}},
+         {"dt_during", dtDuring},
+         {"dt_after", dt()},
+         {"exact_after", std::isnan(limits_.exact) ? json(nullptr) : json(limits_.exact)},
+         {"exact_seconds", rec_.stages[Stage::Timestep] - before[Stage::Timestep]}});
 }
 
 bool Simulation::applyBlades() {
@@ -50,11 +89,7 @@ bool Simulation::applyBlades() {
             const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
             bladeEdge(tool, t1, lastEdge_[b].a, lastEdge_[b].b);  // where the next step starts from
         }
-        if (stroke_ >= 0) {
-            const int was = stroke_;
-            cutter_->endStroke(), stroke_ = -1;
-            syncSlot(was);
-        }
+        endStroke();
         return true;
     }
     bladePhase_->refit(model_.tets, state_.x);
@@ -70,17 +105,13 @@ bool Simulation::applyBlades() {
         for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
         bladePhase_->query(lo, hi, candidates_);
         if (candidates_.empty()) {
-            if (stroke_ == i) cutter_->endStroke(), stroke_ = -1, syncSlot(i);
+            if (stroke_ == i) endStroke();
             continue;
         }
         if (stroke_ != i) {
-            if (stroke_ >= 0) {
-                const int was = stroke_;
-                cutter_->endStroke();
-                stroke_ = i;
-                syncSlot(was);
-            }
+            endStroke();
             stroke_ = i;
+            strokeLog_ = {i, state_.time, rec_.stages, state_.steps, {}};
         }
         beforeTopologyChange();  // a sweep may split elements (r.changed() tells after it)
         const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
@@ -89,7 +120,8 @@ bool Simulation::applyBlades() {
         if (!r.changed()) continue;
         bladePhase_->refit(model_.tets, state_.x);  // the new elements, for the next blade
         ++rec_.bladeCutSteps;
-        applyTopologyChange(r, "tools[" + std::to_string(i) + "]");
+        respondToCut(r, "tools[" + std::to_string(i) + "]", true);
+        strokeLog_.latency.push_back(rec_.cuts.back()["latency"].get<double>());
         if (status_ != RunStatus::Running) return false;
     }
     return true;

@@ -52,9 +52,10 @@ struct ToolRecord {
 
 struct RunRecord {
     StageTimes stages;
-    nlohmann::json cuts = nlohmann::json::array();    // one entry per topology change
-    nlohmann::json energy = nlohmann::json::array();  // samples {time, kinetic, elastic, gravity, total} [s], [J]
-    long invertedSteps = 0, limitedSteps = 0;         // steps with inverted / stretch-limited elements
+    nlohmann::json cuts = nlohmann::json::array();     // one entry per topology change
+    nlohmann::json strokes = nlohmann::json::array();  // one entry per blade stroke: its costs by stage
+    nlohmann::json energy = nlohmann::json::array();   // samples {time, kinetic, elastic, gravity, total} [s], [J]
+    long invertedSteps = 0, limitedSteps = 0;          // steps with inverted / stretch-limited elements
     int maxInverted = 0, maxLimited = 0;
     long solverIterations = 0;  // backward Euler CG iterations, summed
     int solverIterationsMax = 0;

@@ -166,6 +166,7 @@ json Simulation::report(const json& extra) const {
         report["hybrid"]["matched_final"] = model_.matchedList.size();
     }
     report["cuts"] = rec_.cuts;
+    report["strokes"] = rec_.strokes;
     if (bladePhase_)
         report["blade"] = {{"tools", bladeTools_},
                            {"cut_steps", rec_.bladeCutSteps},

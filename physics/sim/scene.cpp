@@ -532,7 +532,12 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.cutting.lumping =
             parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
         s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
-        s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+        if (c.has("exact_after_cut") && c.raw("exact_after_cut").is_string()) {
+            s.cutting.exactAtStrokeEnd = c.string("exact_after_cut", "stroke_end", {"stroke_end"}) == "stroke_end";
+            s.cutting.exactAfterCut = true;
+        } else {
+            s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+        }
         s.cutting.stepFloor = c.number("step_floor", Cutting{}.stepFloor, 0, 1);
         s.cutting.floorHybrid = c.string("floor_method", "mass", {"mass", "hybrid"}) == "hybrid";
         const Cutting dflt;

@@ -216,6 +216,20 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
     }
     limits_ = {exact.dt, ta_.certifiedDt(), ta_.minDt().r1r};
     initial_ = limits_;
+    {
+        CutResponseOptions ro;
+        const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
+        if (!sc_.hybrid && explicitScheme) ro.dtFloor = sc_.cutting.stepFloor * initial_.exact;
+        ro.floorHybrid = sc_.cutting.floorHybrid;
+        ro.hybrid = sc_.hybrid;
+        ro.hybridDtSim = hybridDtSim_;
+        ro.hybridThreshold = sc_.hybridThreshold;
+        ro.exact = sc_.cutting.exactAfterCut;
+        // the certified step is held where it was before the cut, or at the floor when that is lower
+        if (explicitScheme)
+            ro.dtCertified = ro.dtFloor > 0 ? std::min(ro.dtFloor, initial_.certified) : initial_.certified;
+        response_ = CutResponse(ro);
+    }
     rec_.stages[Stage::Timestep] += ts.seconds();
     if (!(exact.dt > 0) || !std::isfinite(exact.dt))
         throw InputError(sc_.file + ": the exact stable step of the object is " + fmt("%g", exact.dt) +
@@ -641,7 +655,20 @@ std::uint64_t Simulation::stateHash() const {
     return h;
 }
 
+void Simulation::settleExact() {
+    if (!response_.owed()) return;
+    const CutResponseResult res = response_.settle(model_, ta_);
+    limits_.exact = res.exact;
+    limits_.certified = ta_.certifiedDt();
+    limits_.estimate = ta_.minDt().r1r;
+    rec_.stages[Stage::Timestep] += res.exactSeconds;
+    rec_.floorMass += res.addedMass();
+    stepper_.reset();
+    chooseAndApply(false);
+}
+
 void Simulation::finish() {
+    if (status_ == RunStatus::Running) endStroke();  // the report's limits are known at the end
     if (status_ == RunStatus::Running && finished()) status_ = RunStatus::Finished;
     if (status_ == RunStatus::Diverged) return;
     nextSample_ = state_.time;  // the final state always
@@ -786,48 +813,27 @@ int Simulation::dueNextScripted() {
     return static_cast<int>(k);
 }
 
-void Simulation::applyTopologyChange(const CutResult& r, const std::string& key) {
+void Simulation::applyTopologyChange(const CutResult& r, const std::string& key) { respondToCut(r, key, false); }
+
+void Simulation::respondToCut(const CutResult& r, const std::string& key, bool bladeStep) {
     if (!r.changed()) return;
-    // Local update of the estimators and the certified bound around the cut; no global solve.
+    // Local update of the estimators and the certified bound around the cut, the floor or the
+    // hybrid, and the exact step unless a blade's stroke defers it to its end (CutResponse).
     Stopwatch sw;
-    ta_.update(model_, r.changedElements, r.changedNodes);
-    // What the cut made critical at the step it was taken with, before anything answers it.
+    const double dtBefore = dt();
+    const bool defer = bladeStep && sc_.cutting.exactAtStrokeEnd;
+    const CutResponseResult res = response_.apply(model_, ta_, r.changedElements, r.changedNodes, defer);
+    // What the cut made critical at the step it was taken with, before anything answered it.
     std::vector<int> criticalAtCut;
-    const double criticalBound = sc_.capture.criticalFactor * dt();
+    const double criticalBound = sc_.capture.criticalFactor * dtBefore;
     for (int e : ta_.lastElements())
         if (ta_.estimates().r1r(e) < criticalBound) criticalAtCut.push_back(e);
-    // The step floor: local mass scaling around the cut, then (with the exact step) certified.
-    // The hybrid instead matches what the cut made critical (no mass added).
-    const double dtFloor = sc_.cutting.stepFloor * initial_.exact;
-    const bool holdFloor =
-        !sc_.hybrid && dtFloor > 0 && std::isfinite(dtFloor) && sc_.integrator != Integrator::BackwardEuler;
-    StepFloorResult floor;
-    HybridResult hybrid;
-    HybridResult floorMatched;  // cutting.floor_method "hybrid": what is under the floor is matched first
-    if (holdFloor && sc_.cutting.floorHybrid) floorMatched = matchCritical(model_, ta_, dtFloor, HybridOptions{1.0});
-    if (holdFloor) floor = holdStepFloor(model_, ta_, dtFloor);
-    if (sc_.hybrid && !sc_.cutting.exactAfterCut)
-        hybrid = matchCritical(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold});
-    const double updateSeconds = sw.lap();
-    limits_.exact = std::numeric_limits<double>::quiet_NaN();
-    double exactSeconds = 0;
-    KeepStepResult topUp;
-    if (sc_.cutting.exactAfterCut) {
-        if (sc_.hybrid) {
-            hybrid = matchCriticalCertified(model_, ta_, hybridDtSim_, HybridOptions{sc_.hybridThreshold});
-            limits_.exact = hybrid.dtExact;
-        } else if (holdFloor) {
-            topUp = topUpStepFloor(model_, ta_, dtFloor);
-            limits_.exact = topUp.dtAfter;
-        } else {
-            limits_.exact = ta_.exact(model_).dt;
-        }
-        exactSeconds = sw.lap();
-    }
+    limits_.exact = res.exact;
     limits_.certified = ta_.certifiedDt();
     limits_.estimate = ta_.minDt().r1r;
+    const double updateSeconds = res.updateSeconds, exactSeconds = res.exactSeconds;
     rec_.stages[Stage::Timestep] += updateSeconds + exactSeconds;
-    rec_.floorMass += floor.addedMass + topUp.addedMass;
+    rec_.floorMass += res.addedMass();
     stepper_.reset();
     // The one after-cut rule: the scene's policy chosen again at the new limits.
     chooseAndApply(false);
@@ -882,18 +888,24 @@ void Simulation::applyTopologyChange(const CutResult& r, const std::string& key)
          {"seconds", r.seconds},
          {"update_seconds", updateSeconds},
          {"exact_seconds", exactSeconds},
-         {"step_floor", holdFloor ? json{{"dt", dtFloor},
-                                         {"added_mass", floor.addedMass + topUp.addedMass},
-                                         {"local_added_mass", floor.addedMass},
-                                         {"nodes", floor.nodes},
-                                         {"elements_under", floor.elements},
-                                         {"sweeps", floor.sweeps},
-                                         {"topped_up", topUp.addedMass > 0},
-                                         {"matched", floorMatched.added},
-                                         {"seconds", floor.seconds + floorMatched.seconds}}
-                                  : json(nullptr)},
-         {"hybrid", sc_.hybrid ? json{{"added", hybrid.added}, {"matched", hybrid.matched}, {"seconds", hybrid.seconds}}
-                               : json(nullptr)},
+         {"step_floor", response_.options().dtFloor > 0
+                            ? json{{"dt", response_.options().dtFloor},
+                                   {"added_mass", res.addedMass()},
+                                   {"local_added_mass", res.floor.addedMass},
+                                   {"certified_added_mass", res.certified.addedMass},
+                                   {"nodes", res.floor.nodes},
+                                   {"certified_nodes", res.certified.nodes},
+                                   {"elements_under", res.floor.elements},
+                                   {"sweeps", res.floor.sweeps},
+                                   {"topped_up", res.topUp.addedMass > 0},
+                                   {"matched", res.floorMatched.added},
+                                   {"seconds", res.floor.seconds + res.floorMatched.seconds + res.certified.seconds}}
+                            : json(nullptr)},
+         {"hybrid",
+          sc_.hybrid
+              ? json{{"added", res.hybrid.added}, {"matched", res.hybrid.matched}, {"seconds", res.hybrid.seconds}}
+              : json(nullptr)},
+         {"exact_deferred", res.deferred},
          {"dt_after",
           {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
            {"certified", limits_.certified},

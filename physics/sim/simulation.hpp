@@ -23,6 +23,7 @@
 #include "sim/scene.hpp"
 #include "sim/step_policy.hpp"
 #include "timestep/analyzer.hpp"
+#include "timestep/cut_response.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -104,6 +105,9 @@ public:
     // exact limit when the scene asks for it, the step policy, contact points and the drawn surface,
     // and a report entry under `key`. May set the status to Refused.
     void applyTopologyChange(const CutResult& r, const std::string& key);
+    // A blade's open stroke ends now (the slot closes, the exact step it deferred is solved and
+    // its costs go to report.json "strokes"); nothing when no stroke is open.
+    void endStroke();
     // A cut by `surface` now (the engine is made on first use), then applyTopologyChange.
     CutResult cut(const CutSurface& surface, const std::string& key);
     // The next scripted cut (cutting.cuts) now, ahead of its time; false when none is left.
@@ -189,6 +193,8 @@ private:
     bool applyDueCuts();
     bool applyBlades();
     void syncSlot(int i);
+    void settleExact();
+    void respondToCut(const CutResult& r, const std::string& key, bool bladeStep);
     void check();
     void sampleEnergy();
     void fail(RunStatus s, const std::string& why);
@@ -234,6 +240,14 @@ private:
     std::vector<BladeEdge> lastEdge_;  // each blade's edge at the end of the last step
     std::vector<int> candidates_;
     int stroke_ = -1;  // blade whose stroke the engine holds, or -1
+    struct StrokeLog {
+        int tool = -1;
+        double start = 0;             // [s]
+        StageTimes stages;            // the run's stage times when the stroke began
+        long steps = 0;               // the run's steps then
+        std::vector<double> latency;  // each blade step's cut latency [s]
+    } strokeLog_;
+    CutResponse response_;
     size_t nextCut_ = 0;
     int lastCutId_ = -1;
 

@@ -39,6 +39,7 @@ void TimestepAnalyzer::compute(const Model& m) {
     free_.resize(m.nodes());
     for (int i = 0; i < m.nodes(); ++i) free_[i] = m.invMass(i) > 0;
     elems_.clear();
+    nodes_.clear();
     stats_ = {true, m.nodes(), m.elements(), m.nodes(), secondsSince(t0)};
 }
 

@@ -67,6 +67,8 @@ public:
     const UpdateStats& lastUpdate() const { return stats_; }
     // Elements whose one-ring estimates the last update() recomputed (empty after compute()).
     const std::vector<int>& lastElements() const { return elems_; }
+    // Nodes whose Gershgorin row the last update() recomputed (empty after compute()).
+    const std::vector<int>& lastNodes() const { return nodes_; }
 
 private:
     StiffnessRows rows_;

@@ -101,6 +101,52 @@ StepFloorResult holdStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, co
     return res;
 }
 
+StepFloorResult holdCertifiedFloor(Model& m, TimestepAnalyzer& ta, double dtAim, const std::vector<int>& nodes) {
+    Stopwatch sw;
+    StepFloorResult res;
+    res.dtFloor = dtAim;
+    if (!(dtAim > 0) || !std::isfinite(dtAim)) return res;
+    const double lamAim = 4 / (dtAim * dtAim) * (1 - 1e-9);  // a hair under, against rounding
+    if (m.addedMass.size() != m.nodes()) {
+        const Eigen::Index old = m.addedMass.size();
+        m.addedMass.conservativeResize(m.nodes());
+        if (m.addedMass.size() > old) m.addedMass.tail(m.addedMass.size() - old).setZero();
+    }
+    const StiffnessRows& rows = ta.rows();
+    std::vector<int> changed;
+    for (int i : nodes) {
+        if (!(m.invMass(i) > 0) || !(ta.nodeBounds()(i) > lamAim)) continue;
+        ++res.elements;
+        const std::vector<int>& nb = rows.nbr[static_cast<size_t>(i)];
+        const Eigen::Vector3d D = rows.block[static_cast<size_t>(i)][0].cwiseAbs().rowwise().sum();
+        Eigen::Vector3d O = Eigen::Vector3d::Zero();
+        for (size_t q = 1; q < nb.size(); ++q)
+            O += std::sqrt(m.invMass(nb[q])) * rows.block[static_cast<size_t>(i)][q].cwiseAbs().rowwise().sum();
+        double s = std::sqrt(m.invMass(i));
+        for (int c = 0; c < 3; ++c)
+            if (D(c) > 0)
+                s = std::min(s, 2 * lamAim / (O(c) + std::sqrt(O(c) * O(c) + 4 * D(c) * lamAim)));
+            else if (O(c) > 0)
+                s = std::min(s, lamAim / O(c));
+        const double mass = 1 / (s * s);
+        if (!(mass > m.mass(i))) continue;
+        const double d = mass - m.mass(i);
+        m.addedMass(i) += d;
+        m.mass(i) = mass;
+        m.invMass(i) = 1 / mass;
+        res.addedMass += d;
+        changed.push_back(i);
+    }
+    res.nodes = static_cast<int>(changed.size());
+    if (!changed.empty()) {
+        ta.update(m, {}, changed);
+        res.sweeps = 1;
+    }
+    res.reached = true;
+    res.seconds = sw.seconds();
+    return res;
+}
+
 KeepStepResult topUpStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, const KeepStepOptions& keep) {
     const Eigen::VectorXd before = m.addedMass;
     const KeepStepResult r = keepStep(m, ta.rows(), dtFloor, keep);

@@ -14,6 +14,8 @@
 #include "fem/model.hpp"
 #include "timestep/analyzer.hpp"
 
+#include <vector>
+
 namespace cutsim {
 
 struct StepFloorOptions {
@@ -41,6 +43,14 @@ struct StepFloorResult {
 // (ta.lastElements()) and adds mass (m.addedMass, m.mass, m.invMass) until each one's R1R step
 // reaches dtFloor / sqrt(1 - margin), keeping ta current. Nothing is added when none is under.
 StepFloorResult holdStepFloor(Model& m, TimestepAnalyzer& ta, double dtFloor, const StepFloorOptions& opts = {});
+
+// The floor certified without a solve: every node of `nodes` (those whose Gershgorin row a change
+// may have raised: ta.lastNodes() after the change's update) is given the mass that brings its row of M^-1/2 K M^-1/2
+// under 4 / dtAim^2. With s = m_i^-1/2 the row is s^2 D_c + s O_c in each component c (D: |K_ii| row sums, O: the sum
+// of s_j |K_ij| over the neighbours), so the mass is 1 / s^2 at the positive root of s^2 D + s O = lambda. Mass at node
+// i only lowers its neighbours' rows, so one pass holds them all: the certified step (Gershgorin) is >= dtAim wherever
+// the change reached. ta is kept current. In the result, `elements` counts the rows that were over the aim.
+StepFloorResult holdCertifiedFloor(Model& m, TimestepAnalyzer& ta, double dtAim, const std::vector<int>& nodes);
 
 // The floor certified: holdStepFloor, then the exact step (Lanczos to its tolerance); when that
 // is still under dtFloor, keepStep tops the mass up with global modes until it is not. ta is kept

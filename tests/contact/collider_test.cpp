@@ -235,6 +235,45 @@ TEST(Blade, CutsTheLiverInASixteenCellLatticeToTheEnd) {
     EXPECT_EQ(sim.state().flags.inverted, 0);
 }
 
+// cutting.exact_after_cut "stroke_end": a blade step is answered locally (no global solve); the
+// step it takes is the policy's fraction of the certified bound, which the certified floor holds
+// at min(step floor, uncut certified step); once the stroke ends the exact step is solved, the
+// step returns to its fraction of it, and report "strokes" has the stroke's costs.
+TEST(Blade, StrokeEndDefersTheExactStep) {
+    SceneDef sc = loadScene(test::source("assets/scenes/blade.json"),
+                            {"cutting.exact_after_cut=\"stroke_end\"", "cutting.blade_slot=true"});
+    Simulation sim(sc, SimulationOptions{1, false});
+    const StepLimits l0 = sim.initialLimits();
+    const double aim = std::min(sc.cutting.stepFloor * l0.exact, l0.certified);
+    sim.advance(sc.duration);
+    sim.finish();
+    ASSERT_EQ(sim.status(), RunStatus::Finished) << sim.message();
+    const RunRecord& rec = sim.record();
+    ASSERT_GT(rec.bladeCutSteps, 20);
+    for (const auto& c : rec.cuts) {
+        EXPECT_TRUE(c["exact_deferred"].get<bool>());
+        EXPECT_TRUE(c["dt_after"]["exact"].is_null());
+        const double cert = c["dt_after"]["certified"].get<double>();
+        EXPECT_GE(cert, aim * (1 - 1e-9));
+        EXPECT_LE(c["dt_used"].get<double>(), sc.dt.fraction * cert * (1 + 1e-12));
+    }
+    ASSERT_GE(rec.strokes.size(), 1u);
+    long bladeSteps = 0;
+    for (const auto& st : rec.strokes) {
+        bladeSteps += st["blade_steps"].get<long>();
+        const double exact = st["exact_after"].get<double>();
+        EXPECT_GE(exact, sc.cutting.stepFloor * l0.exact * (1 - 1e-6));
+        EXPECT_NEAR(st["dt_after"].get<double>(), sc.dt.fraction * exact, 1e-12 * exact);
+        for (const char* k : {"cut", "timestep", "contact", "forces", "integrate"})
+            EXPECT_GE(st["stages"][k].get<double>(), 0.0);
+        EXPECT_GT(st["latency"]["p99"].get<double>(), 0.0);
+    }
+    EXPECT_EQ(bladeSteps, rec.bladeCutSteps);
+    // the exact step the stroke's end solved is the model's, from scratch
+    EXPECT_NEAR(sim.limits().exact, exactCriticalDt(sim.model()).dt, 1e-6 * sim.limits().exact);
+    EXPECT_NEAR(sim.dt(), sc.dt.fraction * sim.limits().exact, 1e-12 * sim.dt());
+}
+
 // A collider needs a known kind and its keys; errors name them.
 TEST(Collider, BadCollidersNameTheKey) {
     json j = cubeOverFloor(0.5, {0, -9.81, 0});

@@ -4,6 +4,7 @@
 #include "cut/xfem.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "timestep/cut_response.hpp"
 #include "timestep/floor.hpp"
 #include "test_support.hpp"
 
@@ -76,6 +77,83 @@ TEST(StepFloor, SeveredSlabOfTheBar) {
     EXPECT_GT(f.local.addedMass, 0.0);
     EXPECT_LT((f.local.addedMass + f.topUp.addedMass) / mass0, 5e-3);
     EXPECT_NEAR(m.mass.sum(), mass0 + f.local.addedMass + f.topUp.addedMass, 1e-12 * mass0);
+}
+
+// The certified floor on one free tet: its four rows are the whole Gershgorin bound, so after
+// holdCertifiedFloor every row is at or under 4 / dtAim^2 (the certified step is at the aim, to
+// rounding), the exact step is above the certified one, and at least one row sits at the aim
+// (no more mass than the quadratic s^2 D + s O = lambda asks).
+TEST(StepFloor, CertifiedFloorHoldsTheGershgorinRows) {
+    TetMesh mesh;
+    mesh.X.resize(3, 4);
+    mesh.X << 0, 0.01, 0, 0, 0, 0, 0.01, 0, 0, 0, 0, 0.002;
+    mesh.tets.resize(4, 1);
+    mesh.tets << 0, 1, 2, 3;
+    Model m = buildModel(mesh, Material{});
+    TimestepAnalyzer ta(m);
+    const double cert0 = ta.certifiedDt();
+    ta.update(m, {0});
+    const double dtAim = 1.7 * cert0;
+    const StepFloorResult r = holdCertifiedFloor(m, ta, dtAim, {0, 1, 2, 3});
+    EXPECT_GT(r.nodes, 0);
+    EXPECT_GT(r.addedMass, 0.0);
+    EXPECT_NEAR(m.addedMass.sum(), r.addedMass, 1e-15);
+    const double cert = certifiedDt(m);  // from scratch
+    EXPECT_GE(cert, dtAim * (1 - 1e-9));
+    EXPECT_NEAR(ta.certifiedDt() / dtAim, 1.0, 1e-6);
+    EXPECT_GE(exactCriticalDt(m).dt, cert * (1 - 1e-9));
+    // nothing more where the rows are under the aim already
+    ta.update(m, {0});
+    EXPECT_EQ(holdCertifiedFloor(m, ta, dtAim, {0, 1, 2, 3}).addedMass, 0.0);
+}
+
+// The after-cut response on the severed slab of the bar: applied at once it equals the certified
+// floor's sequence (floor, exact step, top-up); deferred, it leaves the exact step unknown, holds
+// the certified step at its aim where the cut reached, and settle() then solves the same exact
+// step a fresh analysis finds.
+TEST(CutResponse, DeferredExactIsOwedAndSettled) {
+    auto slab = [](Model& m) {
+        State s = makeState(m);
+        CutEngine eng;
+        CutSurface cs;
+        cs.point = Eigen::Vector3d(0.0985, 0.015, 0.015);
+        cs.normal = Eigen::Vector3d(1, 0.5, 0).normalized();
+        return eng.cut(m, s, cs);
+    };
+    const Model base = randomCutBarModel();
+    const TimestepAnalyzer ta0(base);
+    const double dt0 = ta0.exact(base).dt, cert0 = ta0.certifiedDt();
+    CutResponseOptions o;
+    o.dtFloor = 0.95 * dt0;
+    o.dtCertified = std::min(o.dtFloor, cert0);
+
+    Model now = base;
+    TimestepAnalyzer taNow(now);
+    const CutResult rNow = slab(now);
+    CutResponse atOnce(o);
+    const CutResponseResult a = atOnce.apply(now, taNow, rNow.changedElements, rNow.changedNodes);
+    EXPECT_FALSE(a.deferred);
+    EXPECT_FALSE(atOnce.owed());
+    EXPECT_GE(a.exact, 0.95 * dt0 * (1 - 1e-6));
+    EXPECT_EQ(a.certified.addedMass, 0.0);  // the exact step backs it: no certified floor
+
+    Model later = base;
+    TimestepAnalyzer taLater(later);
+    const CutResult rLater = slab(later);
+    CutResponse deferred(o);
+    const CutResponseResult d = deferred.apply(later, taLater, rLater.changedElements, rLater.changedNodes, true);
+    EXPECT_TRUE(d.deferred);
+    EXPECT_TRUE(deferred.owed());
+    EXPECT_TRUE(std::isnan(d.exact));
+    EXPECT_GE(taLater.certifiedDt(), o.dtCertified * (1 - 1e-9));
+    EXPECT_GE(certifiedDt(later), o.dtCertified * (1 - 1e-9));  // from scratch
+    const CutResponseResult e = deferred.settle(later, taLater);
+    EXPECT_FALSE(deferred.owed());
+    EXPECT_GE(e.exact, 0.95 * dt0 * (1 - 1e-6));
+    EXPECT_NEAR(e.exact, exactCriticalDt(later).dt, 1e-6 * e.exact);
+    EXPECT_TRUE(std::isnan(deferred.settle(later, taLater).exact));  // nothing owed twice
+    // the mass the floor added is in the model, and what the response says it added
+    EXPECT_NEAR(later.addedMass.sum(), d.addedMass() + e.addedMass(), 1e-12 * later.mass.sum());
 }
 
 // Random cut sequences on the liver and the bar: with the certified floor no cut leaves the step
