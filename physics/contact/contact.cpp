@@ -572,6 +572,7 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
     // A contact whose free nodes carry less than kMinFreeWeight of it (a point on the fixed part)
     // is left alone: stopping it would take node moves of 1 / (their weight) times its own.
     const bool anyOutside = !m.outside.empty();
+    bool renormalised = false;
     for (Touch& tc : m.touches) {
         double inside = 0, all = 0;
         for (int i = tc.first; i < tc.first + tc.n; ++i) {
@@ -581,6 +582,27 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             if (anyOutside && !m.outside[static_cast<size_t>(t.node)]) inside += std::abs(t.w);
         }
         const bool skipOutside = anyOutside && inside >= kMinFreeWeight;
+        if (skipOutside && tc.shape >= 0) {
+            // The point is then measured on the nodes inside the material too: its position and
+            // velocity from them alone (weights renormalised), its depth moved to that point. A
+            // point read through its outside nodes saw their ringing as an approach, and stopping
+            // it took 1 / (inside weight) times that speed from the inside nodes (a landed lobe was
+            // thrown off the floor).
+            double sum = 0;
+            for (int i = tc.first; i < tc.first + tc.n; ++i)
+                if (const Term& t = m.terms[static_cast<size_t>(i)]; !m.outside[static_cast<size_t>(t.node)])
+                    sum += t.w;
+            if (sum > 0) {
+                for (int i = tc.first; i < tc.first + tc.n; ++i) {
+                    Term& t = m.terms[static_cast<size_t>(i)];
+                    t.w = m.outside[static_cast<size_t>(t.node)] ? 0.0 : t.w / sum;
+                }
+                const Eigen::Vector3d c = m.combine(x, tc);
+                tc.depth -= tc.n_.dot(c - tc.c0);
+                tc.c0 = c;
+                renormalised = true;
+            }
+        }
         auto moves = [&](const Term& t) {
             return invMass(t.node) > 0 && !(skipOutside && m.outside[static_cast<size_t>(t.node)]);
         };
@@ -599,6 +621,17 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             w += t.w * t.w * t.im;
         }
         tc.mass = w > 0 ? 1.0 / w : 0.0;  // 0: on fixed nodes only, nothing to move
+    }
+    if (renormalised) {  // the depths reported are the ones held
+        st.contacts = st.colliderContacts = 0;
+        st.maxDepth = st.colliderDepth = 0;
+        for (const Touch& tc : m.touches) {
+            if (tc.shape < 0 || !(tc.depth > 0)) continue;
+            if (m.shapes[static_cast<size_t>(tc.shape)].tool >= 0)
+                ++st.contacts, st.maxDepth = std::max(st.maxDepth, tc.depth);
+            else
+                ++st.colliderContacts, st.colliderDepth = std::max(st.colliderDepth, tc.depth);
+        }
     }
     // velocities: no approach, friction within the cone
     // Sweeps stop early once one changes no contact's velocity by more than kSettledSpeed (or its

@@ -116,10 +116,11 @@ struct ContactStep {
     int contacts = 0;                       // points inside a tool [-]
     int colliderContacts = 0;               // points inside a collider [-]
     int pieceContacts = 0;                  // points of one piece inside another (projection only) [-]
-    double maxDepth = 0;                    // deepest point inside a tool, before projection [m]
-    double colliderDepth = 0;               // deepest point inside a collider, before projection [m]
-    double residualDepth = 0;               // deepest left after the projection [m]
-    int tested = 0;                         // points whose distance to a shape was computed [-]
+    double maxDepth = 0;                    // deepest point inside a tool, before projection [m] (*)
+    double colliderDepth = 0;               // deepest point inside a collider, before projection [m] (*)
+    // (*) a point the projection holds by its nodes inside the material alone is measured there
+    double residualDepth = 0;  // deepest left after the projection [m]
+    int tested = 0;            // points whose distance to a shape was computed [-]
 };
 
 // Signed distance of the world point x to one part of `tool` whose frame is `frame` [m]

@@ -17,18 +17,52 @@ using json = nlohmann::json;
 // coverage (State::x) are both in the deformed configuration, so the broad phase is refitted on
 // state.x. The engine keeps one stroke at a time: it ends when its blade leaves the tissue (no
 // element's box meets its swept box) or another blade starts cutting.
-// The slot blade i slides in: the area its open stroke swept (ContactWorld::setSlot), or none.
+// The slot blade i slides in (ContactWorld::setSlot): the area its strokes swept in the plane it
+// cuts in. It stays after a stroke ends while the blade stays in that plane: the faces a slot cut
+// lie inside the blade's thickness, and a closed slot would push them out sideways by up to half
+// of it in one step (a severed lobe sliding off the blade was thrown). A new stroke in the same
+// plane adds its area; the slot closes once the blade leaves the plane.
 void Simulation::syncSlot(int i) {
-    ContactWorld::Slot slot;
-    const CutSurface* cs = stroke_ == i && sc_.cutting.bladeSlot ? cutter_->strokeSurface() : nullptr;
-    if (cs) {
-        slot.origin = cs->point;
-        planeAxes(cs->normal, slot.u, slot.v);
-        // the blade's half thickness, and a tenth of it for the contacts speculated just outside
-        slot.halfWidth = 0.55 * sc_.tools[static_cast<size_t>(i)].size.z();
-        slot.polygons = cs->regions;
+    if (!sc_.cutting.bladeSlot) return;
+    if (slots_.size() < sc_.tools.size()) slots_.resize(sc_.tools.size());
+    ContactWorld::Slot& slot = slots_[static_cast<size_t>(i)];
+    const CutSurface* cs = stroke_ == i ? cutter_->strokeSurface() : nullptr;
+    if (!cs) return;  // between strokes: kept (see keepSlots)
+    Eigen::Vector3d u, v;
+    planeAxes(cs->normal, u, v);
+    const double halfWidth = 0.55 * sc_.tools[static_cast<size_t>(i)].size.z();
+    const bool samePlane = !slot.polygons.empty() && std::abs(slot.u.cross(slot.v).dot(cs->normal)) > 1 - 1e-9 &&
+                           std::abs(cs->normal.dot(cs->point - slot.origin)) <= 1e-3 * halfWidth;
+    ContactWorld::Slot next;
+    next.origin = cs->point, next.u = u, next.v = v, next.halfWidth = halfWidth;
+    next.polygons = cs->regions;
+    if (samePlane)  // the earlier strokes' areas, in this stroke's (u, v)
+        for (const auto& poly : slot.polygons) {
+            std::vector<Eigen::Vector2d> q;
+            for (const Eigen::Vector2d& p : poly) {
+                const Eigen::Vector3d x = slot.origin + p.x() * slot.u + p.y() * slot.v - next.origin;
+                q.emplace_back(x.dot(u), x.dot(v));
+            }
+            next.polygons.push_back(std::move(q));
+        }
+    slot = next;
+    contact_->setSlot(i, slot);
+}
+
+// Closes the slot of each blade that is not cutting and has left its slot's plane at time t.
+void Simulation::keepSlots(double t) {
+    for (size_t b = 0; b < bladeTools_.size() && sc_.cutting.bladeSlot; ++b) {
+        const int i = bladeTools_[b];
+        if (stroke_ == i || static_cast<size_t>(i) >= slots_.size() || slots_[static_cast<size_t>(i)].polygons.empty())
+            continue;
+        ContactWorld::Slot& slot = slots_[static_cast<size_t>(i)];
+        const Pose pose = toolPose(contact_->tools()[static_cast<size_t>(i)], t);
+        const Eigen::Vector3d n = slot.u.cross(slot.v), nb = pose.orientation * Eigen::Vector3d::UnitZ();
+        if (std::abs(n.dot(nb)) > 1 - 1e-6 && std::abs(n.dot(pose.position - slot.origin)) <= 0.1 * slot.halfWidth)
+            continue;
+        slot = {};
+        contact_->setSlot(i, slot);
     }
-    contact_->setSlot(i, std::move(slot));
 }
 
 // The open stroke ends: the slot closes, the exact step its blade steps deferred is solved (the
@@ -69,6 +103,7 @@ void Simulation::endStroke() {
 bool Simulation::applyBlades() {
     if (!bladePhase_) return true;
     const double t0 = state_.time, t1 = state_.time + choice_.dt;
+    keepSlots(t1);
     // A blade whose swept box misses the object's box cannot cut: then no tree is refitted. The
     // box is widened by three margins, past any fattened element box the tree could hold, so a
     // blade that would have met one is still queried.

@@ -535,8 +535,9 @@ SceneDef parseScene(const json& j, const std::string& file) {
         if (c.has("exact_after_cut") && c.raw("exact_after_cut").is_string()) {
             s.cutting.exactAtStrokeEnd = c.string("exact_after_cut", "stroke_end", {"stroke_end"}) == "stroke_end";
             s.cutting.exactAfterCut = true;
-        } else {
+        } else if (c.has("exact_after_cut")) {
             s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+            s.cutting.exactAtStrokeEnd = false;
         }
         s.cutting.stepFloor = c.number("step_floor", Cutting{}.stepFloor, 0, 1);
         s.cutting.floorHybrid = c.string("floor_method", "mass", {"mass", "hybrid"}) == "hybrid";

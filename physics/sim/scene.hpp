@@ -113,12 +113,12 @@ struct CutDef {
 struct Cutting {
     MassLumping lumping = MassLumping::Enrichment;  // cutting.lumping: row_sum | weighted_diagonal | enrichment
     double minFraction = CutOptions{}.minFraction;  // sides below this share of their element merge into the other [-]
-    // cutting.exact_after_cut: the exact dt (global eigen-solve) after a cut. true: after each cut,
-    // every blade step included; "stroke_end": after each scripted cut, and for a blade once its
-    // stroke ends (its steps are backed by the certified floor meanwhile); false: never (the
-    // certified floor backs every step).
+    // cutting.exact_after_cut: the exact dt (global eigen-solve) after a cut. "stroke_end" (the
+    // default): after each scripted cut, and for a blade once its stroke ends (its steps are backed
+    // by the certified floor meanwhile); true: after each cut, every blade step included; false:
+    // never (the certified floor backs every step).
     bool exactAfterCut = true;
-    bool exactAtStrokeEnd = false;
+    bool exactAtStrokeEnd = true;
     // Floor under the step after cuts, as a fraction of the uncut object's exact step (0: none;
     // explicit schemes only): local mass scaling (timestep/floor.hpp), certified by the exact
     // step when exactAfterCut, topped up globally when that is still under it.
@@ -130,7 +130,7 @@ struct Cutting {
     bool mergeDebris = CutOptions{}.mergeDebris;         // CutOptions::mergeDebris
     int relaxIterations = CutOptions{}.relaxIterations;  // CutOptions::relaxIterations
     double lightShare = CutOptions{}.lightShare;         // CutOptions::lightShare [-]
-    bool bladeSlot = false;                              // a blade slides in the area it swept (ContactWorld::setSlot)
+    bool bladeSlot = true;                               // a blade slides in the area it swept (ContactWorld::setSlot)
     std::vector<std::string> compare;                    // baselines run on the rest mesh with the same planes:
                                                          // subdivision | remesh
     std::vector<CutDef> cuts;                            // in time order

@@ -668,7 +668,8 @@ void Simulation::settleExact() {
 }
 
 void Simulation::finish() {
-    if (status_ == RunStatus::Running) endStroke();  // the report's limits are known at the end
+    // the open stroke ends with the run: the report's limits are known at the end
+    if (status_ == RunStatus::Running || status_ == RunStatus::Finished) endStroke();
     if (status_ == RunStatus::Running && finished()) status_ = RunStatus::Finished;
     if (status_ == RunStatus::Diverged) return;
     nextSample_ = state_.time;  // the final state always

@@ -193,6 +193,7 @@ private:
     bool applyDueCuts();
     bool applyBlades();
     void syncSlot(int i);
+    void keepSlots(double t);
     void settleExact();
     void respondToCut(const CutResult& r, const std::string& key, bool bladeStep);
     void check();
@@ -248,6 +249,7 @@ private:
         std::vector<double> latency;  // each blade step's cut latency [s]
     } strokeLog_;
     CutResponse response_;
+    std::vector<ContactWorld::Slot> slots_;  // each blade's slot (cutting.blade_slot), by tool index
     size_t nextCut_ = 0;
     int lastCutId_ = -1;
 
