@@ -18,11 +18,14 @@ public:
     ElementBroadphase(const ElementBroadphase&) = delete;
     ElementBroadphase& operator=(const ElementBroadphase&) = delete;
 
-    // Boxes of elements tets (4 x nElems) at node positions x (3 x nNodes) [m]: rebuilds the tree
-    // when the element count changed, else moves the leaves whose box left its fattened box.
+    // Boxes of elements tets (4 x nElems) at node positions x (3 x nNodes) [m]: builds the tree the
+    // first time or when elements were removed, inserts appended ones, and sets the leaves again
+    // once a node has drifted a few margins from where it was then (a pass over the nodes, not the
+    // elements, per call); until then queries widen by the drift past the margin.
     void refit(const Eigen::Matrix4Xi& tets, const Eigen::Matrix3Xd& x);
 
-    // Elements whose (fattened) box overlaps [lo, hi], ascending. Exact boxes when margin = 0.
+    // Elements whose (fattened) box overlaps [lo, hi], ascending: all whose box does, and others
+    // near it. Exact boxes when margin = 0.
     void query(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, std::vector<int>& out) const;
 
     int elements() const;

@@ -106,6 +106,21 @@ void ContactWorld::setColliderPenalty(double stiffness, double damping) {
     std::fill(impl_->colliderDamping.begin(), impl_->colliderDamping.end(), damping);
 }
 
+void ContactWorld::dropPoints(const std::vector<int>& nodes) {
+    Impl& m = *impl_;
+    if (nodes.empty() || m.pts.points() == 0) return;
+    if (m.dropped.empty()) m.dropped.assign(static_cast<size_t>(m.pts.points()), 0);
+    std::vector<std::uint8_t> hit(static_cast<size_t>(m.pts.nodes.maxCoeff() + 1), 0);
+    for (int i : nodes)
+        if (i >= 0 && static_cast<size_t>(i) < hit.size()) hit[static_cast<size_t>(i)] = 1;
+    for (int p = 0; p < m.pts.points(); ++p)
+        for (int i = 0; i < m.pts.count[static_cast<size_t>(p)]; ++i)
+            if (hit[static_cast<size_t>(m.pts.nodes(i, p))]) {
+                m.dropped[static_cast<size_t>(p)] = 1;
+                break;
+            }
+}
+
 void ContactWorld::ignoreCut(int tool, int cut) {
     Impl& m = *impl_;
     m.ignoredCut.resize(m.tools.size(), -1);
@@ -142,6 +157,7 @@ void ContactWorld::setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest, s
     m.pts = std::move(pts);
     m.xp.resize(3, m.pts.points());
     m.stamp.assign(static_cast<size_t>(m.pts.points()), -1);
+    m.dropped.clear();
     m.query = 0;
     // the nodes each triangle's box depends on: those of its three vertices (edge and face
     // points are combinations of the vertices, inside the triangle); linear in the surface, as
@@ -450,6 +466,7 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         // the trees' state (nor on whether a piece kept its points)
         std::sort(candidates.begin(), candidates.end());
         for (int p : candidates) {
+            if (!dropped.empty() && dropped[static_cast<size_t>(p)]) continue;
             place(x, p);
             const btVector3 q = bt(Eigen::Vector3d(xp.col(p)));
             double d = 0;

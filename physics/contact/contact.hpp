@@ -142,6 +142,9 @@ public:
     // (CutEngine::virtualNodes); the projection corrects a point through its other nodes when they
     // carry kMinFreeWeight of it.
     void setSurface(ContactPoints pts, const Eigen::Matrix3Xd* rest = nullptr, std::vector<std::uint8_t> outside = {});
+    // The points on these nodes take no contact until the next setSurface: a blade step split the
+    // elements they lie in, so their nodes now span the cut (the surface is rebuilt later).
+    void dropPoints(const std::vector<int>& nodes);
     // Tool `tool` no longer touches the faces cut `cut` made (-1: touches all). A blade slides in
     // its own cut: those faces lie within its thickness, and pressing them apart puts force
     // spikes on the tissue. Their points that also lie on other faces (the cut's rim) are still

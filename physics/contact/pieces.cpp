@@ -38,6 +38,7 @@ void ContactWorld::Impl::pointsInTriangle(int source, int target) {
     const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), den = d11 * d22 - d12 * d12;
     for (int k = P.triStart[static_cast<size_t>(source)]; k < P.triStart[static_cast<size_t>(source) + 1]; ++k) {
         const int p = P.triPoints[static_cast<size_t>(k)];
+        if (!dropped.empty() && dropped[static_cast<size_t>(p)]) continue;
         const Eigen::Vector3d r = xp.col(p) - a;
         const double d = n.dot(r);
         if (!(d < -kSlop) || !(d > -margin)) continue;

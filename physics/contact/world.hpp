@@ -157,6 +157,7 @@ struct ContactWorld::Impl {
     ContactPoints pts;
     std::vector<std::uint8_t> outside;      // per node: lies outside the material (setSurface), or empty
     std::vector<int> ignoredCut;            // per tool: the cut whose faces it does not touch, or -1
+    std::vector<std::uint8_t> dropped;      // per point: out of contact until the next setSurface (dropPoints)
     std::vector<ContactWorld::Slot> slots;  // per tool: the slot it slides in (ContactWorld::setSlot), or empty
     std::vector<std::unique_ptr<Piece>> pieces;
     std::vector<int> triPiece;    // piece of each triangle (nTris)

@@ -24,28 +24,30 @@ using json = nlohmann::json;
 // plane adds its area; the slot closes once the blade leaves the plane.
 void Simulation::syncSlot(int i) {
     if (!sc_.cutting.bladeSlot) return;
-    if (slots_.size() < sc_.tools.size()) slots_.resize(sc_.tools.size());
+    if (slots_.size() < sc_.tools.size()) slots_.resize(sc_.tools.size()), slotsBefore_.resize(sc_.tools.size());
     ContactWorld::Slot& slot = slots_[static_cast<size_t>(i)];
     const CutSurface* cs = stroke_ == i ? cutter_->strokeSurface() : nullptr;
-    if (!cs) return;  // between strokes: kept (see keepSlots)
+    if (!cs) {  // between strokes: kept (see keepSlots); the next stroke in its plane adds to it
+        slotsBefore_[static_cast<size_t>(i)] = slot;
+        return;
+    }
+    const ContactWorld::Slot& before = slotsBefore_[static_cast<size_t>(i)];
     Eigen::Vector3d u, v;
     planeAxes(cs->normal, u, v);
     const double halfWidth = 0.55 * sc_.tools[static_cast<size_t>(i)].size.z();
-    const bool samePlane = !slot.polygons.empty() && std::abs(slot.u.cross(slot.v).dot(cs->normal)) > 1 - 1e-9 &&
-                           std::abs(cs->normal.dot(cs->point - slot.origin)) <= 1e-3 * halfWidth;
-    ContactWorld::Slot next;
-    next.origin = cs->point, next.u = u, next.v = v, next.halfWidth = halfWidth;
-    next.polygons = cs->regions;
+    const bool samePlane = !before.polygons.empty() && std::abs(before.u.cross(before.v).dot(cs->normal)) > 1 - 1e-9 &&
+                           std::abs(cs->normal.dot(cs->point - before.origin)) <= 1e-3 * halfWidth;
+    slot.origin = cs->point, slot.u = u, slot.v = v, slot.halfWidth = halfWidth;
+    slot.polygons = cs->regions;
     if (samePlane)  // the earlier strokes' areas, in this stroke's (u, v)
-        for (const auto& poly : slot.polygons) {
+        for (const auto& poly : before.polygons) {
             std::vector<Eigen::Vector2d> q;
             for (const Eigen::Vector2d& p : poly) {
-                const Eigen::Vector3d x = slot.origin + p.x() * slot.u + p.y() * slot.v - next.origin;
+                const Eigen::Vector3d x = before.origin + p.x() * before.u + p.y() * before.v - slot.origin;
                 q.emplace_back(x.dot(u), x.dot(v));
             }
-            next.polygons.push_back(std::move(q));
+            slot.polygons.push_back(std::move(q));
         }
-    slot = next;
     contact_->setSlot(i, slot);
 }
 
@@ -61,6 +63,7 @@ void Simulation::keepSlots(double t) {
         if (std::abs(n.dot(nb)) > 1 - 1e-6 && std::abs(n.dot(pose.position - slot.origin)) <= 0.1 * slot.halfWidth)
             continue;
         slot = {};
+        slotsBefore_[static_cast<size_t>(i)] = {};
         contact_->setSlot(i, slot);
     }
 }
@@ -73,6 +76,7 @@ void Simulation::endStroke() {
     cutter_->endStroke();
     stroke_ = -1;
     syncSlot(was);
+    refreshSurface();
     const double dtDuring = dt();
     const StageTimes before = rec_.stages;
     settleExact();
@@ -97,13 +101,15 @@ void Simulation::endStroke() {
          {"dt_during", dtDuring},
          {"dt_after", dt()},
          {"exact_after", std::isnan(limits_.exact) ? json(nullptr) : json(limits_.exact)},
-         {"exact_seconds", rec_.stages[Stage::Timestep] - before[Stage::Timestep]}});
+         {"exact_seconds", rec_.stages[Stage::Timestep] - before[Stage::Timestep]},
+         {"pieces", pieceVolumes(model_).size()}});
 }
 
 bool Simulation::applyBlades() {
     if (!bladePhase_) return true;
     const double t0 = state_.time, t1 = state_.time + choice_.dt;
     keepSlots(t1);
+    if (surfaceStale_ && state_.time >= surfaceTime_ + kSurfaceRefresh) refreshSurface();
     // A blade whose swept box misses the object's box cannot cut: then no tree is refitted. The
     // box is widened by three margins, past any fattened element box the tree could hold, so a
     // blade that would have met one is still queried.
@@ -135,9 +141,10 @@ bool Simulation::applyBlades() {
         if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
         bladeEdge(tool, t1, to.a, to.b);
         lastEdge_[b] = to;
-        Eigen::Vector3d lo, hi;
-        sweptAabb(tool, t0, t1, lo, hi);
-        for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+        // the elements the edge's swept quad may meet (the engine reaches further through their
+        // face neighbours): the blade's body only presses, so its box would offer many more
+        Eigen::Vector3d lo = from.a, hi = from.a;
+        for (const Eigen::Vector3d& p : {from.b, to.a, to.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
         bladePhase_->query(lo, hi, candidates_);
         if (candidates_.empty()) {
             if (stroke_ == i) endStroke();

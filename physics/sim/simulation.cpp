@@ -436,6 +436,11 @@ void Simulation::embedVisualSurface(const SurfaceMesh& vis) {
 }
 
 const EmbeddedSurface* Simulation::surface() const {
+    if (drawnStale_ && opt_.renderSurface && !visual_) {  // blade steps since the last refresh
+        surface_ = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
+                                                               : cutter_->surface(model_));
+        drawnStale_ = false;
+    }
     if (visualStale_) {
         surface_ = std::make_unique<EmbeddedSurface>(cutter_->surface(model_, *visual_, kVisualCapLevels));
         visualStale_ = false;
@@ -845,26 +850,25 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
         for (int e : criticalAtCut)
             if (model_.isMatched(e) || !(ta_.estimates().r1r(e) < sc_.capture.criticalFactor * dt()))
                 answered_.push_back({e, state_.time});
-    // The contact points and the drawn surface follow the cut.
+    // The contact points and the drawn surface follow the cut: at once after a scripted cut; a
+    // blade step only drops the contact points its elements carried (they span the split) and the
+    // rest follows at the stroke's end or kSurfaceRefresh later (refreshSurface).
     if (contact_ || opt_.renderSurface) {
-        sw.lap();
-        // an MI object keeps its own surface, split by the cuts, with cut faces only inside it; a
-        // visual surface is drawn the same way but touched on the mesh's boundary
-        std::unique_ptr<EmbeddedSurface> touched;
-        if (contact_ || !visual_)
-            touched = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
-                                                                  : cutter_->surface(model_));
+        surfaceStale_ = drawnStale_ = true;
         visualStale_ = visual_ && opt_.renderSurface;
-        sw.lap();  // the surface is the cut's work (stage cuts); its contact points are contact's
-        if (contact_) {
-            ContactPoints pts = contactPoints(*touched, model_.tets, model_.X, contactSettings_.spacing);
-            scaleByMass(pts, model_.invMass, contactSettings_.massRef);
-            // a cut's virtual nodes take no contact correction (MI's outside lattice nodes do: its
-            // surface points sit mostly on them)
-            contact_->setSurface(std::move(pts), &model_.X, cutter_->virtualNodes(model_));
+        if (!bladeStep || state_.time >= surfaceTime_ + kSurfaceRefresh) {
+            refreshSurface();
+        } else {
+            sw.lap();
+            if (contact_) {
+                for (int e : r.changedElements)
+                    for (int a = 0; a < 4; ++a) dropped_.push_back(model_.tets(a, e));
+                dropped_.insert(dropped_.end(), r.changedNodes.begin(), r.changedNodes.end());
+                contact_->dropPoints(dropped_);
+                dropped_.clear();
+            }
+            rec_.stages[Stage::Contact] += sw.lap();
         }
-        if (opt_.renderSurface && !visual_) surface_ = std::move(touched);
-        rec_.stages[Stage::Contact] += sw.lap();
     }
     if (energyChecked_) energyRef_ = totalEnergy(model_, state_);  // a cut releases energy, never adds it
     if (r.cut != lastCutId_) ++rec_.cutsMade, lastCutId_ = r.cut;
@@ -915,7 +919,36 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
          {"dt_used", choice_.dt},
          {"limit_action", limitActionName(status_ == RunStatus::Refused ? LimitAction::Refused : choice_.action)},
          {"critical_elements", critical_},
-         {"pieces", pieceVolumes(model_).size()}});
+         // a blade step's entry leaves the count (a pass over the mesh) to its stroke's entry
+         {"pieces", bladeStep ? json(nullptr) : json(pieceVolumes(model_).size())}});
+}
+
+// The surface and its contact points rebuilt for the cuts since the last time (see respondToCut).
+// The surface is the cut stage's work, its contact points the contact stage's.
+void Simulation::refreshSurface() {
+    if (!surfaceStale_) return;
+    surfaceStale_ = false;
+    surfaceTime_ = state_.time;
+    Stopwatch sw;
+    // an MI object keeps its own surface, split by the cuts, with cut faces only inside it; a
+    // visual surface is drawn the same way but touched on the mesh's boundary
+    std::unique_ptr<EmbeddedSurface> touched;
+    if (contact_ || !visual_)
+        touched = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
+                                                              : cutter_->surface(model_));
+    visualStale_ = visual_ && opt_.renderSurface;
+    const double surfaceSeconds = sw.lap();
+    if (contact_) {
+        ContactPoints pts = contactPoints(*touched, model_.tets, model_.X, contactSettings_.spacing);
+        scaleByMass(pts, model_.invMass, contactSettings_.massRef);
+        // a cut's virtual nodes take no contact correction (MI's outside lattice nodes do: its
+        // surface points sit mostly on them)
+        contact_->setSurface(std::move(pts), &model_.X, cutter_->virtualNodes(model_));
+    }
+    if (opt_.renderSurface && !visual_) surface_ = std::move(touched);
+    drawnStale_ = false;
+    (void)surfaceSeconds;  // the cut stage's: Simulation::step times it as the stage less contact
+    rec_.stages[Stage::Contact] += sw.lap();
 }
 
 // ---- interactive control ----

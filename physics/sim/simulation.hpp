@@ -35,6 +35,10 @@
 
 namespace cutsim {
 
+// A blade's steps rebuild the surface and its contact points at most this often (and when its
+// stroke ends); in between each drops the contact points of the elements it split [s, simulated].
+inline constexpr double kSurfaceRefresh = 0.01;
+
 // Process exit codes of the command and the status of a run (README, docs/scene-format.md).
 enum class ExitCode : int {
     Ok = 0,           // the run reached its end with every check passed
@@ -194,6 +198,7 @@ private:
     bool applyBlades();
     void syncSlot(int i);
     void keepSlots(double t);
+    void refreshSurface();
     void settleExact();
     void respondToCut(const CutResult& r, const std::string& key, bool bladeStep);
     void check();
@@ -229,6 +234,10 @@ private:
     TetMesh rest_;                                      // the uncut rest mesh, for cutting.compare
     mutable std::unique_ptr<EmbeddedSurface> surface_;  // drawn surface after cuts (see surface())
     mutable bool visualStale_ = false;                  // surface_ lags the cuts of visual_
+    mutable bool drawnStale_ = false;                   // surface_ lags blade steps (no visual_)
+    bool surfaceStale_ = false;                         // contact points lag blade steps (refreshSurface)
+    double surfaceTime_ = 0;                            // when the contact points were last rebuilt [s]
+    std::vector<int> dropped_;                          // scratch: nodes whose contact points a blade step drops
     int topologyVersion_ = 0;
     std::function<void()> beforeTopologyChange_;
 
@@ -249,7 +258,8 @@ private:
         std::vector<double> latency;  // each blade step's cut latency [s]
     } strokeLog_;
     CutResponse response_;
-    std::vector<ContactWorld::Slot> slots_;  // each blade's slot (cutting.blade_slot), by tool index
+    std::vector<ContactWorld::Slot> slots_;        // each blade's slot (cutting.blade_slot), by tool index
+    std::vector<ContactWorld::Slot> slotsBefore_;  // ... as its earlier strokes left it
     size_t nextCut_ = 0;
     int lastCutId_ = -1;
 
