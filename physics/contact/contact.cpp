@@ -605,20 +605,27 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             // point read through its outside nodes saw their ringing as an approach, and stopping
             // it took 1 / (inside weight) times that speed from the inside nodes (a landed lobe was
             // thrown off the floor).
+            // A point its inside nodes carry less than kMinFreeWeight of (their weights sum to
+            // that or below: it lies beyond them, some weights negative) is left alone: pushing
+            // it out would push them in (a node fought its own floor contact, ringing up to
+            // 150 m/s).
             double sum = 0;
             for (int i = tc.first; i < tc.first + tc.n; ++i)
                 if (const Term& t = m.terms[static_cast<size_t>(i)]; !m.outside[static_cast<size_t>(t.node)])
                     sum += t.w;
-            if (sum > 0) {
-                for (int i = tc.first; i < tc.first + tc.n; ++i) {
-                    Term& t = m.terms[static_cast<size_t>(i)];
-                    t.w = m.outside[static_cast<size_t>(t.node)] ? 0.0 : t.w / sum;
-                }
-                const Eigen::Vector3d c = m.combine(x, tc);
-                tc.depth -= tc.n_.dot(c - tc.c0);
-                tc.c0 = c;
-                renormalised = true;
+            renormalised = true;
+            if (!(sum >= kMinFreeWeight)) {
+                tc.mass = 0;
+                tc.depth = 0;  // nor reported as held
+                continue;
             }
+            for (int i = tc.first; i < tc.first + tc.n; ++i) {
+                Term& t = m.terms[static_cast<size_t>(i)];
+                t.w = m.outside[static_cast<size_t>(t.node)] ? 0.0 : t.w / sum;
+            }
+            const Eigen::Vector3d c = m.combine(x, tc);
+            tc.depth -= tc.n_.dot(c - tc.c0);
+            tc.c0 = c;
         }
         auto moves = [&](const Term& t) {
             return invMass(t.node) > 0 && !(skipOutside && m.outside[static_cast<size_t>(t.node)]);
