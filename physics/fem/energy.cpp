@@ -59,4 +59,8 @@ Eigen::VectorXd vonMisesStress(const Model& m, const State& s) {
     return out;
 }
 
+double totalEnergy(const Model& m, const State& s) {
+    return kineticEnergy(m, s) + elasticEnergy(m, s) + gravityEnergy(m, s);
+}
+
 }  // namespace cutsim

@@ -74,6 +74,8 @@ double elasticEnergy(const Model& model, const State& state);
 double kineticEnergy(const Model& model, const State& state);
 // -sum m g.x [J].
 double gravityEnergy(const Model& model, const State& state);
+// The three above summed [J].
+double totalEnergy(const Model& model, const State& state);
 
 // Number of threads used by the parallel loops (0 = all cores).
 void setThreads(int n);
