@@ -61,7 +61,7 @@ json slabScene(int cells, double spacing, bool near, double stiffness, double du
             {"output", {{"vtu", false}}}};
 }
 
-struct Row {
+struct ContactRow {
     double spacing = 0;
     bool near = false;
     double stiffnessFraction = 0;  // of the stable limit; 0: the default
@@ -74,8 +74,8 @@ struct Row {
     std::string status;  // the report's: "ok", or why the run stopped
 };
 
-Row runRow(int cells, double spacing, bool near, double fraction, double duration, int threads) {
-    Row r;
+ContactRow runContactRow(int cells, double spacing, bool near, double fraction, double duration, int threads) {
+    ContactRow r;
     r.spacing = spacing;
     r.near = near;
     r.stiffnessFraction = fraction;
@@ -107,11 +107,11 @@ Row runRow(int cells, double spacing, bool near, double fraction, double duratio
 
 // Left: contact and elastic stage time per step against the contact points, tool pressing and
 // away; right: deepest point and force against the penalty stiffness.
-void plotRows(const std::vector<Row>& rows, const std::string& out) {
+void plotRows(const std::vector<ContactRow>& rows, const std::string& out) {
     const std::string dir = plotDataDir("contact_plot");
     {
         std::ofstream away(dir + "/away.dat"), press(dir + "/pressing.dat"), sweep(dir + "/sweep.dat");
-        for (const Row& r : rows) {
+        for (const ContactRow& r : rows) {
             if (r.stiffnessFraction > 0)
                 sweep << r.stiffness / r.limit << " " << r.maxDepth * 1e3 << " " << r.force << "\n";
             else
@@ -142,18 +142,19 @@ int runContact(const ContactArgs& a) {
     const double duration = a.tiny ? 0.02 : 0.1;
     const std::vector<double> spacings =
         a.tiny ? std::vector<double>{0.004} : std::vector<double>{1.0, 0.005, 0.0028, 0.0016, 0.0009, 0.00075};
-    std::vector<Row> rows;
+    std::vector<ContactRow> rows;
     for (double s : spacings)
         for (bool near : {false, true}) {
-            rows.push_back(runRow(cells, s, near, 0, duration, a.threads));
+            rows.push_back(runContactRow(cells, s, near, 0, duration, a.threads));
             if (!a.json)
                 std::fprintf(stderr, "  spacing %.4g m, %s: %d points\n", s, near ? "pressing" : "away",
                              rows.back().points);
         }
     const double sweepSpacing = a.tiny ? 0.004 : 0.0028;
-    for (double f : {0.1, 0.25, 0.5, 1.0}) rows.push_back(runRow(cells, sweepSpacing, true, f, duration, a.threads));
+    for (double f : {0.1, 0.25, 0.5, 1.0})
+        rows.push_back(runContactRow(cells, sweepSpacing, true, f, duration, a.threads));
     json j = json::array();
-    for (const Row& r : rows)
+    for (const ContactRow& r : rows)
         j.push_back({{"spacing", r.spacing},
                      {"tool", r.near ? "pressing" : "away"},
                      {"stiffness_fraction", r.stiffnessFraction},
@@ -171,7 +172,7 @@ int runContact(const ContactArgs& a) {
     if (!a.plot.empty()) plotRows(rows, a.plot);
     if (a.json) {
         std::cout << jsonText(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}});
-        for (const Row& r : rows)
+        for (const ContactRow& r : rows)
             if (r.status != "ok") return 1;
         return 0;
     }
@@ -180,12 +181,12 @@ int runContact(const ContactArgs& a) {
     std::printf("%9s %9s %7s %7s %12s %12s %8s %10s %10s %10s %8s\n", "spacing", "tool", "k/kmax", "points",
                 "contact[us]", "elastic[us]", "ratio", "k [N/m]", "depth[mm]", "force [N]", "touching");
     int failed = 0;
-    for (const Row& r : rows)
+    for (const ContactRow& r : rows)
         std::printf("%9.4g %9s %7.2f %7d %12.2f %12.2f %8.3f %10.4g %10.3f %10.4f %8d\n", r.spacing,
                     r.near ? "pressing" : "away", r.stiffness / r.limit, r.points, r.contactPerStep * 1e6,
                     r.elasticPerStep * 1e6, r.contactPerStep / r.elasticPerStep, r.stiffness, r.maxDepth * 1e3, r.force,
                     r.contacts);
-    for (const Row& r : rows)
+    for (const ContactRow& r : rows)
         if (r.status != "ok") {
             std::printf("spacing %.4g m, %s, k/kmax %.2f: %s\n", r.spacing, r.near ? "pressing" : "away",
                         r.stiffness / r.limit, r.status.c_str());

@@ -91,18 +91,18 @@ json hapticScene(const TetMesh& m, double duration) {
         {"output", {{"vtu", false}}}};
 }
 
-struct Row {
+struct HapticRow {
     int threads = 0, tets = 0, points = 0, contacts = 0;
     long steps = 0;
     double dt = 0, wall = 0, contact = 0, elastic = 0, force = 0, depth = 0;
     std::string status;
 };
 
-Row runRow(const SceneDef& def, int threads) {
+HapticRow runHapticRow(const SceneDef& def, int threads) {
     Simulation::Options so;
     so.threads = threads;
     Simulation sim(def, so);
-    Row r;
+    HapticRow r;
     r.threads = threads;
     const Stopwatch sw;
     while (sim.status() == RunStatus::Running && !sim.finished()) sim.step();
@@ -128,10 +128,10 @@ int runHaptic(const HapticArgs& a) {
     std::string how;
     const TetMesh mesh = hapticMesh(a.mesh, tets, how);
     const SceneDef def = parseScene(hapticScene(mesh, duration), "haptic-bench");
-    std::vector<Row> rows;
-    for (int th : a.threads) rows.push_back(runRow(def, th));
+    std::vector<HapticRow> rows;
+    for (int th : a.threads) rows.push_back(runHapticRow(def, th));
     json runs = json::array();
-    for (const Row& r : rows) {
+    for (const HapticRow& r : rows) {
         const double rate = static_cast<double>(r.steps) / r.wall;
         runs.push_back({{"threads", r.threads},
                         {"tets", r.tets},
@@ -150,7 +150,7 @@ int runHaptic(const HapticArgs& a) {
                         {"status", r.status}});
     }
     int failed = 0;
-    for (const Row& r : rows) failed += r.status != "ok";
+    for (const HapticRow& r : rows) failed += r.status != "ok";
     if (a.json) {
         std::cout << jsonText(json{{"mesh", how}, {"duration", duration}, {"runs", runs}});
         return failed ? 1 : 0;
@@ -158,7 +158,7 @@ int runHaptic(const HapticArgs& a) {
     std::printf("liver, %s: %d tets; 1 cm probe pressing 12 mm over %.3g s\n", how.c_str(), mesh.elements(), duration);
     std::printf("%7s %7s %9s %10s %7s %12s %9s %13s %9s %8s %10s\n", "threads", "steps", "dt [us]", "steps/s", "1 kHz",
                 "contact [%]", "c/elastic", "sim s/wall s", "touching", "force[N]", "depth[mm]");
-    for (const Row& r : rows) {
+    for (const HapticRow& r : rows) {
         const double rate = static_cast<double>(r.steps) / r.wall;
         std::printf("%7d %7ld %9.2f %10.0f %7s %12.1f %9.3f %13.3f %9d %8.3f %10.3f\n", r.threads, r.steps, r.dt * 1e6,
                     rate, rate >= 1000 ? "yes" : "no", 100 * r.contact / r.wall, r.contact / r.elastic, rate * r.dt,

@@ -49,7 +49,7 @@ struct MiBarArgs {
     bool json = false;
 };
 
-struct Row {
+struct MiBarTableRow {
     double kept = 1;     // kept share of the bar's length [-]
     std::string method;  // mi | subdivision | remesh
     int nodes = 0;
@@ -66,11 +66,11 @@ const std::vector<double> kKept{1.0, 0.75, 0.5, 0.25};
 constexpr double kDtTol = 1e-9;  // relative slack of "MI keeps the uncut step"
 
 // Rows per kept share, then remesh, subdivision, MI as the thesis's columns.
-std::vector<Row> tableOrder(const std::vector<Row>& rows) {
-    std::vector<Row> out;
+std::vector<MiBarTableRow> tableOrder(const std::vector<MiBarTableRow>& rows) {
+    std::vector<MiBarTableRow> out;
     for (double k : kKept)
         for (const char* m : {"remesh", "subdivision", "mi"})
-            for (const Row& r : rows)
+            for (const MiBarTableRow& r : rows)
                 if (r.kept == k && r.method == m) out.push_back(r);
     return out;
 }
@@ -86,7 +86,7 @@ BarOptions barOptions(const MiBarArgs& a, const std::vector<double>& kept) {
 }
 
 // MI rows, then the baselines' (subdivision, and remesh when asked), for each kept share.
-std::vector<Row> measureRows(const MiBarArgs& a, const std::vector<double>& kept, bool remesh) {
+std::vector<MiBarTableRow> measureRows(const MiBarArgs& a, const std::vector<double>& kept, bool remesh) {
     MiBarOptions mo;
     mo.scale = kUnit;
     mo.cellsAcross = a.cells;
@@ -94,7 +94,7 @@ std::vector<Row> measureRows(const MiBarArgs& a, const std::vector<double>& kept
     BarOptions bo = barOptions(a, kept);
     mo.cellsAlong = bo.nz;
     bo.remesh = remesh;
-    std::vector<Row> rows;
+    std::vector<MiBarTableRow> rows;
     for (const MiBarRow& r : miBarRows(mo, kept))
         rows.push_back({r.kept, "mi", r.nodes, r.elements, r.dtKept, r.dtExact, r.addedMassFraction, r.dtOutsideFixed,
                         r.freeNodesOutsideFixed});
@@ -103,9 +103,9 @@ std::vector<Row> measureRows(const MiBarArgs& a, const std::vector<double>& kept
     return rows;
 }
 
-json rowsJson(const std::vector<Row>& rows) {
+json rowsJson(const std::vector<MiBarTableRow>& rows) {
     json j = json::array();
-    for (const Row& r : rows) {
+    for (const MiBarTableRow& r : rows) {
         json o = {{"kept", r.kept},
                   {"method", r.method},
                   {"nodes", r.nodes},
@@ -133,7 +133,7 @@ int runSweep(const MiBarArgs& a) {
     std::vector<double> kept;
     for (int i = 0; i < a.sweep; ++i) kept.push_back(1 - (cell + static_cast<double>(i) / a.sweep) * h / (10 * kUnit));
     const double dtUncut = exactDtOf(barMesh(bo), a.material);
-    const std::vector<Row> rows = measureRows(a, kept, false);
+    const std::vector<MiBarTableRow> rows = measureRows(a, kept, false);
     if (a.json) {
         std::cout << jsonText(rowsJson(rows));
         return 0;
@@ -146,7 +146,7 @@ int runSweep(const MiBarArgs& a) {
     for (size_t i = 0; i < kept.size(); ++i) {
         double ratio[4] = {0, 0, 0, 0};  // MI (step kept), MI without added mass, MI outside corners fixed, subdivision
         double frac = 0;
-        for (const Row& r : rows)
+        for (const MiBarTableRow& r : rows)
             if (r.kept == kept[i]) {
                 if (r.method == "mi") {
                     ratio[0] = r.dtExact / dtUncut;
@@ -177,12 +177,12 @@ int runMiBar(const MiBarArgs& a) {
         const BarOptions bo = barOptions(a, kKept);
         const TetMesh bar = barMesh(bo);
         const double dtUncut = exactDtOf(bar, a.material);
-        const std::vector<Row> rows = tableOrder(measureRows(a, kKept, true));
+        const std::vector<MiBarTableRow> rows = tableOrder(measureRows(a, kKept, true));
 
         // The requirement: MI keeps at least the uncut bar's step in every row; checked for the
         // default (step kept by added mass), without the added mass, and for the thesis's rule.
         double worst[3] = {1e300, 1e300, 1e300}, worstKept[3] = {1, 1, 1}, added = 0;
-        for (const Row& r : rows)
+        for (const MiBarTableRow& r : rows)
             if (r.method == "mi") {
                 for (int k = 0; k < 3; ++k) {
                     const double ratio = (k == 0 ? r.dtExact : k == 1 ? r.dtUnscaled : r.dtOutsideFixed) / dtUncut;
@@ -208,7 +208,7 @@ int runMiBar(const MiBarArgs& a) {
             "share of the model's); no mass: dt/u: the same model without it; MI outside fixed: the thesis's rule\n");
         std::printf("%6s  %-12s %7s %9s %15s %13s %12s %13s %30s\n", "kept", "method", "nodes", "elements",
                     "dt_exact [ms]", "dt / uncut", "added mass", "no mass: dt/u", "MI outside fixed: dt / uncut");
-        for (const Row& r : rows) {
+        for (const MiBarTableRow& r : rows) {
             char fixed[48] = "-", mass[16] = "-", unscaled[16] = "-";
             if (r.method == "mi") {
                 std::snprintf(fixed, sizeof fixed, "%.9f (%d free nodes)", r.dtOutsideFixed / dtUncut,

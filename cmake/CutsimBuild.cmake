@@ -3,6 +3,7 @@
 #   CUTSIM_CCACHE       compile through ccache when it is installed
 #   CUTSIM_FAST_LINKER  link with mold or lld when the compiler can use one
 #   CUTSIM_PCH          precompiled third-party headers (Eigen, JSON, Bullet, CLI11, GoogleTest)
+#   CUTSIM_UNITY        the command's sources and each test program compiled in a few batches
 include(CheckCXXCompilerFlag)
 include(CheckLinkerFlag)
 
@@ -81,9 +82,10 @@ endfunction()
 option(CUTSIM_PCH "Precompile the third-party headers most sources include" ON)
 # Third-party headers only: they never change with the project, and name no path of the checkout
 # (cached compilations stay valid in another clone).
-set(CUTSIM_PCH_CORE
-    <algorithm> <cmath> <cstdio> <memory> <string> <vector>
-    <Eigen/Core> <Eigen/Geometry> <nlohmann/json.hpp>)
+# CUTSIM_PCH_EIGEN for the physics library (every file includes Eigen, few JSON or Bullet), the core
+# list for the command, the harnesses and the tests.
+set(CUTSIM_PCH_EIGEN <algorithm> <cmath> <memory> <string> <vector> <Eigen/Core> <Eigen/Geometry>)
+set(CUTSIM_PCH_CORE ${CUTSIM_PCH_EIGEN} <cstdio> <nlohmann/json.hpp>)
 # cutsim_pch(TARGET [HEADER ...]): TARGET gets the core headers and the extra ones precompiled
 function(cutsim_pch target)
   if(CUTSIM_PCH)
@@ -95,4 +97,35 @@ function(cutsim_pch_reuse target from)
   if(CUTSIM_PCH)
     target_precompile_headers(${target} REUSE_FROM ${from})
   endif()
+endfunction()
+
+# Unity builds: the command's files and each test program's files share their template
+# instantiations (nlohmann/json, CLI11, GoogleTest, Eigen) when compiled a few files at a time.
+option(CUTSIM_UNITY "Compile the command's sources and the test programs in batches (unity build)" ON)
+# cutsim_unity(TARGET BATCH): TARGET's .cpp files compiled in batches of at most BATCH files, of
+# equal size. The batch files include the sources by their path relative to the batch file (CMake's
+# UNITY_BUILD writes absolute paths), so that ccache hits them from a clone in another folder too.
+function(cutsim_unity target batch)
+  if(NOT CUTSIM_UNITY)
+    return()
+  endif()
+  get_target_property(sources ${target} SOURCES)
+  list(FILTER sources INCLUDE REGEX "\\.cpp$")
+  list(LENGTH sources n)
+  math(EXPR batches "(${n} + ${batch} - 1) / ${batch}")
+  set(dir ${CMAKE_CURRENT_BINARY_DIR}/unity)
+  set(i 0)
+  foreach(src ${sources})
+    math(EXPR b "${i} * ${batches} / ${n}")
+    get_filename_component(abs ${src} ABSOLUTE)
+    file(RELATIVE_PATH rel ${dir} ${abs})
+    string(APPEND text_${b} "#include \"${rel}\"\n")
+    set_source_files_properties(${src} PROPERTIES HEADER_FILE_ONLY ON)
+    math(EXPR i "${i} + 1")
+  endforeach()
+  math(EXPR last "${batches} - 1")
+  foreach(b RANGE ${last})
+    file(CONFIGURE OUTPUT ${dir}/${target}_${b}.cpp CONTENT "${text_${b}}")
+    target_sources(${target} PRIVATE ${dir}/${target}_${b}.cpp)
+  endforeach()
 endfunction()

@@ -6,9 +6,9 @@
 #   scripts/build.sh [ARGS]          Release in build/: every target (the cutsim program, the tests,
 #                                    the benchmarks, the baselines, the Python module)
 #   scripts/build.sh --demo [ARGS]   Release in build/: the cutsim program only (scripts/demo.sh)
-#   scripts/build.sh --asan [ARGS]   ASan+UBSan in build-asan/: the test programs and the cutsim
-#                                    program (scripts/test.sh); -g1, the line tables the
-#                                    sanitizers' stack traces need
+#   scripts/build.sh --asan [ARGS]   ASan+UBSan in build-asan/: the test programs (not the stress
+#                                    ones, which scripts/test.sh does not run there) and the cutsim
+#                                    program; -g1, the line tables the sanitizers' stack traces need
 set -euo pipefail
 cd "$(dirname "$0")/.."
 B=build
@@ -24,7 +24,7 @@ case "${1:-}" in
     shift
     B=build-asan
     type=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DCUTSIM_SANITIZE=ON)
-    all=(-DCUTSIM_TESTS=ON -DCUTSIM_BENCH=OFF -DCUTSIM_PYTHON=OFF -DCUTSIM_BASELINES=OFF) ;;
+    all=(-DCUTSIM_TESTS=ON -DCUTSIM_STRESS=OFF -DCUTSIM_BENCH=OFF -DCUTSIM_PYTHON=OFF -DCUTSIM_BASELINES=OFF) ;;
 esac
 # Ninja for a new build folder when it is installed (an existing folder keeps its generator)
 gen=()

@@ -20,7 +20,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using test::workDir;
 
-std::string barSag() { return test::source("assets/scenes/bar_sag.json"); }
+std::string barSagPath() { return test::source("assets/scenes/bar_sag.json"); }
 
 int countTmp(const fs::path& dir) {
     int n = 0;
@@ -33,12 +33,12 @@ int countTmp(const fs::path& dir) {
 TEST(OutputFolder, ANewRunReplacesTheEarlierOneWhole) {
     const std::string dir = workDir(), out = dir + "/out";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + barSag() + " --out " + out + " --no-render --quiet --set duration=0.01", nullptr,
+    ASSERT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out + " --no-render --quiet --set duration=0.01", nullptr,
                               &err),
               0)
         << err;
     ASSERT_TRUE(fs::exists(out + "/final.vtu"));
-    ASSERT_EQ(test::runCutsim("run " + barSag() + " --out " + out +
+    ASSERT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out +
                                   " --no-render --quiet --set duration=0.01 --set output.vtu=false",
                               nullptr, &err),
               0)
@@ -53,7 +53,7 @@ TEST(OutputFolder, RefusesAFolderOfOtherFiles) {
     fs::create_directories(out);
     test::writeText(out + "/notes.txt", "keep me\n");
     std::string err;
-    EXPECT_EQ(test::runCutsim("run " + barSag() + " --out " + out + " --no-render --quiet --set duration=0.01", nullptr,
+    EXPECT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out + " --no-render --quiet --set duration=0.01", nullptr,
                               &err),
               2);
     EXPECT_NE(err.find("not a cutsim run's"), std::string::npos) << err;
@@ -71,7 +71,7 @@ TEST(OutputFolder, SigintAtThirtyPercentLeavesNoHalfWrittenOutput) {
         ::dup2(errPipe[1], 2);
         ::close(errPipe[0]);
         ::close(errPipe[1]);
-        const std::string scene = barSag();
+        const std::string scene = barSagPath();
         ::execl(CUTSIM_BINARY, CUTSIM_BINARY, "run", scene.c_str(), "--out", out.c_str(), "--threads", "1", "--set",
                 "capture.width=160", "--set", "capture.height=90", "--set", "duration=3", nullptr);
         ::_exit(127);

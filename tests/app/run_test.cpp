@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using test::workDir;
 
-json barSag() {
+json barSagJson() {
     std::ifstream in(test::source("assets/scenes/bar_sag.json"));
     return json::parse(in);
 }
@@ -228,7 +228,7 @@ TEST(Run, VtuSeriesAndCutSurfaceObj) {
 }
 
 TEST(Run, RefusesUnknownKey) {
-    json j = barSag();
+    json j = barSagJson();
     j["material"]["Young"] = 1e6;
     expectRefused(writeScene(workDir(), "unknown.json", j), "", "material.Young");
     // the same through --set
@@ -236,7 +236,7 @@ TEST(Run, RefusesUnknownKey) {
 }
 
 TEST(Run, RefusesWrongType) {
-    json j = barSag();
+    json j = barSagJson();
     j["material"]["E"] = "soft";
     std::string err;
     expectRefused(writeScene(workDir(), "type.json", j), "", "material.E", &err);
@@ -244,13 +244,13 @@ TEST(Run, RefusesWrongType) {
 }
 
 TEST(Run, RefusesIncompressibleNu) {
-    json j = barSag();
+    json j = barSagJson();
     j["material"]["nu"] = 0.5;
     expectRefused(writeScene(workDir(), "nu.json", j), "", "material.nu");
 }
 
 TEST(Run, RefusesZeroAndNegativeE) {
-    json j = barSag();
+    json j = barSagJson();
     j["material"]["E"] = 0;
     expectRefused(writeScene(workDir(), "e0.json", j), "", "material.E");
     j["material"]["E"] = -1e6;
@@ -266,7 +266,7 @@ TEST(Run, ImplicitSolverKey) {
     expectRefused(bar, "--set integrator.solver=cg", "integrator.solver");
     expectRefused(bar, "--set integrator.scheme=backward_euler --set integrator.solver=lu", "integrator.solver");
     for (const char* solver : {"direct", "cg"}) {
-        json j = barSag();
+        json j = barSagJson();
         j["integrator"] = {
             {"scheme", "backward_euler"}, {"solver", solver}, {"dt", {{"mode", "fixed"}, {"value", 0.002}}}};
         j["duration"] = 0.02;
@@ -316,7 +316,7 @@ TEST(Run, ForcePrecisionKey) {
 }
 
 TEST(Run, RefusesMissingMeshFile) {
-    json j = barSag();
+    json j = barSagJson();
     j["object"] = {{"mesh", "nope.msh"}};
     std::string err;
     expectRefused(writeScene(workDir(), "mesh.json", j), "", "object.mesh", &err);
@@ -346,7 +346,7 @@ TEST(Run, RefusesFixedStepAboveTheExactLimit) {
         << err;
     const double exact = readReport(ref)["dt_initial"]["exact"].get<double>();
 
-    json j = barSag();
+    json j = barSagJson();
     j["integrator"]["dt"] = {{"mode", "fixed"}, {"value", 1.0}};
     expectRefused(writeScene(workDir(), "fixed.json", j), "", "integrator.dt", &err);
     EXPECT_NE(err.find("on_limit"), std::string::npos) << err;
@@ -393,7 +393,7 @@ TEST(Run, ClampsAFixedStepWhenAsked) {
 }
 
 TEST(Run, RefusesAFixedRegionThatSelectsNoNode) {
-    json j = barSag();
+    json j = barSagJson();
     j["fixed"] = json::parse(R"([{"box": {"min": [5, 5, 5], "max": [6, 6, 6]}}])");
     std::string err;
     expectRefused(writeScene(workDir(), "nofix.json", j), "", "fixed[0]", &err);
@@ -456,7 +456,7 @@ TEST(Run, DivergenceBoundsFollowTheScene) {
 
 // A scene in which nothing can move is refused (exit 2) before anything is written, naming the key.
 TEST(Run, RefusesAFixedRegionThatSelectsEveryNode) {
-    json j = barSag();
+    json j = barSagJson();
     j["fixed"] = json::parse(R"([{"box": {"min": [-1, -1, -1], "max": [2, 2, 2]}}])");
     std::string err;
     expectRefused(writeScene(workDir(), "allfixed.json", j), "", "fixed[0]", &err);

@@ -15,7 +15,6 @@ using namespace cutsim;
 namespace {
 
 using test::writeText;
-const auto& slurp = test::readText;
 
 // Message of the InputError that `f` throws; a failure if it throws nothing or something else.
 std::string errorOf(const std::function<void()>& f) {
@@ -78,7 +77,7 @@ TEST(MeshIoErrors, TruncatedFiles) {
                             "tet/igltests_decimated-knight.mesh", "tet/igl_octopus-low.mesh",
                             "tet/sofa_Armadillo_Tetra_4406.vtu", "surface/igl_bunny.off"}) {
         SCOPED_TRACE(rel);
-        const std::string full = slurp(test::data(rel));
+        const std::string full = test::readText(test::data(rel));
         const std::string half = full.substr(0, full.size() / 2);
         const std::string path = writeText(dir + "/" + std::filesystem::path(rel).filename().string(), half);
         // The error is at the last line that has text.
@@ -91,7 +90,7 @@ TEST(MeshIoErrors, TruncatedFiles) {
 
 TEST(MeshIoErrors, TruncatedBinaryStl) {
     const std::string dir = test::tempDir();
-    const std::string full = slurp(test::data("surface/sofa_Bunny.stl"));
+    const std::string full = test::readText(test::data("surface/sofa_Bunny.stl"));
     const std::string path = writeText(dir + "/bunny.stl", full.substr(0, full.size() / 2));
     const std::string msg = surfaceError(path);
     EXPECT_HAS(msg, "bunny.stl");
@@ -155,7 +154,7 @@ TEST(MeshIoErrors, NodeIndexOutOfRange) {
     const std::string ele = writeText(dir + "/range.ele", "1 4 0\n1 1 2 3 0\n");
     EXPECT_HAS(tetError(ele), at(ele, 2));
 
-    std::string vtu = slurp(test::data("tet/sofa_Armadillo_Tetra_4406.vtu"));
+    std::string vtu = test::readText(test::data("tet/sofa_Armadillo_Tetra_4406.vtu"));
     const size_t conn = vtu.find('\n', vtu.find("Name=\"connectivity\""));
     vtu.insert(conn + 1, "1446 ");  // first connectivity entry becomes the nonexistent node 1446
     const std::string vpath = writeText(dir + "/range.vtu", vtu);

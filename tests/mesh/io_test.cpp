@@ -15,7 +15,6 @@ using namespace cutsim;
 namespace {
 
 using test::writeText;
-const auto& slurp = test::readText;
 
 int unreferenced(const SurfaceMesh& s) {
     std::vector<char> used(static_cast<size_t>(s.vertices()), 0);
@@ -237,7 +236,7 @@ TEST(MeshIo, WriteVtuRoundTripWithFields) {
     const TetMesh b = readTetMesh(dir + "/out.vtu");
     EXPECT_EQ(a.X, b.X);
     EXPECT_EQ(a.tets, b.tets);
-    const std::string text = slurp(dir + "/out.vtu");
+    const std::string text = test::readText(dir + "/out.vtu");
     EXPECT_NE(text.find("<CellData>"), std::string::npos);
     EXPECT_NE(text.find("<PointData>"), std::string::npos);
     EXPECT_NE(text.find("type=\"Float64\" Name=\"volume\""), std::string::npos);

@@ -263,7 +263,7 @@ TEST(Take, CameraKeysHoldAStillCameraUntilItMoves) {
     EXPECT_EQ(keys[2].eye, moved.eye);
 }
 
-std::string errorOf(const std::function<void()>& f) {
+std::string inputErrorOf(const std::function<void()>& f) {
     try {
         f();
     } catch (const InputError& e) {
@@ -285,11 +285,11 @@ TEST(Scene, SetReachesArrayElementsByIndex) {
     const SceneDef s = parseScene(j, "bar.json");
     EXPECT_EQ(s.tools.at(0).radius, 0.02);
     EXPECT_EQ(s.tools.at(0).keys.at(0).pose.position.z(), 0.07);
-    EXPECT_NE(errorOf([] { applySets(barWithTool(), {"tools.1.radius=0.02"}); }).find("not an index of an array of 1"),
+    EXPECT_NE(inputErrorOf([] { applySets(barWithTool(), {"tools.1.radius=0.02"}); }).find("not an index of an array of 1"),
               std::string::npos);
-    EXPECT_NE(errorOf([] { applySets(barWithTool(), {"tools.x.radius=0.02"}); }).find("'x' is not an index"),
+    EXPECT_NE(inputErrorOf([] { applySets(barWithTool(), {"tools.x.radius=0.02"}); }).find("'x' is not an index"),
               std::string::npos);
-    EXPECT_NE(errorOf([] { applySets(barScene(), {"duration.x=1"}); }).find("inside a non-object"), std::string::npos);
+    EXPECT_NE(inputErrorOf([] { applySets(barScene(), {"duration.x=1"}); }).find("inside a non-object"), std::string::npos);
 }
 
 // object.mesh given inline (as the Python bindings pass numpy arrays) runs bitwise as the generated box.
@@ -308,10 +308,10 @@ TEST(Scene, InlineMeshRunsAsTheBox) {
     EXPECT_EQ(a.stateHash(), b.stateHash());
 
     j["object"]["mesh"]["tets"][3][1] = box.nodes();
-    EXPECT_NE(errorOf([&] { parseScene(j, "inline.json"); }).find("inline.json: object.mesh.tets: tet 3"),
+    EXPECT_NE(inputErrorOf([&] { parseScene(j, "inline.json"); }).find("inline.json: object.mesh.tets: tet 3"),
               std::string::npos);
     j["object"]["mesh"].erase("nodes");
-    EXPECT_NE(errorOf([&] { parseScene(j, "inline.json"); }).find("object.mesh.nodes: is required"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { parseScene(j, "inline.json"); }).find("object.mesh.nodes: is required"), std::string::npos);
 }
 
 // The step through cuts (cutting.step_floor, object.element "hybrid"): the bar with a wedge cut
@@ -370,7 +370,7 @@ TEST(CutStep, HybridFloorMatchesFirstAndAddsLessMass) {
     EXPECT_EQ(mass["cuts"][0]["step_floor"]["matched"].get<int>(), 0);
     json bad = wedgeScene();
     bad["cutting"]["floor_method"] = "wax";
-    EXPECT_NE(errorOf([&] { parseScene(bad, "bar.json"); }).find("cutting.floor_method"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { parseScene(bad, "bar.json"); }).find("cutting.floor_method"), std::string::npos);
 }
 
 // The elements the wedge cut made critical (R1R step under 1.1 dt) are answered by the floor: listed
