@@ -23,7 +23,7 @@ case "${1:-}" in
   --asan)
     shift
     B=build-asan
-    type=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DCUTSIM_SANITIZE=ON)
+    type=(-DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g1 -DNDEBUG" -DCUTSIM_SANITIZE=ON)
     all=(-DCUTSIM_TESTS=ON -DCUTSIM_STRESS=OFF -DCUTSIM_BENCH=OFF -DCUTSIM_PYTHON=OFF -DCUTSIM_BASELINES=OFF) ;;
 esac
 # Ninja for a new build folder when it is installed (an existing folder keeps its generator)
