@@ -33,8 +33,8 @@ int countTmp(const fs::path& dir) {
 TEST(OutputFolder, ANewRunReplacesTheEarlierOneWhole) {
     const std::string dir = workDir(), out = dir + "/out";
     std::string err;
-    ASSERT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out + " --no-render --quiet --set duration=0.01", nullptr,
-                              &err),
+    ASSERT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out + " --no-render --quiet --set duration=0.01",
+                              nullptr, &err),
               0)
         << err;
     ASSERT_TRUE(fs::exists(out + "/final.vtu"));
@@ -53,8 +53,8 @@ TEST(OutputFolder, RefusesAFolderOfOtherFiles) {
     fs::create_directories(out);
     test::writeText(out + "/notes.txt", "keep me\n");
     std::string err;
-    EXPECT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out + " --no-render --quiet --set duration=0.01", nullptr,
-                              &err),
+    EXPECT_EQ(test::runCutsim("run " + barSagPath() + " --out " + out + " --no-render --quiet --set duration=0.01",
+                              nullptr, &err),
               2);
     EXPECT_NE(err.find("not a cutsim run's"), std::string::npos) << err;
     EXPECT_EQ(test::readText(out + "/notes.txt"), "keep me\n");

@@ -285,11 +285,13 @@ TEST(Scene, SetReachesArrayElementsByIndex) {
     const SceneDef s = parseScene(j, "bar.json");
     EXPECT_EQ(s.tools.at(0).radius, 0.02);
     EXPECT_EQ(s.tools.at(0).keys.at(0).pose.position.z(), 0.07);
-    EXPECT_NE(inputErrorOf([] { applySets(barWithTool(), {"tools.1.radius=0.02"}); }).find("not an index of an array of 1"),
-              std::string::npos);
+    EXPECT_NE(
+        inputErrorOf([] { applySets(barWithTool(), {"tools.1.radius=0.02"}); }).find("not an index of an array of 1"),
+        std::string::npos);
     EXPECT_NE(inputErrorOf([] { applySets(barWithTool(), {"tools.x.radius=0.02"}); }).find("'x' is not an index"),
               std::string::npos);
-    EXPECT_NE(inputErrorOf([] { applySets(barScene(), {"duration.x=1"}); }).find("inside a non-object"), std::string::npos);
+    EXPECT_NE(inputErrorOf([] { applySets(barScene(), {"duration.x=1"}); }).find("inside a non-object"),
+              std::string::npos);
 }
 
 // object.mesh given inline (as the Python bindings pass numpy arrays) runs bitwise as the generated box.
@@ -311,7 +313,8 @@ TEST(Scene, InlineMeshRunsAsTheBox) {
     EXPECT_NE(inputErrorOf([&] { parseScene(j, "inline.json"); }).find("inline.json: object.mesh.tets: tet 3"),
               std::string::npos);
     j["object"]["mesh"].erase("nodes");
-    EXPECT_NE(inputErrorOf([&] { parseScene(j, "inline.json"); }).find("object.mesh.nodes: is required"), std::string::npos);
+    EXPECT_NE(inputErrorOf([&] { parseScene(j, "inline.json"); }).find("object.mesh.nodes: is required"),
+              std::string::npos);
 }
 
 // The step through cuts (cutting.step_floor, object.element "hybrid"): the bar with a wedge cut
