@@ -261,14 +261,19 @@ inline void keepRotations(State& s, int e0, int count, const L X[9], const L& de
         }
 }
 
-// The elements of a block whose stretch bound is under the watch, for limitStretch (no other
-// thread writes these elements' bytes).
+// Each element's stretch bound 2 det F / |F|^2 for limitStretch, rounded down to 1/255 (255: at
+// least 1; 0: at most 0, or stretched past kPartialMaxStretch's flag), so that the limiting pass
+// picks each element's own watch without recomputing F (no other thread writes these bytes).
 template <class L>
 inline void markNearFlat(State& s, int e0, int count, double watch, const L& det, const L& f2) {
     if (!(watch > 0)) return;
-    for (int l = 0; l < count; ++l)
+    for (int l = 0; l < count; ++l) {
+        const double bound = 2 * double(det[l]) / double(f2[l]);
         s.nearFlat[static_cast<size_t>(e0 + l)] =
-            2 * double(det[l]) < watch * double(f2[l]) || double(f2[l]) > kWatchStretch2;
+            double(f2[l]) > kWatchStretch2 || !(bound > 0)
+                ? 0
+                : static_cast<unsigned char>(std::min(255.0, std::floor(255 * bound)));
+    }
 }
 
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes) in double.
