@@ -18,6 +18,9 @@ std::atomic<int> gLiveWorlds{0};
 
 // Least sum of |w_i| over the free nodes of a contact the projection moves.
 constexpr double kMinFreeWeight = 0.1;
+// Most a node may move, as a multiple of its contact point's correction: equal masses give at most
+// about 1.4 (a point at a corner: 1), so only light nodes carrying a small share reach it.
+constexpr double kMaxLever = 2.0;
 
 }  // namespace
 
@@ -578,18 +581,31 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             y.col(t.node) += (t.w * t.im) * impulse;
         }
     };
-    // Node masses capped below at the mean of the contact's free nodes: with pure 1/m the light
-    // control points of a small cut share (weight w, mass m) would take a correction of up to
-    // depth / w, several element sizes; the cap keeps the correction geometric (as limitStretch does).
-    // Nodes outside the material (setSurface's `outside`) take no correction when the point's other free
-    // nodes carry kMinFreeWeight of it: they belong to partial elements only, whose lumping keeps a
-    // parent's eigenvalues on light nodes (xfem.hpp), so their modes sit near the step's limit, and
-    // stopping them on contact every step fed a vibration that mass damping could not remove (a
-    // severed lobe on a floor kept ~3 mJ; docs/method.md, Contact).
+    // Each point is corrected through its free nodes with their true masses, so that the velocity
+    // and position projections are orthogonal in the mass norm: they only take energy out. (A
+    // correction with masses capped at the contact's mean moved light nodes as if heavy; on an MI
+    // object landing on a floor that fed ~10 J into a body holding 0.5 J; docs/method.md, Contact.)
+    // A light node that carries a small share of the point would take most of a true-mass
+    // correction, up to depth / w: a node that would move more than kMaxLever times the point is
+    // left out of both the point's measure and its correction (weights renormalised), so the
+    // projection stays consistent on the nodes that remain.
+    // Nodes outside the material (setSurface's `outside`) take no correction when the point's other
+    // free nodes carry kMinFreeWeight of it: they belong to partial elements only, whose lumping
+    // keeps a parent's eigenvalues on light nodes (xfem.hpp), so their modes sit near the step's
+    // limit, and stopping them on contact every step fed a vibration that mass damping could not
+    // remove (a severed lobe on a floor kept ~3 mJ; docs/method.md, Contact).
     // A contact whose free nodes carry less than kMinFreeWeight of it (a point on the fixed part)
     // is left alone: stopping it would take node moves of 1 / (their weight) times its own.
     const bool anyOutside = !m.outside.empty();
     bool renormalised = false;
+    // The point measured on its terms with nonzero weight again: depth moved to the new point.
+    auto remeasure = [&](Touch& tc, double sum) {
+        for (int i = tc.first; i < tc.first + tc.n; ++i) m.terms[static_cast<size_t>(i)].w /= sum;
+        const Eigen::Vector3d c = m.combine(x, tc);
+        tc.depth -= tc.n_.dot(c - tc.c0);
+        tc.c0 = c;
+        renormalised = true;
+    };
     for (Touch& tc : m.touches) {
         double inside = 0, all = 0;
         for (int i = tc.first; i < tc.first + tc.n; ++i) {
@@ -597,6 +613,10 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             if (!(invMass(t.node) > 0)) continue;
             all += std::abs(t.w);
             if (anyOutside && !m.outside[static_cast<size_t>(t.node)]) inside += std::abs(t.w);
+        }
+        if (all < kMinFreeWeight) {
+            tc.mass = 0;
+            continue;
         }
         const bool skipOutside = anyOutside && inside >= kMinFreeWeight;
         if (skipOutside && tc.shape >= 0) {
@@ -610,38 +630,50 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
             // it out would push them in (a node fought its own floor contact, ringing up to
             // 150 m/s).
             double sum = 0;
-            for (int i = tc.first; i < tc.first + tc.n; ++i)
-                if (const Term& t = m.terms[static_cast<size_t>(i)]; !m.outside[static_cast<size_t>(t.node)])
+            for (int i = tc.first; i < tc.first + tc.n; ++i) {
+                Term& t = m.terms[static_cast<size_t>(i)];
+                if (m.outside[static_cast<size_t>(t.node)])
+                    t.w = 0;
+                else
                     sum += t.w;
-            renormalised = true;
+            }
             if (!(sum >= kMinFreeWeight)) {
                 tc.mass = 0;
                 tc.depth = 0;  // nor reported as held
                 continue;
             }
-            for (int i = tc.first; i < tc.first + tc.n; ++i) {
-                Term& t = m.terms[static_cast<size_t>(i)];
-                t.w = m.outside[static_cast<size_t>(t.node)] ? 0.0 : t.w / sum;
-            }
-            const Eigen::Vector3d c = m.combine(x, tc);
-            tc.depth -= tc.n_.dot(c - tc.c0);
-            tc.c0 = c;
-        }
-        auto moves = [&](const Term& t) {
-            return invMass(t.node) > 0 && !(skipOutside && m.outside[static_cast<size_t>(t.node)]);
-        };
-        double mean = 0, w = 0;
-        int free = 0;
-        for (int i = tc.first; i < tc.first + tc.n; ++i)
-            if (const Term& t = m.terms[static_cast<size_t>(i)]; moves(t)) mean += 1 / invMass(t.node), ++free;
-        mean = free ? mean / free : 0;
-        if (all < kMinFreeWeight) {
-            tc.mass = 0;
-            continue;
+            remeasure(tc, sum);
         }
         for (int i = tc.first; i < tc.first + tc.n; ++i) {
             Term& t = m.terms[static_cast<size_t>(i)];
-            t.im = moves(t) ? 1 / std::max(1 / invMass(t.node), mean) : 0.0;
+            const bool moves = t.w != 0 && !(skipOutside && m.outside[static_cast<size_t>(t.node)]);
+            t.im = moves ? invMass(t.node) : 0.0;
+        }
+        // Light nodes of a small share out (a point on another piece's triangle keeps its terms:
+        // its weights sum to zero over the two pieces, there is no share to renormalise).
+        for (int round = 0; round < tc.n && tc.shape >= 0; ++round) {
+            double w2 = 0;
+            for (int i = tc.first; i < tc.first + tc.n; ++i) {
+                const Term& t = m.terms[static_cast<size_t>(i)];
+                w2 += t.w * t.w * t.im;
+            }
+            int worst = -1;
+            double lever = kMaxLever * w2;
+            for (int i = tc.first; i < tc.first + tc.n; ++i)
+                if (const Term& t = m.terms[static_cast<size_t>(i)]; std::abs(t.w) * t.im > lever)
+                    lever = std::abs(t.w) * t.im, worst = i;
+            if (worst < 0) break;
+            Term& out = m.terms[static_cast<size_t>(worst)];
+            double rest = -out.w;
+            for (int i = tc.first; i < tc.first + tc.n; ++i) rest += m.terms[static_cast<size_t>(i)].w;
+            if (!(rest >= kMinFreeWeight)) break;  // nothing left to carry the point: keep it whole
+            out.w = 0;
+            out.im = 0;
+            remeasure(tc, rest);
+        }
+        double w = 0;
+        for (int i = tc.first; i < tc.first + tc.n; ++i) {
+            const Term& t = m.terms[static_cast<size_t>(i)];
             w += t.w * t.w * t.im;
         }
         tc.mass = w > 0 ? 1.0 / w : 0.0;  // 0: on fixed nodes only, nothing to move

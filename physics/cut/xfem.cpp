@@ -108,7 +108,7 @@ void CutEngine::prepare(const Model& m) {
     const int ne = m.elements(), nn = m.nodes();
     fraction0_ = m.fraction;
     fixed0_ = m.fixed;
-    mass0_ = m.mass;
+    mass0_ = wholeMass(m);  // an MI lattice node's light share is of its whole cells' mass
 
     // Face adjacency: sort (face key, element, corner) and pair equal keys.
     std::vector<std::tuple<std::array<int, 3>, int, int>> faces;

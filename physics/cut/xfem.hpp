@@ -236,7 +236,7 @@ private:
     int nextCut_ = 0;
     Eigen::Matrix4Xi tets0_;                 // original elements (4 x nParents)
     std::vector<std::uint8_t> fixed0_;       // prescribed original nodes (nNodes0)
-    Eigen::VectorXd mass0_;                  // lumped mass of each original node before any cut (nNodes0) [kg]
+    Eigen::VectorXd mass0_;                  // each original node's mass with its elements whole (wholeMass) [kg]
     Eigen::VectorXd fraction0_;              // fraction of each parent before any cut (nParents) [-]
     Eigen::Matrix4Xi adj_;                   // parent across the face opposite each corner, or -1 (4 x nParents)
     std::vector<int> ringStart_, ring_;      // original node -> parents (CSR)

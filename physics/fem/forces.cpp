@@ -171,6 +171,8 @@ inline void writeLanes(const Model& m, State& s, int e0, int count, const L P[12
     }
 }
 
+constexpr double kWatchStretch2 = kPartialMaxStretch * kPartialMaxStretch;
+
 // Forces P (rows 3a .. 3a + 2: node a) of a block from its inputs, in L's arithmetic; X gets each
 // lane's rotation (I for the linear model). Returns the inverted elements among the first count.
 template <class L>
@@ -188,7 +190,7 @@ inline int blockForces(const State& s, int e0, int count, const L Ds[9], const L
     int inv = 0, near = 0;
     for (int l = 0; l < count; ++l) {
         inv += det[l] <= 0;
-        near += 2 * double(det[l]) < watch * double(f2[l]);
+        near += 2 * double(det[l]) < watch * double(f2[l]) || (watch > 0 && double(f2[l]) > kWatchStretch2);
     }
     *nearFlat += near;
     if (corot) {
@@ -259,13 +261,19 @@ inline void keepRotations(State& s, int e0, int count, const L X[9], const L& de
         }
 }
 
-// The elements of a block whose stretch bound is under the watch, for limitStretch (no other
-// thread writes these elements' bytes).
+// Each element's stretch bound 2 det F / |F|^2 for limitStretch, rounded down to 1/255 (255: at
+// least 1; 0: at most 0, or stretched past kPartialMaxStretch's flag), so that the limiting pass
+// picks each element's own watch without recomputing F (no other thread writes these bytes).
 template <class L>
 inline void markNearFlat(State& s, int e0, int count, double watch, const L& det, const L& f2) {
     if (!(watch > 0)) return;
-    for (int l = 0; l < count; ++l)
-        s.nearFlat[static_cast<size_t>(e0 + l)] = 2 * double(det[l]) < watch * double(f2[l]);
+    for (int l = 0; l < count; ++l) {
+        const double bound = 2 * double(det[l]) / double(f2[l]);
+        s.nearFlat[static_cast<size_t>(e0 + l)] =
+            double(f2[l]) > kWatchStretch2 || !(bound > 0)
+                ? 0
+                : static_cast<unsigned char>(std::min(255.0, std::floor(255 * bound)));
+    }
 }
 
 // Forces of the elements e0 .. e0 + count - 1 (count <= kLanes) in double.

@@ -65,6 +65,13 @@ void updateMasses(Model& m) {
     for (int i = 0; i < m.nodes(); ++i) m.invMass(i) = (m.fixed[i] || m.mass(i) <= 0) ? 0.0 : 1.0 / m.mass(i);
 }
 
+Eigen::VectorXd wholeMass(const Model& m) {
+    Eigen::VectorXd whole = Eigen::VectorXd::Zero(m.nodes());
+    for (int e = 0; e < m.elements(); ++e)
+        for (int a = 0; a < 4; ++a) whole(m.tets(a, e)) += m.material.rho * m.volume(e) / 4.0;
+    return whole;
+}
+
 void fixNodes(Model& m, const std::vector<int>& nodes) {
     for (int n : nodes) m.fixed.at(n) = 1;
     updateMasses(m);

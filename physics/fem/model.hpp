@@ -50,8 +50,8 @@ struct Model {
 
     // Free nodes with a few percent of their node's mass, whose velocity relative to the nodes
     // they share elements with is damped implicitly (c = 0.5/dt) by the symplectic Euler and
-    // central difference steps: control points a cut left light (CutOptions::lightShare).
-    // Empty for an uncut model.
+    // central difference steps: control points a cut left light, and MI lattice nodes of nearly
+    // empty cells (CutOptions::lightShare of wholeMass). Empty for an uncut conforming model.
     std::vector<int> lightNodes;
 
     // Hybrid elements (Fierz et al. 2012; timestep/hybrid.hpp): moved by shape matching (Mueller et
@@ -83,6 +83,9 @@ Model buildModel(const TetMesh& mesh, const Material& material, ElementModel ele
 // Recomputes lumped masses (rho V fraction / 4 per node, or rho V massShare, plus addedMass) and
 // inverse masses; call after changing fixed nodes, fractions or the material.
 void updateMasses(Model& model);
+// Lumped mass of each node as if its elements were whole (fraction 1, no added mass) [kg]: the
+// reference against which a node of partial elements counts as light (Model::lightNodes).
+Eigen::VectorXd wholeMass(const Model& model);
 
 // Marks nodes as fixed (their inverse mass becomes 0).
 void fixNodes(Model& model, const std::vector<int>& nodes);

@@ -31,8 +31,9 @@ struct State {
                                                    // all of it after elementForces; scratch of computeForces, which
                                                    // on large meshes fills only the slots of nodes two threads share
     std::vector<unsigned char> sharedNode;         // scratch of computeForces: node's elements span two ranges
-    std::vector<unsigned char> nearFlat;           // computeForces with a watch: element may be near its smallest
-                                                   // stretch (limitStretch looks at these only) (nElems)
+    std::vector<unsigned char> nearFlat;           // computeForces with a watch: each element's bound of its
+                                                   // smallest stretch in 1/255 (0 also: stretched long), which
+                                                   // limitStretch compares with its own watch (nElems)
     double time = 0;                               // simulated time [s]
     long steps = 0;                                // steps taken
     bool started = false;                          // integrator history (a, half-step v) initialised

@@ -1,5 +1,6 @@
 // Stretch limiting: elements below the smallest principal stretch projected back to it.
 #include "fem/forces.hpp"
+#include "fem/integrate.hpp"
 #include "fem/kinematics.hpp"
 
 #include <Eigen/SVD>
@@ -55,6 +56,19 @@ double smallestStretch(const Model& m, const State& s, int e, Eigen::Matrix<doub
     return u3.dot(F * v3);
 }
 
+// The largest principal stretch sigma1 = u1^T F v1 and its gradient, as smallestStretch's; 0 (no
+// bound to hold) for an inverted or flat element.
+double largestStretch(const Model& m, const State& s, int e, Eigen::Matrix<double, 3, 4>& g) {
+    const Eigen::Matrix3d F = deformationGradient(m, s, e);
+    if (!(F.determinant() > 0)) return 0;
+    const Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    const Eigen::Vector3d u1 = svd.matrixU().col(0), v1 = svd.matrixV().col(0);
+    const Eigen::Vector3d w = m.dmInv(e) * v1;
+    for (int a = 0; a < 3; ++a) g.col(a + 1) = w[a] * u1;
+    g.col(0) = -(w[0] + w[1] + w[2]) * u1;
+    return svd.singularValues()[0];
+}
+
 }  // namespace
 
 int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scratch, double sMinPartial) {
@@ -67,20 +81,29 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
     Eigen::Matrix<double, 3, 4> g;
     const bool partial = sMinPartial > sMinAll;
     auto bound = [&](int e) { return partial && m.fraction(e) < 1 ? sMinPartial : sMinAll; };
+    // Partial elements are held below kPartialMaxStretch too (forces.hpp).
+    auto over = [&](int e) { return partial && m.fraction(e) < 1; };
     auto below = [&](int e) {
         const double sMin = bound(e);
-        return smallestStretchBound(deformationGradient(m, s, e)) < sMin * (1 - kTol) &&
-               smallestStretch(m, s, e, g) < sMin * (1 - kTol);
+        const Eigen::Matrix3d F = deformationGradient(m, s, e);
+        if (over(e) && F.squaredNorm() > kPartialMaxStretch * kPartialMaxStretch &&
+            largestStretch(m, s, e, g) > kPartialMaxStretch * (1 + kTol))
+            return true;
+        return smallestStretchBound(F) < sMin * (1 - kTol) && smallestStretch(m, s, e, g) < sMin * (1 - kTol);
     };
     std::vector<int> around;
     int corrected = 0;
     for (int round = 0; round < kRounds; ++round) {
         if (round == 0) {
             scratch.clear();
-            // the force stage marked the elements its cheaper bound could not clear
+            // the force stage's bound of each element against the element's own watch (a full
+            // element's 2/3 when undeformed stays clear of a 0.2 + margin watch even while partial
+            // elements are watched at 0.5 + margin)
             const bool marked = s.nearFlat.size() == static_cast<size_t>(m.elements());
             for (int e = 0; e < m.elements(); ++e)
-                if ((!marked || s.nearFlat[static_cast<size_t>(e)]) && below(e)) scratch.push_back(e);
+                if ((!marked || s.nearFlat[static_cast<size_t>(e)] < 255 * (bound(e) + kStretchWatchMargin)) &&
+                    below(e))
+                    scratch.push_back(e);
         } else {
             around.clear();
             for (const int e : scratch)
@@ -101,29 +124,27 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
             bool moved = false;
             for (const int e : scratch) {
                 const double sMin = bound(e);
-                const double C = smallestStretch(m, s, e, g) - sMin;
+                // C >= 0 holds the bound: sigma3 - sMin, or sMax - sigma1 (its gradient negated)
+                double C = smallestStretch(m, s, e, g) - sMin;
+                if (C >= -kTol * sMin && over(e)) {
+                    C = kPartialMaxStretch - largestStretch(m, s, e, g);
+                    g = -g;
+                }
                 if (C >= -kTol * sMin) continue;
                 const int* n = m.tets.col(e).data();
-                // Weights: the inverse node mass, capped at the inverse of the element's mean free-node
-                // mass. Pure 1/m moves the light control points of a small cut share by up to half an
-                // element per step and rings them; the cap keeps the correction geometric there.
-                double mean = 0;
-                int free = 0;
-                for (int a = 0; a < 4; ++a)
-                    if (m.invMass(n[a]) > 0) {
-                        mean += m.mass(n[a]);
-                        ++free;
-                    }
-                if (free == 0) continue;  // all four nodes prescribed
-                mean /= free;
+                // Weights: the inverse node masses, so that the correction is orthogonal in the
+                // mass norm and only takes energy out. (Masses capped below at the element's mean
+                // moved light nodes as if heavy: on an MI object landing on a floor the capped
+                // projection and the contact's fed the body ~10 J; docs/method.md, Contact.) A light
+                // node of a small cut share takes most of the correction.
                 double w[4], denom = 0;
                 for (int a = 0; a < 4; ++a) {
-                    w[a] = m.invMass(n[a]) > 0 ? 1.0 / std::max(m.mass(n[a]), mean) : 0.0;
+                    w[a] = m.invMass(n[a]);
                     denom += w[a] * g.col(a).squaredNorm();
                 }
                 if (!(denom > 0)) continue;
                 const double lambda = -C / denom;
-                // the rate of sigma3, g . v; a closing one is removed (an inelastic stop), an opening one kept
+                // the rate of C, g . v; a closing one is removed (an inelastic stop), an opening one kept
                 double rate = 0;
                 for (int a = 0; a < 4; ++a) rate += g.col(a).dot(s.v.col(n[a]));
                 const double mu = std::min(rate, 0.0) / denom;

@@ -331,6 +331,16 @@ void Simulation::buildObject() {
         model_ = std::move(mi.model);
         model_.elementModel = sc.element;
         embedded_ = std::make_unique<EmbeddedSurface>(std::move(mi.surface));
+        // Lattice nodes of nearly empty cells are light: their motion relative to their neighbours
+        // is damped as a cut's light control points are (cutting.light_share; fem/integrate.hpp),
+        // else a contact correcting the heavy nodes next to them each step drives their modes,
+        // which sit at the step's limit (docs/method.md, Contact).
+        if (sc.cutting.lightShare > 0) {
+            const Eigen::VectorXd whole = wholeMass(model_);
+            for (int n = 0; n < model_.nodes(); ++n)
+                if (model_.invMass(n) > 0 && model_.mass(n) < sc.cutting.lightShare * whole(n))
+                    model_.lightNodes.push_back(n);
+        }
         if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
     } else {
         const bool box = sc.mesh.empty() && !sc.meshData && sc.tetraSurface.empty();
