@@ -171,7 +171,7 @@ inline void writeLanes(const Model& m, State& s, int e0, int count, const L P[12
     }
 }
 
-constexpr double kWatchStretch2 = kPartialMaxStretch * kPartialMaxStretch;
+constexpr double kWatchStretch2 = kMaxStretch * kMaxStretch;
 
 // Forces P (rows 3a .. 3a + 2: node a) of a block from its inputs, in L's arithmetic; X gets each
 // lane's rotation (I for the linear model). Returns the inverted elements among the first count.
@@ -262,7 +262,7 @@ inline void keepRotations(State& s, int e0, int count, const L X[9], const L& de
 }
 
 // Each element's stretch bound 2 det F / |F|^2 for limitStretch, rounded down to 1/255 (255: at
-// least 1; 0: at most 0, or stretched past kPartialMaxStretch's flag), so that the limiting pass
+// least 1; 0: at most 0, or stretched past kMaxStretch's flag), so that the limiting pass
 // picks each element's own watch without recomputing F (no other thread writes these bytes).
 template <class L>
 inline void markNearFlat(State& s, int e0, int count, double watch, const L& det, const L& f2) {

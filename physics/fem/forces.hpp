@@ -58,16 +58,17 @@ void computeForces(const Model& model, State& state, const double* alpha = nullp
 // with equal node masses keeps its momentum and centre of mass. Returns the most elements
 // corrected in a round. Serial: it runs only in steps where the force stage saw an element that
 // may be below its watch stretch.
-// sMinPartial > sMin: the bound of the elements with fraction < 1 (StepOptions::holdPartial); those
-// are held below kPartialMaxStretch too.
+// sMinPartial > sMin: the bound of the elements with fraction < 1 (StepOptions::holdPartial). Every
+// element is held below kMaxStretch too.
 int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch, double sMinPartial = 0);
 
-// The largest principal stretch of a partial element while partial elements are held
-// (limitStretch): a light control point pulled far out stiffens its element's twist modes by
-// lambda (tr S - 3) 2 / (s_i + s_j) (the corotated energy's Hessian), past what the step allows, and
-// is thrown further out each step (docs/method.md, Contact). The force stage flags elements with
-// |F|^2 above its square, an upper bound of the largest stretch's.
-inline constexpr double kPartialMaxStretch = 2.0;
+// The largest principal stretch of any element while stretch limiting is on (limitStretch): a
+// light node pulled far out (a cut's or a lattice's control point, a node of tiny elements)
+// stiffens its elements' twist modes by lambda (tr S - 3) 2 / (s_i + s_j) (the corotated energy's
+// Hessian), past what the step allows, and is thrown further out each step (docs/method.md,
+// "Cutting finer objects"). The force stage flags |F|^2 above its square, an upper bound of the
+// largest stretch's.
+inline constexpr double kMaxStretch = 2.0;
 
 // Quasi-static relaxation of `nodes` with the other nodes held: `iterations` Gauss-Seidel sweeps,
 // each node moved by K_aa^-1 f_a (its corotated diagonal stiffness block from its elements against

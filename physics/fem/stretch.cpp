@@ -81,13 +81,12 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
     Eigen::Matrix<double, 3, 4> g;
     const bool partial = sMinPartial > sMinAll;
     auto bound = [&](int e) { return partial && m.fraction(e) < 1 ? sMinPartial : sMinAll; };
-    // Partial elements are held below kPartialMaxStretch too (forces.hpp).
-    auto over = [&](int e) { return partial && m.fraction(e) < 1; };
+    // Every element is held below kMaxStretch too (forces.hpp).
+
     auto below = [&](int e) {
         const double sMin = bound(e);
         const Eigen::Matrix3d F = deformationGradient(m, s, e);
-        if (over(e) && F.squaredNorm() > kPartialMaxStretch * kPartialMaxStretch &&
-            largestStretch(m, s, e, g) > kPartialMaxStretch * (1 + kTol))
+        if (F.squaredNorm() > kMaxStretch * kMaxStretch && largestStretch(m, s, e, g) > kMaxStretch * (1 + kTol))
             return true;
         return smallestStretchBound(F) < sMin * (1 - kTol) && smallestStretch(m, s, e, g) < sMin * (1 - kTol);
     };
@@ -126,8 +125,8 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
                 const double sMin = bound(e);
                 // C >= 0 holds the bound: sigma3 - sMin, or sMax - sigma1 (its gradient negated)
                 double C = smallestStretch(m, s, e, g) - sMin;
-                if (C >= -kTol * sMin && over(e)) {
-                    C = kPartialMaxStretch - largestStretch(m, s, e, g);
+                if (C >= -kTol * sMin) {
+                    C = kMaxStretch - largestStretch(m, s, e, g);
                     g = -g;
                 }
                 if (C >= -kTol * sMin) continue;
