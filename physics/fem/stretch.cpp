@@ -125,7 +125,8 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
                 const double sMin = bound(e);
                 // C >= 0 holds the bound: sigma3 - sMin, or sMax - sigma1 (its gradient negated)
                 double C = smallestStretch(m, s, e, g) - sMin;
-                if (C >= -kTol * sMin) {
+                // |F|^2 bounds sigma1^2: the second SVD only for an element that may be stretched past
+                if (C >= -kTol * sMin && deformationGradient(m, s, e).squaredNorm() > kMaxStretch * kMaxStretch) {
                     C = kMaxStretch - largestStretch(m, s, e, g);
                     g = -g;
                 }
