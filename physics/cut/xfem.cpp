@@ -168,7 +168,7 @@ void CutEngine::setMassShare(Model& m, int e) const {
 }
 
 CutResult CutEngine::cut(Model& m, State& s, const CutSurface& surface) {
-    std::unordered_map<int, double> nodeS;
+    NodeValues nodeS;
     return apply(m, s, surface, nextCut_++, nullptr, nullptr, nodeS);
 }
 
@@ -230,7 +230,7 @@ CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const Blad
         candPtr = &cand;
     }
     std::vector<int> watch;
-    CutResult r = apply(m, s, stroke_.surface, stroke_.cut, candPtr, &watch, stroke_.nodeS);
+    CutResult r = apply(m, s, stroke_.surface, stroke_.cut, candPtr, &watch, stroke_.nodeS, &stroke_.sections);
     stroke_.watch = std::move(watch);
     stroke_.pending = r.pending;
     return r;
@@ -239,14 +239,15 @@ CutResult CutEngine::sweep(Model& m, State& s, const BladeEdge& from, const Blad
 // One application of a cut surface: the plane's frame, the node distances frozen for the stroke,
 // and what the pass found so far.
 struct CutEngine::Pass {
-    Pass(const CutSurface& surf, int id, std::unordered_map<int, double>& distances, std::vector<int>* watch,
-         CutResult& result)
-        : surface(surf), cutId(id), nodeS(distances), watchOut(watch), r(result) {}
+    Pass(const CutSurface& surf, int id, NodeValues& distances, std::vector<int>* watch, CutResult& result,
+         std::unordered_map<int, Section>* secs)
+        : surface(surf), cutId(id), nodeS(distances), watchOut(watch), r(result), sections(secs) {}
     const CutSurface& surface;
     int cutId;
-    std::unordered_map<int, double>& nodeS;  // signed distance of each node met so far [m]
-    std::vector<int>* watchOut;              // elements met but not yet covered (a stroke's), or null
+    NodeValues& nodeS;           // signed distance of each node met so far [m]
+    std::vector<int>* watchOut;  // elements met but not yet covered (a stroke's), or null
     CutResult& r;
+    std::unordered_map<int, Section>* sections;  // the stroke's clipped sides of watched elements, or null
     Eigen::Vector3d n = Eigen::Vector3d::Zero(), u = n, v = n;  // plane normal and in-plane axes
     double d = 0;                                               // plane offset n.x = d [m]
     double tol = 1e-9;                                          // in-polygon tolerance [m]
@@ -261,8 +262,7 @@ struct CutEngine::Pass {
     // Signed distance of a node, frozen for the whole cut (a blade stroke) so that elements cut at
     // different sweeps see the same values at their shared nodes.
     double sAt(const State& s, int node) {
-        auto it = nodeS.find(node);
-        if (it != nodeS.end()) return it->second;
+        if (const double* known = nodeS.find(node)) return *known;
         const double val = n.dot(s.x.col(node)) - d;
         nodeS.emplace(node, val);
         return val;
@@ -352,16 +352,33 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     Halfspace hn = h, hp = h;
     hn.positive = false;
     hp.positive = true;
-    ConvexPiece neg = clip(piece, hn), pos = clip(piece, hp);
-    if (neg.empty() && pos.empty()) return;
+    // A stroke's element keeps its sides while it waits to be covered (its piece changes only
+    // when this stroke splits it, and its distances are frozen).
+    Section local;
+    Section* sec = &local;
+    const std::array<double, 4> hs{h.s[0], h.s[1], h.s[2], h.s[3]};
+    bool clipNow = true;
+    if (pass.sections) {
+        const auto [at, fresh] = pass.sections->try_emplace(e);
+        sec = &at->second;
+        clipNow = fresh || sec->s != hs;
+    }
+    if (clipNow) {
+        sec->s = hs;
+        sec->neg = clip(piece, hn);
+        sec->pos = clip(piece, hp);
+    }
+    if (sec->neg.empty() && sec->pos.empty()) return;
     if (bounded) {
-        const auto [inside, total] = pass.covered(m, s, e, neg.empty() ? pos : neg);
+        const auto [inside, total] = pass.covered(m, s, e, sec->neg.empty() ? sec->pos : sec->neg);
         if (inside < total || total == 0) {
             if (pass.watchOut) pass.watchOut->push_back(e);
             r.pending += inside > 0;
             return;
         }
     }
+    ConvexPiece neg = std::move(sec->neg), pos = std::move(sec->pos);
+    if (sec != &local) pass.sections->erase(e);
 
     ++r.crossed;
     const int p = parent_[static_cast<size_t>(e)];
@@ -465,7 +482,7 @@ void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
 }
 
 CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
-                           std::vector<int>* watchOut, std::unordered_map<int, double>& nodeS) {
+                           std::vector<int>* watchOut, NodeValues& nodeS, std::unordered_map<int, Section>* sections) {
     const auto t0 = Clock::now();
     prepare(m);
     CutResult r;
@@ -476,7 +493,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
         m.massShare.resize(4, m.elements());
         for (int e = 0; e < m.elements(); ++e) m.massShare.col(e).setConstant(m.fraction(e) / 4.0);
     }
-    Pass pass(surface, cutId, nodeS, watchOut, r);
+    Pass pass(surface, cutId, nodeS, watchOut, r, sections);
     pass.n = surface.normal.normalized();
     pass.d = pass.n.dot(surface.point);
     planeAxes(pass.n, pass.u, pass.v);
@@ -561,15 +578,15 @@ void CutEngine::finishRelink(Model& m, const std::vector<int>& parents, const st
     for (int e : r.changedElements)
         for (int a = 0; a < 4; ++a) changedNodes.push_back(m.tets(a, e));
     changedNodes.insert(changedNodes.end(), r.changedNodes.begin(), r.changedNodes.end());  // from followFused
-    updateMasses(m);
-    buildIncidence(m);
     std::sort(changedNodes.begin(), changedNodes.end());
     changedNodes.erase(std::unique(changedNodes.begin(), changedNodes.end()), changedNodes.end());
+    // Only these rows and masses changed: a blade step costs what it cut, not the mesh.
+    updateIncidence(m, changedNodes, r.changedElements);
+    updateMasses(m, changedNodes);
     r.changedNodes = std::move(changedNodes);
 }
 
-void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
-                       std::unordered_map<int, double>& nodeS) {
+void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r, NodeValues& nodeS) {
     // Original nodes whose copies may change: those of the parents the cut touched.
     std::vector<int> nodes;
     for (int p : parents)
@@ -661,7 +678,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
                 id = nextNode++;
                 copies.push_back({common, N});
                 r.newNodes.push_back(id);
-                if (auto it = nodeS.find(common); it != nodeS.end()) nodeS.emplace(id, it->second);
+                if (const double* known = nodeS.find(common)) nodeS.emplace(id, *known);
             }
             used.push_back(id);
             // A copy of a prescribed node stays prescribed when its piece is held: it carries
@@ -708,12 +725,14 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
     // prescribed node or past kMaxElems elements (that piece is not debris); marks are per
     // exploration, so an element reached once is never explored again in this cut.
     constexpr size_t kMaxElems = 64;
-    std::vector<int>& mark = pieceMark_;
-    mark.assign(static_cast<size_t>(m.elements()), 0);
+    std::vector<int>& mark = pieceMark_;  // stamps above `base` are this cut's (no pass over all elements)
+    if (pieceStamp_ > (1 << 30)) std::fill(mark.begin(), mark.end(), 0), pieceStamp_ = 0;
+    mark.resize(static_cast<size_t>(m.elements()), 0);
     std::vector<int> piece, sibling;
-    int stamp = 0;
+    const int base = pieceStamp_;
+    int& stamp = pieceStamp_;
     for (int start : r.changedElements) {
-        if (mark[static_cast<size_t>(start)]) continue;
+        if (mark[static_cast<size_t>(start)] > base) continue;
         ++stamp;
         piece.assign(1, start);
         mark[static_cast<size_t>(start)] = stamp;
@@ -728,7 +747,7 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
                 held = m.fixed[static_cast<size_t>(node)] != 0;
                 for (int sl = m.nodeSlotStart[node]; sl < m.nodeSlotStart[node + 1]; ++sl) {
                     const int g = m.nodeSlots[static_cast<size_t>(sl)] / 4;
-                    if (!mark[static_cast<size_t>(g)]) {
+                    if (mark[static_cast<size_t>(g)] <= base) {
                         mark[static_cast<size_t>(g)] = stamp;
                         piece.push_back(g);
                     }
@@ -793,13 +812,7 @@ void CutEngine::relaxCutNodes(const Model& m, State& s, const CutResult& r) cons
     relaxNodes(m, s, nodes, opts_.relaxIterations);
 }
 
-void CutEngine::markLightNodes(Model& m) const {
-    m.lightNodes.clear();
-    if (opts_.lightShare <= 0) return;  // off: no pass over the nodes at every blade step
-    for (int n = 0; n < m.nodes(); ++n)
-        if (m.invMass(n) > 0 && m.mass(n) < opts_.lightShare * mass0_[origNode_[static_cast<size_t>(n)]])
-            m.lightNodes.push_back(n);
-}
+void CutEngine::markLightNodes(Model& m) const { cutsim::markLightNodes(m, mass0_, opts_.lightShare, &origNode_); }
 
 // Points every fused element at the nodes of the sibling it follows (through chains of fusions);
 // returns whether any element changed. Changed elements and their old and new nodes go into r.

@@ -20,7 +20,11 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <string>
 #include <unordered_map>
@@ -167,26 +171,52 @@ private:
         bool positive = false;  // the dropped side of the cut's halfspace
         ConvexPiece piece;      // the dropped side, reference coordinates of the parent
     };
+    // Values of the nodes met so far (a stroke's frozen signed distances [m]): dense by node id,
+    // NaN for a node not met; emplace keeps a value once set.
+    class NodeValues {
+    public:
+        const double* find(int n) const {
+            return n < static_cast<int>(v_.size()) && !std::isnan(v_[static_cast<size_t>(n)])
+                       ? &v_[static_cast<size_t>(n)]
+                       : nullptr;
+        }
+        void emplace(int n, double x) {
+            if (n >= static_cast<int>(v_.size()))
+                v_.resize(std::max(static_cast<size_t>(n) + 1, 2 * v_.size()),
+                          std::numeric_limits<double>::quiet_NaN());
+            if (std::isnan(v_[static_cast<size_t>(n)])) v_[static_cast<size_t>(n)] = x;
+        }
+
+    private:
+        std::vector<double> v_;
+    };
+    // A watched element's two sides under the stroke's plane: fixed by the frozen distances, so
+    // they are clipped once, and each sweep only retests their coverage.
+    struct Section {
+        std::array<double, 4> s{};  // the distances they were clipped at [m]
+        ConvexPiece neg, pos;
+    };
     struct Stroke {
         bool active = false;
         int cut = -1;
         CutSurface surface;
         std::vector<int> watch;                                // elements the plane crosses, met so far, not yet split
         int pending = 0;                                       // of those, the ones the swept area covers in part
-        std::unordered_map<int, double> nodeS;                 // signed distance of each node met so far [m]
+        NodeValues nodeS;                                      // signed distance of each node met so far [m]
+        std::unordered_map<int, Section> sections;             // of the watched elements
         BladeEdge last;                                        // edge at the end of the previous sweep [m]
         Eigen::Vector3d lastMotion = Eigen::Vector3d::Zero();  // midpoint motion of the previous sweep [m]
         bool lastTranslation = false;                          // the previous sweep moved the edge without turning it
     };
 
     CutResult apply(Model& m, State& s, const CutSurface& surface, int cutId, const std::vector<int>* candidates,
-                    std::vector<int>* watchOut, std::unordered_map<int, double>& nodeS);
+                    std::vector<int>* watchOut, NodeValues& nodeS,
+                    std::unordered_map<int, Section>* sections = nullptr);
     struct Pass;
     void visitElement(Model& m, State& s, Pass& pass, int e);
     void visitFromCandidates(Model& m, State& s, Pass& pass, const std::vector<int>& candidates);
     void appendVirtuals(Model& m, State& s, Pass& pass);
-    void relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r,
-                std::unordered_map<int, double>& nodeS);
+    void relink(Model& m, State& s, const std::vector<int>& parents, CutResult& r, NodeValues& nodeS);
     struct NodeCopy {
         int src, orig;  // node the copy is made from, and the original node it stands for
     };
@@ -248,6 +278,7 @@ private:
     mutable std::vector<int> single_;                    // scratch for virtualsOf on an uncut parent
     std::unordered_map<std::uint64_t, bool> gluedSeen_;  // scratch of relink: (element, element) -> glued
     std::vector<int> pieceMark_;            // scratch of mergeDebris: exploration that reached each element
+    int pieceStamp_ = 0;                    // last stamp mergeDebris put in pieceMark_
     std::unordered_map<int, int> fusedTo_;  // fused debris element -> the sibling whose nodes it uses
     std::vector<Sliver> slivers_;           // dropped sides, drawn by surface() on their side
     mutable SplitSlot split_;

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <stdexcept>
 #include <string>
 
 namespace cutsim {
@@ -65,11 +66,38 @@ void updateMasses(Model& m) {
     for (int i = 0; i < m.nodes(); ++i) m.invMass(i) = (m.fixed[i] || m.mass(i) <= 0) ? 0.0 : 1.0 / m.mass(i);
 }
 
+void updateMasses(Model& m, const std::vector<int>& nodes) {
+    const int n = m.nodes();
+    m.mass.conservativeResize(n);
+    m.invMass.conservativeResize(n);
+    const double rho = m.material.rho;
+    const bool shares = m.massShare.cols() == m.elements(), added = m.addedMass.size() == n;
+    for (int i : nodes) {
+        double mi = 0;
+        for (int sl = m.nodeSlotStart[i]; sl < m.nodeSlotStart[i + 1]; ++sl) {
+            const int e = m.nodeSlots[sl] / 4, a = m.nodeSlots[sl] % 4;
+            mi += shares ? rho * m.volume(e) * m.massShare(a, e) : rho * m.volume(e) * m.fraction(e) / 4.0;
+        }
+        if (added) mi += m.addedMass(i);
+        m.mass(i) = mi;
+        m.invMass(i) = (m.fixed[i] || mi <= 0) ? 0.0 : 1.0 / mi;
+    }
+}
+
 Eigen::VectorXd wholeMass(const Model& m) {
     Eigen::VectorXd whole = Eigen::VectorXd::Zero(m.nodes());
     for (int e = 0; e < m.elements(); ++e)
         for (int a = 0; a < 4; ++a) whole(m.tets(a, e)) += m.material.rho * m.volume(e) / 4.0;
     return whole;
+}
+
+void markLightNodes(Model& m, const Eigen::VectorXd& reference, double share, const std::vector<int>* originalOf) {
+    m.lightNodes.clear();
+    if (share <= 0) return;
+    for (int n = 0; n < m.nodes(); ++n) {
+        const int o = originalOf ? (*originalOf)[static_cast<size_t>(n)] : n;
+        if (m.invMass(n) > 0 && m.mass(n) < share * reference(o)) m.lightNodes.push_back(n);
+    }
 }
 
 void fixNodes(Model& m, const std::vector<int>& nodes) {
@@ -86,6 +114,49 @@ void buildIncidence(Model& m) {
     std::vector<int> fill(m.nodeSlotStart.begin(), m.nodeSlotStart.end() - 1);
     for (int e = 0; e < m.elements(); ++e)
         for (int a = 0; a < 4; ++a) m.nodeSlots[fill[m.tets(a, e)]++] = 4 * e + a;
+}
+
+void updateIncidence(Model& m, const std::vector<int>& rows, const std::vector<int>& elements) {
+    const int n = m.nodes(), n0 = static_cast<int>(m.nodeSlotStart.size()) - 1;
+    if (n0 < 0 || n < n0) return buildIncidence(m);
+    std::vector<char> inElems(static_cast<size_t>(m.elements()), 0);
+    for (int e : elements) inElems[static_cast<size_t>(e)] = 1;
+    // New lists of the rows: their old slots of unchanged elements, plus the changed elements' slots.
+    std::vector<int> rowOf(static_cast<size_t>(n), -1);
+    std::vector<std::vector<int>> lists(rows.size());
+    for (size_t k = 0; k < rows.size(); ++k) rowOf[static_cast<size_t>(rows[k])] = static_cast<int>(k);
+    for (size_t k = 0; k < rows.size(); ++k) {
+        const int i = rows[k];
+        if (i < n0)
+            for (int sl = m.nodeSlotStart[i]; sl < m.nodeSlotStart[i + 1]; ++sl)
+                if (!inElems[static_cast<size_t>(m.nodeSlots[sl] / 4)]) lists[k].push_back(m.nodeSlots[sl]);
+    }
+    for (int e : elements)
+        for (int a = 0; a < 4; ++a)
+            if (const int k = rowOf[static_cast<size_t>(m.tets(a, e))]; k >= 0)
+                lists[static_cast<size_t>(k)].push_back(4 * e + a);
+    for (auto& l : lists) std::sort(l.begin(), l.end());
+    // Copy the other rows in runs around the changed ones.
+    std::vector<int> start(static_cast<size_t>(n) + 1), slots;
+    slots.reserve(4 * static_cast<size_t>(m.elements()));
+    for (int i = 0; i < n;) {
+        start[static_cast<size_t>(i)] = static_cast<int>(slots.size());
+        if (const int k = rowOf[static_cast<size_t>(i)]; k >= 0) {
+            slots.insert(slots.end(), lists[static_cast<size_t>(k)].begin(), lists[static_cast<size_t>(k)].end());
+            ++i;
+            continue;
+        }
+        int j = i;  // the run of unchanged old rows [i, j)
+        while (j < n0 && rowOf[static_cast<size_t>(j)] < 0) ++j;
+        if (j == i) throw std::logic_error("updateIncidence: an appended node is not among the rows");
+        const int shift = static_cast<int>(slots.size()) - m.nodeSlotStart[i];
+        slots.insert(slots.end(), m.nodeSlots.begin() + m.nodeSlotStart[i], m.nodeSlots.begin() + m.nodeSlotStart[j]);
+        for (int q = i + 1; q < j; ++q) start[static_cast<size_t>(q)] = m.nodeSlotStart[q] + shift;
+        i = j;
+    }
+    start[static_cast<size_t>(n)] = static_cast<int>(slots.size());
+    m.nodeSlotStart = std::move(start);
+    m.nodeSlots = std::move(slots);
 }
 
 Eigen::SparseMatrix<double> assembleStiffness(const Model& m) {

@@ -83,15 +83,28 @@ Model buildModel(const TetMesh& mesh, const Material& material, ElementModel ele
 // Recomputes lumped masses (rho V fraction / 4 per node, or rho V massShare, plus addedMass) and
 // inverse masses; call after changing fixed nodes, fractions or the material.
 void updateMasses(Model& model);
+// The same for `nodes` only, the others kept: each sum gathered over the incidence (current:
+// updateIncidence first) in ascending element order, the order updateMasses adds in, so the
+// values are the same bit for bit. Nodes appended since the last update must be among `nodes`.
+void updateMasses(Model& model, const std::vector<int>& nodes);
 // Lumped mass of each node as if its elements were whole (fraction 1, no added mass) [kg]: the
 // reference against which a node of partial elements counts as light (Model::lightNodes).
 Eigen::VectorXd wholeMass(const Model& model);
+
+// Sets Model::lightNodes: the free nodes with less than `share` of their reference mass,
+// reference(originalOf[n]) (reference(n) without originalOf), e.g. wholeMass. share <= 0: none.
+void markLightNodes(Model& model, const Eigen::VectorXd& reference, double share,
+                    const std::vector<int>* originalOf = nullptr);
 
 // Marks nodes as fixed (their inverse mass becomes 0).
 void fixNodes(Model& model, const std::vector<int>& nodes);
 
 // Rebuilds the node -> element incidence after elements changed.
 void buildIncidence(Model& model);
+// The same after a local change: `elements` are the appended elements and every element whose
+// corners changed; `rows` every node that gained or lost a corner of them (appended nodes
+// included). Rows outside it are copied, so the cost is a copy of the slots, not a rebuild.
+void updateIncidence(Model& model, const std::vector<int>& rows, const std::vector<int>& elements);
 
 // Assembled rest stiffness K (3n x 3n), each element scaled by its fraction. DOF 3i+k.
 Eigen::SparseMatrix<double> assembleStiffness(const Model& model);

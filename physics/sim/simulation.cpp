@@ -335,12 +335,7 @@ void Simulation::buildObject() {
         // is damped as a cut's light control points are (cutting.light_share; fem/integrate.hpp),
         // else a contact correcting the heavy nodes next to them each step drives their modes,
         // which sit at the step's limit (docs/method.md, Contact).
-        if (sc.cutting.lightShare > 0) {
-            const Eigen::VectorXd whole = wholeMass(model_);
-            for (int n = 0; n < model_.nodes(); ++n)
-                if (model_.invMass(n) > 0 && model_.mass(n) < sc.cutting.lightShare * whole(n))
-                    model_.lightNodes.push_back(n);
-        }
+        if (sc.cutting.lightShare > 0) markLightNodes(model_, wholeMass(model_), sc.cutting.lightShare);
         if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
     } else {
         const bool box = sc.mesh.empty() && !sc.meshData && sc.tetraSurface.empty();

@@ -300,6 +300,35 @@ TEST(Xfem, BladeSweepReachesTissueAwayFromTheBlade) {
     EXPECT_EQ(eng.pendingElements(), 0);
 }
 
+// A blade step updates the incidence and the masses of the nodes it changed only; they must be
+// what a full rebuild gives, bit for bit, after every step of a stroke that splits, drops slivers
+// and copies nodes.
+TEST(Xfem, BladeStepsUpdateIncidenceAndMassesAsAFullRebuild) {
+    Model m = unitBox(5);
+    State s = makeState(m);
+    CutEngine eng;
+    auto edgeAt = [](double t) { return BladeEdge{{0.37 + 0.1 * t, t, -0.2}, {0.37 + 0.1 * t, t + 0.3, 1.2}}; };
+    int steps = 0, copies = 0;
+    for (double t = 1.2; t > -0.5; t -= 0.04) {
+        const CutResult r = eng.sweep(m, s, edgeAt(t), edgeAt(t - 0.04));
+        if (!r.changed()) continue;
+        ++steps;
+        copies += static_cast<int>(r.newNodes.size());
+        Model full = m;
+        buildIncidence(full);
+        updateMasses(full);
+        ASSERT_EQ(full.nodeSlotStart, m.nodeSlotStart) << "step " << steps;
+        ASSERT_EQ(full.nodeSlots, m.nodeSlots) << "step " << steps;
+        for (int i = 0; i < m.nodes(); ++i) {
+            ASSERT_EQ(full.mass(i), m.mass(i)) << "node " << i << " step " << steps;
+            ASSERT_EQ(full.invMass(i), m.invMass(i)) << "node " << i << " step " << steps;
+        }
+    }
+    EXPECT_GT(steps, 5);
+    EXPECT_GT(copies, 0);
+    EXPECT_EQ(piecesAscending(m).size(), 2u);
+}
+
 // A blade at rest sweeps no new area: it splits nothing, even where the tissue it entered has
 // moved under the area swept before (rounding-level motion from keyframe interpolation included).
 TEST(Xfem, BladeAtRestCutsNothing) {
