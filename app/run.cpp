@@ -188,11 +188,14 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         sim.step();
         progress.update(sim.state().time, sim.state().steps);
     }
-    if (const int sig = interrupt.signal()) {
-        // stopped between steps: the frames so far and a report that says so, under FOLDER.incomplete
-        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", 0}, {"video", ""}});
+    // A signal at any time before the outputs move into place, also after the last step, makes the
+    // run "interrupted": the frames so far and a report that says so, under FOLDER.incomplete.
+    auto interrupted = [&](int sig) {
+        const int frames = sink ? sink->frames() : 0;  // taken frames are drawn and written before reset returns
+        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", frames}, {"video", ""}});
         captureReport(report);
         sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
+        if (fs::exists(out / "video.mp4")) report["video"] = (folder.incomplete() / "video.mp4").string();
         report["status"] = "interrupted";
         report["exit_code"] = 128 + sig;
         report["message"] = std::string("stopped by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") +
@@ -203,7 +206,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         std::fprintf(stderr, "\n%s: interrupted at t = %.4g of %.4g s; partial outputs in %s (%s left as it was)\n",
                      sc.name.c_str(), sim.state().time, sc.duration, folder.incomplete().c_str(), opt.out.c_str());
         return 128 + sig;
-    }
+    };
+    if (const int sig = interrupt.signal()) return interrupted(sig);
     sim.finish();
     sim.compareCutMethods();
     const bool ok = sim.status() == RunStatus::Finished;
@@ -223,7 +227,9 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                               {"frames", sink ? sink->frames() : 0},
                               {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
     captureReport(report);
+    if (const int sig = interrupt.signal()) return interrupted(sig);
     writeFileAtomic((out / "report.json").string(), jsonText(report));
+    if (const int sig = interrupt.signal()) return interrupted(sig);  // the report is rewritten as interrupted
     folder.commit();
     if (!opt.quiet || !ok)  // a failure is always said
         std::fprintf(stderr, "%s: %s, %ld steps of %.3g s (exact limit %.3g s), %.2f s wall, %d frames -> %s\n",

@@ -44,6 +44,7 @@ std::string missingFile(const fs::path& p) {
 // when the file is missing.
 std::string existingPath(ObjectReader& r, const std::string& key, const std::string& dir) {
     fs::path p(r.requiredString(key));
+    if (p.empty()) r.fail(key, "is empty: give the path of a file");
     if (p.is_relative()) p = fs::path(dir) / p;
     if (const std::string why = missingFile(p); !why.empty()) r.fail(key, why);
     return p.lexically_normal().string();
@@ -52,6 +53,7 @@ std::string existingPath(ObjectReader& r, const std::string& key, const std::str
 Region readRegion(ObjectReader& r) {
     Region g;
     g.path = r.path();
+    g.file = r.file();
     int kinds = 0;
     if (r.has("box")) {
         ObjectReader b = r.object("box");
@@ -126,7 +128,7 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     if (t.kind == ToolDef::Kind::Hull) {
         const std::string path = existingPath(r, "obj", dir);
         const double scale = r.number("scale", 1, 0, 1e300, true);
-        t.hull = readSurfaceMesh(path, scale).V;
+        t.hull = readSurfaceMesh(path, scale, r.where("scale")).V;
         if (t.hull.cols() < 4) r.fail("obj", "needs at least 4 vertices for a convex hull");
         const Eigen::Vector3d ext = t.hull.rowwise().maxCoeff() - t.hull.rowwise().minCoeff();
         if ((ext.array() <= 0).any()) r.fail("obj", "is flat: a hull needs volume");
@@ -203,7 +205,7 @@ ColliderDef readCollider(ObjectReader& r, const std::string& dir, int index) {
         c.kind = ColliderDef::Kind::Mesh;
         const std::string path = existingPath(r, "obj", dir);
         const double scale = r.number("scale", 1, 0, 1e300, true);
-        const SurfaceMesh sm = readSurfaceMesh(path, scale);
+        const SurfaceMesh sm = readSurfaceMesh(path, scale, r.where("scale"));
         c.vertices = sm.V;
         c.triangles = sm.F;
         if (c.vertices.cols() < 4) r.fail("obj", "needs at least 4 vertices (a mesh collider is its convex hull)");
@@ -332,8 +334,8 @@ std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X) {
     if (r.kind == Region::Kind::Nodes) {
         for (int i : r.nodes) {
             if (i >= n)
-                throw InputError(r.path + ".nodes: node " + std::to_string(i) + " does not exist (mesh has " +
-                                 std::to_string(n) + ")");
+                throw InputError(r.file + ": " + r.path + ".nodes: node " + std::to_string(i) +
+                                 " does not exist (mesh has " + std::to_string(n) + ")");
             out.push_back(i);
         }
         return out;

@@ -232,6 +232,11 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
                          " s: check material (E, nu, rho), object.scale and fixed");
     chooseAndApply(true);
     checkStepBudget(sc_, choice_.dt, model_.elements());
+    // a run that would take no step is refused: "ok" always means something was simulated
+    if (finished())
+        throw InputError(
+            sc_.file + ": duration: " +
+            fmt("%g s ends before the first step of %.4g s: the run would simulate nothing", sc_.duration, choice_.dt));
 
     setupContact();
     // Cutting: the engine's bookkeeping exists only in scenes that cut (a scene pays for what it uses).
@@ -277,6 +282,9 @@ void Simulation::buildObject() {
     ReadOptions ro;
     ro.scale = sc.scale;
     ro.reorient = sc.reorient;
+    ro.scaleKey = sc.file + ": object.scale";
+    // object.visual.scale when given, else object.scale
+    const std::string visualKey = sc.file + (sc.visualScale != sc.scale ? ": object.visual.scale" : ": object.scale");
     const double d2r = M_PI / 180.0;
     const Eigen::Matrix3d R = (Eigen::AngleAxisd(sc.rotateDeg.z() * d2r, Eigen::Vector3d::UnitZ()) *
                                Eigen::AngleAxisd(sc.rotateDeg.y() * d2r, Eigen::Vector3d::UnitY()) *
@@ -298,13 +306,14 @@ void Simulation::buildObject() {
     if (!sc.surface.empty()) {
         // Mesh intersection: the placed surface in a regular lattice (thesis ch. 6).
         Stopwatch te;
-        SurfaceMesh surf = placed(readSurfaceMesh(sc.surface, sc.scale));
+        SurfaceMesh surf = placed(readSurfaceMesh(sc.surface, sc.scale, ro.scaleKey));
         checkSize(surf.V);
         MiOptions mo;
         mo.cells = sc.surfaceCells;
         mo.h = sc.surfaceH;
         mo.fixOutsideNodes = sc.surfaceFixOutside;
         mo.keepLatticeStep = sc.surfaceKeepStep;
+        mo.sizeKey = sc.file + (sc.surfaceH > 0 ? ": object.surface.h" : ": object.surface.cells");
         MiResult mi = buildMi(surf, sc.material, mo);
         embedding_ = {{"h", mi.h},
                       {"interface_elements", mi.count(ElementClass::Interface)},
@@ -341,7 +350,7 @@ void Simulation::buildObject() {
                 if (model_.invMass(n) > 0 && model_.mass(n) < sc.cutting.lightShare * whole(n))
                     model_.lightNodes.push_back(n);
         }
-        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
+        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale, visualKey)));
     } else {
         const bool box = sc.mesh.empty() && !sc.meshData && sc.tetraSurface.empty();
         if (box) checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
@@ -358,7 +367,7 @@ void Simulation::buildObject() {
         // two threads run slower than one. Spatial order keeps a thread's nodes its own.
         if (!sc.mesh.empty() && sc.reorder) mesh = spatialOrder(mesh, &inputNode_, &inputElement_);
         model_ = buildModel(mesh, sc.material, sc.element);
-        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
+        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale, visualKey)));
     }
     model_.gravity = sc.gravity;
     model_.massDamping = sc.damping;
