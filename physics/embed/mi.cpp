@@ -84,7 +84,7 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     if (nTets > static_cast<double>(opts.maxTets))
         sizeFail("lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
                  std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
-    // bytes per lattice tet with the lattice's own step, plus margin (measured: see git log)
+    // bytes per lattice tet with the lattice's own step, with margin
     checkMemory((opts.sizeKey.empty() ? src : opts.sizeKey) + ": a lattice of " +
                     std::to_string(static_cast<long>(nTets)) + " tets",
                 nTets * 1000.0);
