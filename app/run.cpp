@@ -161,19 +161,22 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         // no wall-clock rates in captured frames: they would make every run's frames differ (report.json has them)
         sink->frame(sim.model(), sim.state(), frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN()));
     };
-    // The capture's time in the run's stages (render: the surface split after cuts, the snapshots,
-    // drawing and reading back; encode: the hand-off to the writers and their drain) and its parts
-    // in report.json's "capture".
-    auto captureReport = [&](json& report) {
-        if (!sink) return;
-        const CaptureTimes ct = sink->times();
-        sim.record().stages[Stage::Render] = surfaceSeconds + ct.render();
-        sim.record().stages[Stage::Encode] = ct.encode();
-        report["stages"] = sim.record().stages.toJson();
+    // The report, built by Simulation::report from the run's record, the capture's time in its
+    // stages (render: the surface split after cuts, the snapshots, drawing and reading back;
+    // encode: the hand-off to the writers and their drain) and its parts in "capture".
+    auto makeReport = [&](int frames, const std::string& video) {
+        const CaptureTimes ct = sink ? sink->times() : CaptureTimes{};
+        if (sink) {
+            sim.record().stages[Stage::Render] = surfaceSeconds + ct.render();
+            sim.record().stages[Stage::Encode] = ct.encode();
+        }
+        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", frames}, {"video", video}});
+        if (!sink) return report;
         report["capture"] = ct.toJson();
         report["capture"]["surface_seconds"] = surfaceSeconds;
         report["capture"]["setup_seconds"] = setupSeconds;
         report["renderer"] = sink->renderer();
+        return report;
     };
 
     Progress progress(sc.duration, opt.quiet);
@@ -192,8 +195,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // run "interrupted": the frames so far and a report that says so, under FOLDER.incomplete.
     auto interrupted = [&](int sig) {
         const int frames = sink ? sink->frames() : 0;  // taken frames are drawn and written before reset returns
-        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", frames}, {"video", ""}});
-        captureReport(report);
+        json report = makeReport(frames, "");
         sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
         if (fs::exists(out / "video.mp4")) report["video"] = (folder.incomplete() / "video.mp4").string();
         report["status"] = "interrupted";
@@ -223,10 +225,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                             pvd + "  </Collection>\n</VTKFile>\n");
     if (sc.capture.cutObj && ok) writeSurfaceObj(sim, (out / "cut_surface.obj").string());
     const bool video = sink && !sink->videoPath().empty();
-    json report = sim.report({{"wall_time", wall.seconds()},
-                              {"frames", sink ? sink->frames() : 0},
-                              {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
-    captureReport(report);
+    const json report = makeReport(sink ? sink->frames() : 0, video ? (fs::path(opt.out) / "video.mp4").string() : "");
     if (const int sig = interrupt.signal()) return interrupted(sig);
     writeFileAtomic((out / "report.json").string(), jsonText(report));
     if (const int sig = interrupt.signal()) return interrupted(sig);  // the report is rewritten as interrupted

@@ -186,8 +186,8 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
     bounds_ = divergenceBounds(sc_, model_);
 
     // Time step: exact, certified and estimated limits, then the scene's policy (docs/method.md sec. 2-3).
-    Stopwatch ts;
     ExactResult exact;
+    const Stage outer = rec_.stages.open(Stage::Timestep);  // the set-up's timestep stage (StageTimer's open)
     try {
         ta_ = TimestepAnalyzer(model_);
         exact = ta_.exact(model_);
@@ -226,7 +226,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             ro.dtCertified = ro.dtFloor > 0 ? std::min(ro.dtFloor, initial_.certified) : initial_.certified;
         response_ = CutResponse(ro);
     }
-    rec_.stages[Stage::Timestep] += ts.seconds();
+    rec_.stages.open(outer);
     if (!(exact.dt > 0) || !std::isfinite(exact.dt))
         throw InputError(sc_.file + ": the exact stable step of the object is " + fmt("%g", exact.dt) +
                          " s: check material (E, nu, rho), object.scale and fixed");
@@ -243,7 +243,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
     for (size_t i = 0; i < sc_.tools.size(); ++i)
         if (sc_.tools[i].kind == ToolDef::Kind::Blade) bladeTools_.push_back(static_cast<int>(i));
     if (!sc_.cutting.cuts.empty() || !bladeTools_.empty()) {
-        Stopwatch sw;
+        const StageTimer t(rec_.stages, Stage::Cuts);
         ensureCutter();
         if (!bladeTools_.empty()) {
             // boxes fattened by the thinnest blade: a node moving less than that per step needs no tree update
@@ -253,7 +253,6 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             bladeMargin_ = margin;
             lastEdge_.resize(bladeTools_.size());
         }
-        rec_.stages[Stage::Cuts] += sw.seconds();
     }
     energyChecked_ = bounds_.energyGrowth > 0 && sc_.tools.empty() && sc_.forces.empty();
     energyRef_ = totalEnergy(model_, state_);
@@ -605,9 +604,11 @@ bool Simulation::finished() const { return state_.time >= sc_.duration - 1e-9 * 
 RunStatus Simulation::step() {
     if (status_ != RunStatus::Running) return status_;
     if (finished()) return status_ = RunStatus::Finished;
-    Stopwatch sw, whole;
+    const Stopwatch whole;
+    StageTimes& timer = rec_.stages;  // each stage a StageTimer scope (record.hpp)
     // 1. loads: the scene's applied forces into fExt (zeroed first when loads or tools add to it)
     if (!sc_.forces.empty() || contact_) {
+        const StageTimer t(timer, Stage::Loads);
         state_.fExt.setZero();
         for (size_t l = 0; l < sc_.forces.size(); ++l) {
             const Eigen::Vector3d f =
@@ -615,42 +616,44 @@ RunStatus Simulation::step() {
             for (int n : loadNodes_[l]) state_.fExt.col(n) += f;
         }
     }
-    rec_.stages[Stage::Loads] += sw.lap();
     // 2. contact: penalty forces at the state of the step's start (projection acts after step 5)
     const double tStep = state_.time;
     const bool projection = contact_ && sc_.contactModel == ContactModel::Projection;
     if (contact_ && !projection) {
+        const StageTimer t(timer, Stage::Contact);
         contact_->addForces(state_.x, state_.v, state_.time, choice_.dt, state_.fExt);
-        rec_.stages[Stage::Contact] += sw.lap();
     }
     // 3. cuts: scripted cuts due now, blade sweeps over [t, t + dt]; each is a topology change
+    // (the after-cut step and contact points inside it are their own stages)
     if (cutter_) {
-        const double inner = rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact];
-        const bool go = applyDueCuts() && applyBlades();
-        rec_.stages[Stage::Cuts] += sw.lap() - (rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact] - inner);
-        if (!go) return status_;
+        const StageTimer t(timer, Stage::Cuts);
+        if (!(applyDueCuts() && applyBlades())) return status_;
     }
-    // 4-5. forces and integration (fem/integrate.hpp; the node update may run inside the force stage)
+    // 4-5. forces and integration (fem/integrate.hpp; the node update may run inside the force
+    // stage, and the Stepper times its force part itself)
     so_.alphaElem = alphaElem_.size() ? &alphaElem_ : nullptr;  // this object's, also after a move
-    stepper_.step(model_, state_, so_);
-    const double stepSeconds = sw.lap();
-    rec_.stages[Stage::Forces] += stepper_.lastForceSeconds();
-    rec_.stages[Stage::Integrate] += stepSeconds - stepper_.lastForceSeconds();
+    {
+        const StageTimer t(timer, Stage::Integrate);
+        stepper_.step(model_, state_, so_);
+    }
+    timer.reassign(Stage::Integrate, Stage::Forces, stepper_.lastForceSeconds());
     // 5b. projection contact: the points inside a tool or collider back onto its surface
     if (projection) {
+        const StageTimer t(timer, Stage::Contact);
         contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v);
-        rec_.stages[Stage::Contact] += sw.lap();
     }
     // 6. checks
-    if (contact_) {
-        const ContactStep& st = contact_->last();
-        Eigen::Vector3d f = Eigen::Vector3d::Zero();
-        for (const auto& r : st.reaction) f += r;
-        rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
+    {
+        const StageTimer t(timer, Stage::Checks);
+        if (contact_) {
+            const ContactStep& st = contact_->last();
+            Eigen::Vector3d f = Eigen::Vector3d::Zero();
+            for (const auto& r : st.reaction) f += r;
+            rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
+        }
+        check();
+        if (status_ == RunStatus::Running) sampleEnergy();
     }
-    check();
-    if (status_ == RunStatus::Running) sampleEnergy();
-    rec_.stages[Stage::Checks] += sw.lap();
     const double total = whole.seconds();
     rec_.wallLoop += total;
     if (tuner_) tuner_->after(total);
