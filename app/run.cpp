@@ -161,19 +161,22 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         // no wall-clock rates in captured frames: they would make every run's frames differ (report.json has them)
         sink->frame(sim.model(), sim.state(), frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN()));
     };
-    // The capture's time in the run's stages (render: the surface split after cuts, the snapshots,
-    // drawing and reading back; encode: the hand-off to the writers and their drain) and its parts
-    // in report.json's "capture".
-    auto captureReport = [&](json& report) {
-        if (!sink) return;
-        const CaptureTimes ct = sink->times();
-        sim.record().stages[Stage::Render] = surfaceSeconds + ct.render();
-        sim.record().stages[Stage::Encode] = ct.encode();
-        report["stages"] = sim.record().stages.toJson();
+    // The report, built by Simulation::report from the run's record, the capture's time in its
+    // stages (render: the surface split after cuts, the snapshots, drawing and reading back;
+    // encode: the hand-off to the writers and their drain) and its parts in "capture".
+    auto makeReport = [&](int frames, const std::string& video) {
+        const CaptureTimes ct = sink ? sink->times() : CaptureTimes{};
+        if (sink) {
+            sim.record().stages[Stage::Render] = surfaceSeconds + ct.render();
+            sim.record().stages[Stage::Encode] = ct.encode();
+        }
+        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", frames}, {"video", video}});
+        if (!sink) return report;
         report["capture"] = ct.toJson();
         report["capture"]["surface_seconds"] = surfaceSeconds;
         report["capture"]["setup_seconds"] = setupSeconds;
         report["renderer"] = sink->renderer();
+        return report;
     };
 
     Progress progress(sc.duration, opt.quiet);
@@ -188,11 +191,13 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         sim.step();
         progress.update(sim.state().time, sim.state().steps);
     }
-    if (const int sig = interrupt.signal()) {
-        // stopped between steps: the frames so far and a report that says so, under FOLDER.incomplete
-        json report = sim.report({{"wall_time", wall.seconds()}, {"frames", 0}, {"video", ""}});
-        captureReport(report);
+    // A signal at any time before the outputs move into place, also after the last step, makes the
+    // run "interrupted": the frames so far and a report that says so, under FOLDER.incomplete.
+    auto interrupted = [&](int sig) {
+        const int frames = sink ? sink->frames() : 0;  // taken frames are drawn and written before reset returns
+        json report = makeReport(frames, "");
         sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
+        if (fs::exists(out / "video.mp4")) report["video"] = (folder.incomplete() / "video.mp4").string();
         report["status"] = "interrupted";
         report["exit_code"] = 128 + sig;
         report["message"] = std::string("stopped by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") +
@@ -203,7 +208,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         std::fprintf(stderr, "\n%s: interrupted at t = %.4g of %.4g s; partial outputs in %s (%s left as it was)\n",
                      sc.name.c_str(), sim.state().time, sc.duration, folder.incomplete().c_str(), opt.out.c_str());
         return 128 + sig;
-    }
+    };
+    if (const int sig = interrupt.signal()) return interrupted(sig);
     sim.finish();
     sim.compareCutMethods();
     const bool ok = sim.status() == RunStatus::Finished;
@@ -219,11 +225,10 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
                             pvd + "  </Collection>\n</VTKFile>\n");
     if (sc.capture.cutObj && ok) writeSurfaceObj(sim, (out / "cut_surface.obj").string());
     const bool video = sink && !sink->videoPath().empty();
-    json report = sim.report({{"wall_time", wall.seconds()},
-                              {"frames", sink ? sink->frames() : 0},
-                              {"video", video ? (fs::path(opt.out) / "video.mp4").string() : ""}});
-    captureReport(report);
+    const json report = makeReport(sink ? sink->frames() : 0, video ? (fs::path(opt.out) / "video.mp4").string() : "");
+    if (const int sig = interrupt.signal()) return interrupted(sig);
     writeFileAtomic((out / "report.json").string(), jsonText(report));
+    if (const int sig = interrupt.signal()) return interrupted(sig);  // the report is rewritten as interrupted
     folder.commit();
     if (!opt.quiet || !ok)  // a failure is always said
         std::fprintf(stderr, "%s: %s, %ld steps of %.3g s (exact limit %.3g s), %.2f s wall, %d frames -> %s\n",

@@ -46,7 +46,7 @@ private:
     mutable std::mutex mutex_;
     std::condition_variable changed_;
     std::deque<std::pair<std::string, Image>> queue_;
-    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation is ~1 ms of page faults)
+    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation page-faults)
     int busy_ = 0;              // frames being encoded
     bool stop_ = false;
     std::size_t written_ = 0;

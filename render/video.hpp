@@ -44,7 +44,7 @@ private:
     std::mutex mutex_;
     std::condition_variable changed_;
     std::deque<Image> queue_;
-    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation is ~1 ms of page faults)
+    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation page-faults)
     bool stop_ = false, failed_ = false;
     std::thread writer_;
 };

@@ -3,7 +3,7 @@
 // through contact (contact/contact.hpp). Plain data, no Bullet types.
 #pragma once
 
-#include "snapshot/snapshot.hpp"
+#include "contact/tool_shape.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

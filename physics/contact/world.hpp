@@ -135,8 +135,8 @@ struct ContactWorld::Impl {
     std::vector<ColliderDef> colliders;
     // the collision world holds the tool parts and the colliders; its broad phase keeps their boxes.
     // Its narrow phase never runs (distances come from contact.cpp), so the configuration's pools
-    // of manifolds and algorithms hold one each: Bullet's defaults (4096) cost 23 ms of page
-    // faults at a scene's start.
+    // of manifolds and algorithms hold one each: Bullet's defaults (4096) cost page faults at a
+    // scene's start.
     static btDefaultCollisionConstructionInfo poolsOfOne() {
         btDefaultCollisionConstructionInfo info;
         info.m_defaultMaxPersistentManifoldPoolSize = 1;

@@ -685,8 +685,8 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             // material at that node, or at another prescribed node of its element (a cut through
             // a clamp keeps both sides clamped). A copy serving only pieces that lie away from
             // the support is an enrichment degree of freedom and moves; fixing it would hang a
-            // severed piece on the clamp (measured: 33 of 250 random bar cut sequences then
-            // inverted the hanging element).
+            // severed piece on the clamp, whose hanging element then inverts (random bar cut
+            // sequences, tests/cut).
             bool held = false;
             for (int i : comp) {
                 const auto it = virt_.find(slots[i].elem);

@@ -44,6 +44,11 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     const std::string& src = surfaceIn.source.empty() ? std::string("surface") : surfaceIn.source;
     if (surfaceIn.faces() == 0) throw InputError(src, 0, "surface has no triangles");
     if (!surfaceIn.V.allFinite()) throw InputError(src, 0, "surface has a non-finite coordinate");
+    // an error of the lattice's size is the key's that set it, the surface is named beside it
+    auto sizeFail = [&](const std::string& why) {
+        if (opts.sizeKey.empty()) throw InputError(src, 0, why);
+        throw InputError(opts.sizeKey + ": " + why + " (surface " + src + ")");
+    };
     MiResult r;
 
     // 1. Lattice around the surface's box, half a cell of margin or more on every side.
@@ -65,11 +70,10 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
             throw InputError(src, 0,
                              "the surface is flat (extent " + std::to_string(ext.minCoeff()) + " m across, " +
                                  std::to_string(ext.maxCoeff()) + " m along): it encloses no volume");
-        if (!(r.h > 0) || !std::isfinite(r.h))
-            throw InputError(src, 0, "cannot size the lattice: give cells >= 1 or h > 0");
+        if (!(r.h > 0) || !std::isfinite(r.h)) sizeFail("cannot size the lattice: give cells >= 1 or h > 0");
         for (int k = 0; k < 3; ++k) {
             const double n = std::ceil(ext[k] / r.h) + 1;
-            if (n > 1e6) throw InputError(src, 0, "lattice too fine: " + std::to_string(n) + " cells along an axis");
+            if (n > 1e6) sizeFail("lattice too fine: " + std::to_string(n) + " cells along an axis");
             r.cells[k] = static_cast<int>(n);
         }
         r.origin = 0.5 * (lo + hi) - 0.5 * r.h * r.cells.cast<double>();
@@ -78,11 +82,12 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
     const double hMin = r.cellSize.minCoeff();  // scale of the tolerances below
     const double nTets = 6.0 * r.cells.cast<double>().prod();
     if (nTets > static_cast<double>(opts.maxTets))
-        throw InputError(src, 0,
-                         "lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
-                             std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
-    // about 800 B per lattice tet measured at 3.3M tets (with the lattice's own step), plus margin
-    checkMemory(src + ": a lattice of " + std::to_string(static_cast<long>(nTets)) + " tets", nTets * 1000.0);
+        sizeFail("lattice of " + std::to_string(static_cast<long>(nTets)) + " tets is above the limit of " +
+                 std::to_string(opts.maxTets) + "; use fewer cells or a larger h");
+    // bytes per lattice tet with the lattice's own step, with margin
+    checkMemory((opts.sizeKey.empty() ? src : opts.sizeKey) + ": a lattice of " +
+                    std::to_string(static_cast<long>(nTets)) + " tets",
+                nTets * 1000.0);
     const int nx = r.cells.x(), ny = r.cells.y(), nz = r.cells.z();
     const int px = nx + 1, py = ny + 1;
     r.lattice = boxMesh(nx * r.cellSize.x(), ny * r.cellSize.y(), nz * r.cellSize.z(), nx, ny, nz);
@@ -274,8 +279,14 @@ MiResult buildMi(const SurfaceMesh& surfaceIn, const Material& material, const M
             }
         }
     }
-    if (r.latticeElement.empty())
+    if (r.latticeElement.empty()) {
+        // a cell larger than the object's thinnest extent can miss it whole: the step's fault, not the surface's
+        if (r.h >= ext.minCoeff() && opts.latticeCells.minCoeff() <= 0)
+            sizeFail("no lattice element lies inside the surface: the cell edge " + std::to_string(r.h) +
+                     " m is not below the object's thinnest extent " + std::to_string(ext.minCoeff()) +
+                     " m; use a smaller h or more cells");
         throw InputError(src, 0, "no lattice element lies inside the surface (is it inside-out or open?)");
+    }
     TetMesh sub;
     sub.source = src + " (embedded)";
     sub.X.resize(3, static_cast<Eigen::Index>(r.latticeNode.size()));

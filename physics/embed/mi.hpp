@@ -39,6 +39,8 @@ struct MiOptions {
     bool keepLatticeStep = false;  // add mass where needed (timestep.hpp keepStep) so the embedded model's
                                    // exact step is at least the whole lattice's; costs eigen-solves of both
     long maxTets = 20'000'000;     // refuse larger lattices (InputError)
+    std::string sizeKey;           // where cells or h were given ("scene.json: object.surface.h"): errors of
+                                   // the lattice's size name it (else the surface file)
 };
 
 enum class NodeClass : std::uint8_t { Outside = 0, Inside = 1, Boundary = 2 };

@@ -1,6 +1,6 @@
 #include "embed/visual.hpp"
 
-#include "contact/broadphase.hpp"
+#include "mesh/broadphase.hpp"
 #include "embed/clip.hpp"
 
 #include <algorithm>

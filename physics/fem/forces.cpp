@@ -47,11 +47,9 @@ struct ForceOut {
 constexpr double kKeepRotation = 0.4;
 
 // From this many elements on, computeForces adds into the nodes in the kernel: state.fe (96 bytes
-// an element, 3 MB here) no longer stays in the two cores' 1 MB L2 caches between the element pass
-// and the node pass. Below it, that round trip costs less than the fused stage's node flags and
-// extra barrier. Measured (BENCHMARKS.md, step throughput): on 10k tets the fused stage was 3-16%
-// dearer on two threads; on 105k tets it is 1.16-1.4x cheaper on one thread, and on two within
-// this machine's spread.
+// an element) no longer stays in L2 between the element pass and the node pass. Below it, that
+// round trip costs less than the fused stage's node flags and extra barrier (BENCHMARKS.md, step
+// throughput).
 constexpr int kFusedElements = 32768;
 
 // Lanes of the single-precision kernel: 16 floats, one AVX-512 register; a block of them is two
@@ -128,9 +126,9 @@ inline void loadFullBlock(const Model& m, const State& s, const double* alpha, i
 
 // Adds a full block's forces P (12 rows: nodes 0..3) into the nodes, or stores them to state.fe.
 // Each lane's force on each node as one 3-vector: stored to state.fe by a masked 4-wide store;
-// added into a node by three scalar adds, since a masked 4-wide add made the step ~25% dearer on
-// one thread (measured; likely because the next element's load of the same node then waits for
-// the masked store to retire instead of taking it forwarded).
+// added into a node by three scalar adds, since a masked 4-wide add made the step dearer (likely
+// because the next element's load of the same node then waits for the masked store to retire
+// instead of taking it forwarded).
 inline void writeFullBlock(const Model& m, State& s, int e0, const Lane P[12], const ForceOut& out) {
     __m256d fa[4][kLanes];
     for (int a = 0; a < 4; ++a) untransposeLanes3(P + 3 * a, fa[a]);

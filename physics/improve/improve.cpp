@@ -54,8 +54,7 @@ inline double softTerm(double x) {
     x *= x;
     return x * x;
 }
-// Default work: 12x12 problems per element of the input, about 0.1 ms per element on one core,
-// with a floor for small meshes.
+// Default work: 12x12 problems per element of the input, with a floor for small meshes.
 constexpr long long kEvaluationsPerTet = 140;
 constexpr long long kMinEvaluations = 100000;
 // A node's descent watches the elements within this factor of its local maximum (and its own).

@@ -142,7 +142,17 @@ void Tokens::fail(const std::string& why, long line) const {
     throw InputError(path_, line >= 0 ? line : lastLine_, why);
 }
 
-void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X) {
+// A coordinate-range error after scaling: the key that gave the scale is blamed when it is not 1.
+[[noreturn]] void failScaled(const std::string& path, const std::string& scaleKey, double scale,
+                             const std::string& why) {
+    if (scaleKey.empty() || scale == 1) throw InputError(path, 0, why);
+    std::ostringstream s;
+    s << scaleKey << ": " << scale << " applied to " << path << ": " << why;
+    throw InputError(s.str());
+}
+
+void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X, const std::string& scaleKey,
+                          double scale) {
     if (X.cols() == 0) return;
     Eigen::Index node = 0;
     const double far = X.cwiseAbs().colwise().maxCoeff().maxCoeff(&node);
@@ -150,14 +160,14 @@ void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X) {
         std::ostringstream why;
         why << "coordinates must lie within +-" << kMaxCoordinate << " m after scaling; node " << node << " is at "
             << far << " m";
-        throw InputError(path, 0, why.str());
+        failScaled(path, scaleKey, scale, why.str());
     }
     const double extent = (X.rowwise().maxCoeff() - X.rowwise().minCoeff()).maxCoeff();
     if (X.cols() > 1 && extent < kMinExtent) {
         std::ostringstream why;
         why << "the mesh spans " << extent << " m after scaling; the smallest object simulated is " << kMinExtent
             << " m across";
-        throw InputError(path, 0, why.str());
+        failScaled(path, scaleKey, scale, why.str());
     }
 }
 
@@ -175,8 +185,8 @@ TetMesh finishTetMesh(const std::string& path, RawTets&& raw, const ReadOptions&
 
     TetMesh m;
     m.X = Eigen::Map<const Eigen::Matrix3Xd>(raw.xyz.data(), 3, nN) * opts.scale;
-    if (!m.X.allFinite()) throw InputError(path, 0, "coordinates overflow after scaling");
-    checkCoordinateRange(path, m.X);
+    if (!m.X.allFinite()) failScaled(path, opts.scaleKey, opts.scale, "coordinates overflow after scaling");
+    checkCoordinateRange(path, m.X, opts.scaleKey, opts.scale);
     m.tets = Eigen::Map<const Eigen::Matrix4Xi>(raw.tets.data(), 4, nT);
     m.nodeIds = std::move(raw.nodeIds);
     m.source = path;
@@ -321,7 +331,7 @@ TetMesh readTetMesh(const std::string& path, const ReadOptions& opts, ReadReport
     return detail::finishTetMesh(path, std::move(raw), opts, report);
 }
 
-SurfaceMesh readSurfaceMesh(const std::string& path, double scale) {
+SurfaceMesh readSurfaceMesh(const std::string& path, double scale, const std::string& scaleKey) {
     const std::string ext = extensionOf(path);
     if (!(scale > 0) || !std::isfinite(scale))
         throw InputError(path, 0, "scale must be a positive finite number, got " + std::to_string(scale));
@@ -338,8 +348,8 @@ SurfaceMesh readSurfaceMesh(const std::string& path, double scale) {
     if (s.vertices() == 0) throw InputError(path, 0, "no vertices");
     if (s.faces() == 0) throw InputError(path, 0, "no faces");
     s.V *= scale;
-    if (!s.V.allFinite()) throw InputError(path, 0, "coordinates overflow after scaling");
-    detail::checkCoordinateRange(path, s.V);
+    if (!s.V.allFinite()) detail::failScaled(path, scaleKey, scale, "coordinates overflow after scaling");
+    detail::checkCoordinateRange(path, s.V, scaleKey, scale);
     s.source = path;
     return s;
 }

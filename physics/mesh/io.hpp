@@ -12,6 +12,8 @@ struct ReadOptions {
     double scale = 1.0;      // multiplies every coordinate (thesis meshes need it, docs/method.md sec. 3)
     bool reorient = false;   // swap two nodes of inverted tets instead of rejecting them
     double minVolume = 0.0;  // |V| <= minVolume * (mean |V|) counts as zero volume: rejected
+    std::string scaleKey;    // where scale was given ("scene.json: object.scale"): the coordinate-range
+                             // errors a scale other than 1 causes name it beside the file
 };
 
 // What a reader saw and fixed; filled when a pointer is given.
@@ -26,7 +28,8 @@ struct ReadReport {
 TetMesh readTetMesh(const std::string& path, const ReadOptions& opts = {}, ReadReport* report = nullptr);
 
 // Surface meshes, by extension: .obj, .off, .stl (ASCII or binary). Polygons are fanned into triangles.
-SurfaceMesh readSurfaceMesh(const std::string& path, double scale = 1.0);
+// scaleKey as ReadOptions::scaleKey.
+SurfaceMesh readSurfaceMesh(const std::string& path, double scale = 1.0, const std::string& scaleKey = {});
 
 // A per-element or per-node scalar field for ParaView.
 struct Field {

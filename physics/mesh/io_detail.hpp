@@ -16,7 +16,11 @@ std::string readFile(const std::string& path);
 
 // InputError naming `path` unless every coordinate is within kMaxCoordinate and the points span at
 // least kMinExtent.
-void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X);
+// Throws the coordinate-range error `why` of path, naming scaleKey when the scale is not 1.
+[[noreturn]] void failScaled(const std::string& path, const std::string& scaleKey, double scale,
+                             const std::string& why);
+void checkCoordinateRange(const std::string& path, const Eigen::Matrix3Xd& X, const std::string& scaleKey = {},
+                          double scale = 1);
 
 // Lower-case copy, for case-insensitive keywords and extensions.
 std::string lower(std::string_view s);

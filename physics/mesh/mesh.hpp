@@ -1,5 +1,7 @@
-// Mesh containers and the input-error type shared by every reader.
+// Mesh containers; the readers throw InputError (util/input_error.hpp).
 #pragma once
+
+#include "util/input_error.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -9,17 +11,6 @@
 #include <vector>
 
 namespace cutsim {
-
-// Bad input (a mesh or scene file): the message names the file and line, or the key.
-class InputError : public std::runtime_error {
-public:
-    InputError(const std::string& file, long line, const std::string& what);
-    explicit InputError(const std::string& what);
-};
-
-// `s` with control bytes and bytes that are not UTF-8 written as \xNN, so that a message quoting a
-// file name or a token of a binary file prints as text.
-std::string printableText(const std::string& s);
 
 // Documented bounds on geometry read from files and scenes: beyond them volumes, stiffness rows or
 // their eigenvalues leave the range of a double.

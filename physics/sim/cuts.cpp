@@ -4,7 +4,6 @@
 #include "sim/simulation.hpp"
 
 #include "fem/forces.hpp"
-#include "util/stopwatch.hpp"
 
 #include <cmath>
 #include <limits>
@@ -26,13 +25,11 @@ bool Simulation::applyDueCuts() {
 }
 
 CutResult Simulation::cut(const CutSurface& surface, const std::string& key) {
-    Stopwatch sw;
+    const StageTimer t(rec_.stages, Stage::Cuts);
     if (!cutter_) ensureCutter();
-    const double inner = rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact];
     beforeTopologyChange();
     const CutResult r = cutter_->cut(model_, state_, surface);
     applyTopologyChange(r, key);
-    rec_.stages[Stage::Cuts] += sw.seconds() - (rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact] - inner);
     return r;
 }
 
@@ -59,10 +56,12 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
     if (!r.changed()) return;
     // Local update of the estimators and the certified bound around the cut, the floor or the
     // hybrid, and the exact step unless a blade's stroke defers it to its end (CutResponse).
-    Stopwatch sw;
     const double dtBefore = dt();
     const bool defer = bladeStep && sc_.cutting.exactAtStrokeEnd;
-    const CutResponseResult res = response_.apply(model_, ta_, r.changedElements, r.changedNodes, defer);
+    const CutResponseResult res = [&] {
+        const StageTimer t(rec_.stages, Stage::Timestep);
+        return response_.apply(model_, ta_, r.changedElements, r.changedNodes, defer);
+    }();
     // What the cut made critical at the step it was taken with, before anything answered it.
     std::vector<int> criticalAtCut;
     const double criticalBound = sc_.capture.criticalFactor * dtBefore;
@@ -72,7 +71,6 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
     limits_.certified = ta_.certifiedDt();
     limits_.estimate = ta_.minDt().r1r;
     const double updateSeconds = res.updateSeconds, exactSeconds = res.exactSeconds;
-    rec_.stages[Stage::Timestep] += updateSeconds + exactSeconds;
     rec_.floorMass += res.addedMass();
     stepper_.reset();
     // The one after-cut rule: the scene's policy chosen again at the new limits.
@@ -93,7 +91,7 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
         if (!bladeStep || state_.time >= surfaceTime_ + kSurfaceRefresh) {
             refreshSurface();
         } else {
-            sw.lap();
+            const StageTimer t(rec_.stages, Stage::Contact);
             if (contact_) {
                 for (int e : r.changedElements)
                     for (int a = 0; a < 4; ++a) dropped_.push_back(model_.tets(a, e));
@@ -101,7 +99,6 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
                 contact_->dropPoints(dropped_);
                 dropped_.clear();
             }
-            rec_.stages[Stage::Contact] += sw.lap();
         }
     }
     if (energyChecked_) energyRef_ = totalEnergy(model_, state_);  // a cut releases energy, never adds it
@@ -158,12 +155,12 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
 }
 
 // The surface and its contact points rebuilt for the cuts since the last time (see respondToCut).
-// The surface is the cut stage's work, its contact points the contact stage's.
+// The surface is the work of the stage open (the cut stage's in a step), its contact points the
+// contact stage's.
 void Simulation::refreshSurface() {
     if (!surfaceStale_) return;
     surfaceStale_ = false;
     surfaceTime_ = state_.time;
-    Stopwatch sw;
     // an MI object keeps its own surface, split by the cuts, with cut faces only inside it; a
     // visual surface is drawn the same way but touched on the mesh's boundary
     std::unique_ptr<EmbeddedSurface> touched;
@@ -171,8 +168,8 @@ void Simulation::refreshSurface() {
         touched = std::make_unique<EmbeddedSurface>(embedded_ ? cutter_->surface(model_, *embedded_)
                                                               : cutter_->surface(model_));
     visualStale_ = visual_ && opt_.renderSurface;
-    const double surfaceSeconds = sw.lap();
     if (contact_) {
+        const StageTimer t(rec_.stages, Stage::Contact);
         ContactPoints pts = contactPoints(*touched, model_.tets, model_.X, contactSettings_.spacing);
         scaleByMass(pts, model_.invMass, contactSettings_.massRef);
         // a cut's virtual nodes take no contact correction (MI's outside lattice nodes do: its
@@ -181,17 +178,17 @@ void Simulation::refreshSurface() {
     }
     if (opt_.renderSurface && !visual_) surface_ = std::move(touched);
     drawnStale_ = false;
-    (void)surfaceSeconds;  // the cut stage's: Simulation::step times it as the stage less contact
-    rec_.stages[Stage::Contact] += sw.lap();
 }
 
 void Simulation::settleExact() {
     if (!response_.owed()) return;
-    const CutResponseResult res = response_.settle(model_, ta_);
+    const CutResponseResult res = [&] {
+        const StageTimer t(rec_.stages, Stage::Timestep);
+        return response_.settle(model_, ta_);
+    }();
     limits_.exact = res.exact;
     limits_.certified = ta_.certifiedDt();
     limits_.estimate = ta_.minDt().r1r;
-    rec_.stages[Stage::Timestep] += res.exactSeconds;
     rec_.floorMass += res.addedMass();
     stepper_.reset();
     chooseAndApply(false);

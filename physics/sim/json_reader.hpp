@@ -43,6 +43,7 @@ public:
     [[noreturn]] void fail(const std::string& key, const std::string& why) const;
     const std::string& path() const { return path_; }
     const std::string& file() const { return file_; }
+    std::string where(const std::string& key) const { return file_ + ": " + keyPath(key); }  // for messages
 
 private:
     const nlohmann::json& get(const std::string& key);

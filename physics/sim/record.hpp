@@ -2,12 +2,15 @@
 // docs/scene-format.md "report.json").
 #pragma once
 
+#include "util/stopwatch.hpp"
+
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cutsim {
@@ -18,11 +21,43 @@ enum class Stage : std::uint8_t { Loads, Contact, Cuts, Forces, Integrate, Check
 inline constexpr int kStages = static_cast<int>(Stage::Count);
 const char* stageName(Stage s);  // report keys: loads contact cut forces integrate checks timestep render encode
 
+// Wall time per stage, as mjData's timers: an array indexed by the enum. Time is charged by
+// StageTimer scopes to the innermost stage open, so a stage opened inside another (the exact step
+// after a cut, inside the cut stage) pauses the outer one and nothing is timed by subtraction.
 struct StageTimes {
     std::array<double, kStages> seconds{};  // [s]
+    Stage current = Stage::Count;           // the stage open now (Count: none)
+    WallClock::time_point since{};          // when time was last charged to it
     double& operator[](Stage s) { return seconds[static_cast<size_t>(s)]; }
     double operator[](Stage s) const { return seconds[static_cast<size_t>(s)]; }
+    // Charges the time since the last switch to the open stage and opens s; returns the stage
+    // that was open.
+    Stage open(Stage s) {
+        const auto now = WallClock::now();
+        if (current != Stage::Count) (*this)[current] += std::chrono::duration<double>(now - since).count();
+        since = now;
+        return std::exchange(current, s);
+    }
+    // Moves `s` seconds of stage `from`'s time to stage `to`: the part a callee timed itself as
+    // another stage (the Stepper's force time inside its step).
+    void reassign(Stage from, Stage to, double s) {
+        (*this)[from] -= s;
+        (*this)[to] += s;
+    }
     nlohmann::json toJson() const;
+};
+
+// Times its scope as stage s; the stage open before resumes at its end.
+class StageTimer {
+public:
+    StageTimer(StageTimes& t, Stage s) : t_(t), outer_(t.open(s)) {}
+    ~StageTimer() { t_.open(outer_); }
+    StageTimer(const StageTimer&) = delete;
+    StageTimer& operator=(const StageTimer&) = delete;
+
+private:
+    StageTimes& t_;
+    Stage outer_;
 };
 
 // Contact set-up of a scene (Simulation's, from its tools).

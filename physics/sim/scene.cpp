@@ -44,6 +44,7 @@ std::string missingFile(const fs::path& p) {
 // when the file is missing.
 std::string existingPath(ObjectReader& r, const std::string& key, const std::string& dir) {
     fs::path p(r.requiredString(key));
+    if (p.empty()) r.fail(key, "is empty: give the path of a file");
     if (p.is_relative()) p = fs::path(dir) / p;
     if (const std::string why = missingFile(p); !why.empty()) r.fail(key, why);
     return p.lexically_normal().string();
@@ -52,6 +53,7 @@ std::string existingPath(ObjectReader& r, const std::string& key, const std::str
 Region readRegion(ObjectReader& r) {
     Region g;
     g.path = r.path();
+    g.file = r.file();
     int kinds = 0;
     if (r.has("box")) {
         ObjectReader b = r.object("box");
@@ -126,7 +128,7 @@ ToolDef readTool(ObjectReader& r, const std::string& dir, int index) {
     if (t.kind == ToolDef::Kind::Hull) {
         const std::string path = existingPath(r, "obj", dir);
         const double scale = r.number("scale", 1, 0, 1e300, true);
-        t.hull = readSurfaceMesh(path, scale).V;
+        t.hull = readSurfaceMesh(path, scale, r.where("scale")).V;
         if (t.hull.cols() < 4) r.fail("obj", "needs at least 4 vertices for a convex hull");
         const Eigen::Vector3d ext = t.hull.rowwise().maxCoeff() - t.hull.rowwise().minCoeff();
         if ((ext.array() <= 0).any()) r.fail("obj", "is flat: a hull needs volume");
@@ -203,7 +205,7 @@ ColliderDef readCollider(ObjectReader& r, const std::string& dir, int index) {
         c.kind = ColliderDef::Kind::Mesh;
         const std::string path = existingPath(r, "obj", dir);
         const double scale = r.number("scale", 1, 0, 1e300, true);
-        const SurfaceMesh sm = readSurfaceMesh(path, scale);
+        const SurfaceMesh sm = readSurfaceMesh(path, scale, r.where("scale"));
         c.vertices = sm.V;
         c.triangles = sm.F;
         if (c.vertices.cols() < 4) r.fail("obj", "needs at least 4 vertices (a mesh collider is its convex hull)");
@@ -332,8 +334,8 @@ std::vector<int> selectNodes(const Region& r, const Eigen::Matrix3Xd& X) {
     if (r.kind == Region::Kind::Nodes) {
         for (int i : r.nodes) {
             if (i >= n)
-                throw InputError(r.path + ".nodes: node " + std::to_string(i) + " does not exist (mesh has " +
-                                 std::to_string(n) + ")");
+                throw InputError(r.file + ": " + r.path + ".nodes: node " + std::to_string(i) +
+                                 " does not exist (mesh has " + std::to_string(n) + ")");
             out.push_back(i);
         }
         return out;
@@ -359,6 +361,241 @@ const char* precisionConflict(Integrator integ, ForcePrecision precision) {
                : nullptr;
 }
 
+namespace {
+
+// object: the mesh, box, surface or tetra, and how it is placed and improved.
+void readObjectSection(ObjectReader& root, SceneDef& s) {
+    ObjectReader o = root.object("object");
+    if (int(o.has("mesh")) + int(o.has("box")) + int(o.has("surface")) + int(o.has("tetra")) != 1)
+        o.fail("mesh", "give exactly one of mesh (a tet mesh file), box, surface and tetra");
+    if (o.has("mesh") && o.raw("mesh").is_object()) {
+        s.meshData = std::make_shared<const TetMesh>(readInlineMesh(o.object("mesh")));
+    } else if (o.has("mesh")) {
+        s.mesh = existingPath(o, "mesh", s.dir);
+    } else if (o.has("tetra")) {
+        // A surface filled with tets at load (`cutsim tetra`), cached by content.
+        ObjectReader te = o.object("tetra");
+        s.tetraSurface = existingPath(te, "surface", s.dir);
+        if (!te.has("size")) te.fail("size", "required: the target edge length [m]");
+        s.tetraSize = te.number("size", 0, 0, 1e300, true);
+        s.tetraImprove = te.boolean("improve", true);
+        te.finish();
+    } else if (o.has("surface")) {
+        // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.
+        ObjectReader su = o.object("surface");
+        s.surface = existingPath(su, "path", s.dir);
+        if (su.has("cells") == su.has("h")) su.fail("cells", "give exactly one of cells and h");
+        s.surfaceCells = su.has("cells") ? su.integer("cells", 16, 1, 1000) : 0;
+        s.surfaceH = su.has("h") ? su.number("h", 0, 0, 1e300, true) : 0;
+        s.surfaceFixOutside = su.boolean("fix_outside", false);
+        s.surfaceKeepStep = su.boolean("keep_step", true);
+        su.finish();
+    } else {
+        ObjectReader b = o.object("box");
+        s.boxSize = b.requiredVec3("size");
+        if ((s.boxSize.array() < kMinExtent).any() || (s.boxSize.array() > kMaxCoordinate).any())
+            b.fail("size", "must lie within [1e-6, 1e6] m in every axis");
+        const Eigen::Vector3d cells = b.requiredVec3("cells");
+        for (int k = 0; k < 3; ++k)
+            if (cells(k) < 1 || cells(k) > 1000 || cells(k) != std::floor(cells(k)))
+                b.fail("cells", "must be 3 integers in [1, 1000]");
+        s.boxCells = cells.cast<int>();
+        if (static_cast<double>(s.boxCells.prod()) * 6 > 2e7) b.fail("cells", "more than 2e7 tets");
+        b.finish();
+    }
+    s.scale = o.number("scale", 1, 0, 1e9, true);
+    s.translate = o.vec3("translate", s.translate);
+    s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
+    s.reorient = o.boolean("reorient", false);
+    if (o.has("reorder") && s.mesh.empty())
+        o.fail("reorder", "applies to a tet mesh file (object.mesh); boxes, inline meshes and surfaces keep "
+                          "their order");
+    s.reorder = o.boolean("reorder", true);
+    if (o.has("improve")) {
+        if (o.has("surface")) o.fail("improve", "applies to a tet mesh object (mesh or box), not to surface");
+        if (o.has("tetra")) o.fail("improve", "a tetra mesh is improved when built (object.tetra.improve)");
+        if (o.raw("improve").is_boolean()) {
+            s.improve = o.boolean("improve", false);
+        } else {
+            ObjectReader im = o.object("improve");
+            s.improve = true;
+            ImproveOptions& io = s.improveOptions;
+            io.maxSeconds = im.number("max_seconds", io.maxSeconds, 0, 1e6, true);
+            io.maxRounds = static_cast<int>(im.integer("rounds", io.maxRounds, 1, 100000));
+            io.featureAngleDeg = im.number("feature_angle", io.featureAngleDeg, 0, 180);
+            io.maxVolumeChange = im.number("max_volume_change", io.maxVolumeChange, 0, 0.5);
+            io.maxBoundaryDistance = im.number("max_boundary_distance", io.maxBoundaryDistance, 0, 0.5);
+            io.moveBoundary = im.boolean("move_boundary", io.moveBoundary);
+            im.finish();
+        }
+    }
+    if (o.has("visual")) {
+        // A fine surface drawn in place of the tet boundary or of an MI object's own (touched)
+        // surface, riding the elements (embed/visual.hpp).
+        s.visualScale = s.scale;
+        if (o.raw("visual").is_object()) {
+            ObjectReader v = o.object("visual");
+            s.visual = existingPath(v, "path", s.dir);
+            s.visualScale = v.number("scale", s.scale, 0, 1e9, true);
+            v.finish();
+        } else {
+            s.visual = existingPath(o, "visual", s.dir);
+        }
+    }
+    s.anySize = o.boolean("any_size", false);
+    const std::string element = o.string("element", "corotational", {"corotational", "linear", "hybrid"});
+    s.element = element == "linear" ? ElementModel::Linear : ElementModel::Corotational;
+    s.hybrid = element == "hybrid";
+    s.hybridThreshold = o.number("hybrid_threshold", s.hybridThreshold, 1, 10);
+    s.matchStiffness = o.number("match_stiffness", s.matchStiffness, 0, 1, true);
+    o.finish();
+}
+
+// integrator: the scheme, the step policy, stretch limiting, the solver and precision.
+void readIntegratorSection(ObjectReader in, SceneDef& s) {
+    s.integrator = parseIntegrator(in.string("scheme", "symplectic_euler",
+                                             {"symplectic_euler", "central_difference", "newmark", "backward_euler"}));
+    if (in.has("dt")) {
+        ObjectReader d = in.object("dt");
+        const std::string mode = d.string("mode", "fraction", {"fixed", "fraction"});
+        if (mode == "fixed") {
+            s.dt.fixed = true;
+            s.dt.value = d.number("value", 0, 0, 10, true);
+            if (!d.has("value")) d.fail("value", "is required for mode fixed");
+        } else {
+            s.dt.fixed = false;
+            s.dt.of = parseLimitOf(d.string("of", "exact", {"exact", "certified", "estimate"}));
+            s.dt.fraction = d.number("fraction", 0.9, 0, 100, true);
+        }
+        s.dt.onLimit = parseOnLimit(d.string("on_limit", "refuse", {"refuse", "clamp", "damp"}));
+        d.finish();
+    }
+    s.minStretch = in.number("min_stretch", 0, 0, 0.9);
+    s.maxSteps = in.number("max_steps", s.maxSteps, 1, 1e15);
+    s.implicitSolver = parseImplicitSolver(in.string("solver", "direct", {"direct", "cg"}));
+    if (in.has("solver") && s.integrator != Integrator::BackwardEuler)
+        in.fail("solver", "applies to scheme backward_euler only");
+    s.precision = in.string("precision", "double", {"double", "single"}) == "single" ? ForcePrecision::Single
+                                                                                     : ForcePrecision::Double;
+    if (const char* why = precisionConflict(s.integrator, s.precision)) in.fail("precision", why);
+    in.finish();
+}
+
+// cutting: lumping, the after-cut response, scripted cuts and the baselines to compare.
+void readCuttingSection(ObjectReader c, SceneDef& s) {
+    s.cutting.lumping = parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
+    s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
+    if (c.has("exact_after_cut") && c.raw("exact_after_cut").is_string()) {
+        s.cutting.exactAtStrokeEnd = c.string("exact_after_cut", "stroke_end", {"stroke_end"}) == "stroke_end";
+        s.cutting.exactAfterCut = true;
+    } else if (c.has("exact_after_cut")) {
+        s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
+        s.cutting.exactAtStrokeEnd = false;
+    }
+    s.cutting.stepFloor = c.number("step_floor", Cutting{}.stepFloor, 0, 1);
+    s.cutting.floorHybrid = c.string("floor_method", "mass", {"mass", "hybrid"}) == "hybrid";
+    const Cutting dflt;
+    s.cutting.mergeDebris = c.boolean("merge_debris", dflt.mergeDebris);
+    s.cutting.relaxIterations = c.integer("relax_iterations", dflt.relaxIterations, 0, 100);
+    s.cutting.lightShare = c.number("light_share", dflt.lightShare, 0, 0.5);
+    s.cutting.bladeSlot = c.boolean("blade_slot", dflt.bladeSlot);
+    if (c.has("compare")) {
+        const json& cmp = c.raw("compare");
+        c.touch("compare");
+        const char* what = "must be an array of \"subdivision\", \"subdivision_improve\" and \"remesh\"";
+        if (!cmp.is_array()) c.fail("compare", what);
+        for (const auto& m : cmp) {
+            if (!m.is_string() || (m != "subdivision" && m != "remesh" && m != "subdivision_improve"))
+                c.fail("compare", what);
+            s.cutting.compare.push_back(m.get<std::string>());
+        }
+    }
+    for (auto& k : c.array("cuts")) {
+        CutDef cd;
+        cd.path = k.path();
+        cd.time = k.number("time", 0, 0);
+        cd.point = k.requiredVec3("point");
+        cd.normal = k.requiredUnitVec3("normal");
+        if (k.has("polygon")) {
+            const json& poly = k.raw("polygon");
+            k.touch("polygon");
+            if (!poly.is_array() || poly.size() < 3)
+                k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
+            for (const auto& q : poly) {
+                if (!q.is_array() || q.size() != 3 || !q[0].is_number() || !q[1].is_number() || !q[2].is_number())
+                    k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
+                const Eigen::Vector3d p(q[0].get<double>(), q[1].get<double>(), q[2].get<double>());
+                if (std::abs(cd.normal.dot(p - cd.point)) > 1e-6 * std::max(1.0, (p - cd.point).norm()))
+                    k.fail("polygon", "its points must lie in the cut plane");
+                cd.polygon.push_back(p);
+            }
+        }
+        k.finish();
+        if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time)
+            k.fail("time", "cuts must be in time order");
+        s.cutting.cuts.push_back(cd);
+    }
+    for (const CutDef& cd : s.cutting.cuts)
+        if (!s.cutting.compare.empty() && !cd.polygon.empty())
+            c.fail("compare", "the baselines cut whole planes; " + cd.path + " is bounded by a polygon");
+    c.finish();
+}
+
+// capture: frames, video, colour map and screenshot-test settings.
+void readCaptureSection(ObjectReader c, SceneDef& s) {
+    s.capture.enabled = c.boolean("enabled", true);
+    s.capture.fps = c.number("fps", 30, 0, 1e5, true);
+    s.capture.playbackFps = c.number("playback_fps", 0, 0, 1000);
+    s.capture.width = c.integer("width", 1280, 16, 8192);
+    s.capture.height = c.integer("height", 720, 16, 8192);
+    s.capture.samples = c.integer("samples", 1, 1, 16);
+    s.capture.colormap = c.string("colormap", "timestep", {"timestep", "displacement", "stress", "none"});
+    s.capture.video = c.boolean("video", true);
+    s.capture.pngEvery = c.integer("png_every", 1, 0, 1000000);
+    s.capture.hud = c.boolean("hud", true);
+    s.capture.wireframe = c.boolean("wireframe", false);
+    s.capture.xray = c.boolean("xray", true);
+    s.capture.criticalFactor = c.number("critical_factor", 1.1, 0, 100, true);
+    s.capture.answeredSeconds = c.number("answered_seconds", 0.5, 0, 1e6);
+    if (c.has("range")) {
+        const json& r = c.raw("range");
+        if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
+            !(r[0].get<double>() < r[1].get<double>()) || !std::isfinite(r[0].get<double>()) ||
+            !std::isfinite(r[1].get<double>()))
+            c.fail("range", "must be [min, max] with min < max, in the colour map's unit, got " + r.dump());
+        s.capture.rangeMin = r[0].get<double>();
+        s.capture.rangeMax = r[1].get<double>();
+        c.touch("range");
+    }
+    s.capture.floor = c.boolean("floor", true);
+    s.capture.vtu = c.boolean("vtu", false);
+    s.capture.cutObj = c.boolean("cut_obj", false);
+    if (c.has("floor_height")) s.capture.floorHeight = c.number("floor_height", 0, -1e6, 1e6);
+    if (c.has("check")) {
+        ObjectReader k = c.object("check");
+        CheckSettings& ch = s.capture.check;
+        ch.maxDiff = k.integer("max_diff", ch.maxDiff, 0, 255);
+        ch.maxFailing = k.number("max_failing", ch.maxFailing, 0, 1);
+        if (k.has("frames")) {
+            const json& f = k.raw("frames");
+            if (!f.is_array() || f.empty()) k.fail("frames", "must be a non-empty array of frame numbers or \"last\"");
+            for (const json& e : f) {
+                if (e.is_string() && e.get<std::string>() == "last")
+                    ch.frames.push_back(-1);
+                else if (e.is_number_integer() && e.get<long>() >= 0 && e.get<long>() < 100000000)
+                    ch.frames.push_back(e.get<int>());
+                else
+                    k.fail("frames", "entries must be frame numbers >= 0 or \"last\", got " + e.dump());
+            }
+            k.touch("frames");
+        }
+        k.finish();
+    }
+    c.finish();
+}
+
+}  // namespace
+
 SceneDef parseScene(const json& j, const std::string& file) {
     SceneDef s;
     s.file = file;
@@ -368,92 +605,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
     s.name = root.string("name", fs::path(file).stem().string());
     root.touch("description");
 
-    {
-        ObjectReader o = root.object("object");
-        if (int(o.has("mesh")) + int(o.has("box")) + int(o.has("surface")) + int(o.has("tetra")) != 1)
-            o.fail("mesh", "give exactly one of mesh (a tet mesh file), box, surface and tetra");
-        if (o.has("mesh") && o.raw("mesh").is_object()) {
-            s.meshData = std::make_shared<const TetMesh>(readInlineMesh(o.object("mesh")));
-        } else if (o.has("mesh")) {
-            s.mesh = existingPath(o, "mesh", s.dir);
-        } else if (o.has("tetra")) {
-            // A surface filled with tets at load (`cutsim tetra`), cached by content.
-            ObjectReader te = o.object("tetra");
-            s.tetraSurface = existingPath(te, "surface", s.dir);
-            if (!te.has("size")) te.fail("size", "required: the target edge length [m]");
-            s.tetraSize = te.number("size", 0, 0, 1e300, true);
-            s.tetraImprove = te.boolean("improve", true);
-            te.finish();
-        } else if (o.has("surface")) {
-            // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.
-            ObjectReader su = o.object("surface");
-            s.surface = existingPath(su, "path", s.dir);
-            if (su.has("cells") == su.has("h")) su.fail("cells", "give exactly one of cells and h");
-            s.surfaceCells = su.has("cells") ? su.integer("cells", 16, 1, 1000) : 0;
-            s.surfaceH = su.has("h") ? su.number("h", 0, 0, 1e300, true) : 0;
-            s.surfaceFixOutside = su.boolean("fix_outside", false);
-            s.surfaceKeepStep = su.boolean("keep_step", true);
-            su.finish();
-        } else {
-            ObjectReader b = o.object("box");
-            s.boxSize = b.requiredVec3("size");
-            if ((s.boxSize.array() < kMinExtent).any() || (s.boxSize.array() > kMaxCoordinate).any())
-                b.fail("size", "must lie within [1e-6, 1e6] m in every axis");
-            const Eigen::Vector3d cells = b.requiredVec3("cells");
-            for (int k = 0; k < 3; ++k)
-                if (cells(k) < 1 || cells(k) > 1000 || cells(k) != std::floor(cells(k)))
-                    b.fail("cells", "must be 3 integers in [1, 1000]");
-            s.boxCells = cells.cast<int>();
-            if (static_cast<double>(s.boxCells.prod()) * 6 > 2e7) b.fail("cells", "more than 2e7 tets");
-            b.finish();
-        }
-        s.scale = o.number("scale", 1, 0, 1e9, true);
-        s.translate = o.vec3("translate", s.translate);
-        s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
-        s.reorient = o.boolean("reorient", false);
-        if (o.has("reorder") && s.mesh.empty())
-            o.fail("reorder", "applies to a tet mesh file (object.mesh); boxes, inline meshes and surfaces keep "
-                              "their order");
-        s.reorder = o.boolean("reorder", true);
-        if (o.has("improve")) {
-            if (o.has("surface")) o.fail("improve", "applies to a tet mesh object (mesh or box), not to surface");
-            if (o.has("tetra")) o.fail("improve", "a tetra mesh is improved when built (object.tetra.improve)");
-            if (o.raw("improve").is_boolean()) {
-                s.improve = o.boolean("improve", false);
-            } else {
-                ObjectReader im = o.object("improve");
-                s.improve = true;
-                ImproveOptions& io = s.improveOptions;
-                io.maxSeconds = im.number("max_seconds", io.maxSeconds, 0, 1e6, true);
-                io.maxRounds = static_cast<int>(im.integer("rounds", io.maxRounds, 1, 100000));
-                io.featureAngleDeg = im.number("feature_angle", io.featureAngleDeg, 0, 180);
-                io.maxVolumeChange = im.number("max_volume_change", io.maxVolumeChange, 0, 0.5);
-                io.maxBoundaryDistance = im.number("max_boundary_distance", io.maxBoundaryDistance, 0, 0.5);
-                io.moveBoundary = im.boolean("move_boundary", io.moveBoundary);
-                im.finish();
-            }
-        }
-        if (o.has("visual")) {
-            // A fine surface drawn in place of the tet boundary or of an MI object's own (touched)
-            // surface, riding the elements (embed/visual.hpp).
-            s.visualScale = s.scale;
-            if (o.raw("visual").is_object()) {
-                ObjectReader v = o.object("visual");
-                s.visual = existingPath(v, "path", s.dir);
-                s.visualScale = v.number("scale", s.scale, 0, 1e9, true);
-                v.finish();
-            } else {
-                s.visual = existingPath(o, "visual", s.dir);
-            }
-        }
-        s.anySize = o.boolean("any_size", false);
-        const std::string element = o.string("element", "corotational", {"corotational", "linear", "hybrid"});
-        s.element = element == "linear" ? ElementModel::Linear : ElementModel::Corotational;
-        s.hybrid = element == "hybrid";
-        s.hybridThreshold = o.number("hybrid_threshold", s.hybridThreshold, 1, 10);
-        s.matchStiffness = o.number("match_stiffness", s.matchStiffness, 0, 1, true);
-        o.finish();
-    }
+    readObjectSection(root, s);
     if (root.has("material")) {
         ObjectReader m = root.object("material");
         // documented ranges: beyond them the stiffness rows over- or underflow in the Lanczos solve
@@ -486,35 +638,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         }
         l.finish();
     }
-    if (root.has("integrator")) {
-        ObjectReader in = root.object("integrator");
-        s.integrator = parseIntegrator(in.string(
-            "scheme", "symplectic_euler", {"symplectic_euler", "central_difference", "newmark", "backward_euler"}));
-        if (in.has("dt")) {
-            ObjectReader d = in.object("dt");
-            const std::string mode = d.string("mode", "fraction", {"fixed", "fraction"});
-            if (mode == "fixed") {
-                s.dt.fixed = true;
-                s.dt.value = d.number("value", 0, 0, 10, true);
-                if (!d.has("value")) d.fail("value", "is required for mode fixed");
-            } else {
-                s.dt.fixed = false;
-                s.dt.of = parseLimitOf(d.string("of", "exact", {"exact", "certified", "estimate"}));
-                s.dt.fraction = d.number("fraction", 0.9, 0, 100, true);
-            }
-            s.dt.onLimit = parseOnLimit(d.string("on_limit", "refuse", {"refuse", "clamp", "damp"}));
-            d.finish();
-        }
-        s.minStretch = in.number("min_stretch", 0, 0, 0.9);
-        s.maxSteps = in.number("max_steps", s.maxSteps, 1, 1e15);
-        s.implicitSolver = parseImplicitSolver(in.string("solver", "direct", {"direct", "cg"}));
-        if (in.has("solver") && s.integrator != Integrator::BackwardEuler)
-            in.fail("solver", "applies to scheme backward_euler only");
-        s.precision = in.string("precision", "double", {"double", "single"}) == "single" ? ForcePrecision::Single
-                                                                                         : ForcePrecision::Double;
-        if (const char* why = precisionConflict(s.integrator, s.precision)) in.fail("precision", why);
-        in.finish();
-    }
+    if (root.has("integrator")) readIntegratorSection(root.object("integrator"), s);
     s.duration = root.number("duration", 1, 0, 1e6, true);
     if (root.has("checks")) {
         ObjectReader c = root.object("checks");
@@ -527,66 +651,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.checks.invertedSteps = c.integer("inverted_steps", s.checks.invertedSteps, 0, 1000000000);
         c.finish();
     }
-    if (root.has("cutting")) {
-        ObjectReader c = root.object("cutting");
-        s.cutting.lumping =
-            parseLumping(c.string("lumping", "enrichment", {"row_sum", "weighted_diagonal", "enrichment"}));
-        s.cutting.minFraction = c.number("min_fraction", CutOptions{}.minFraction, 0, 0.5);
-        if (c.has("exact_after_cut") && c.raw("exact_after_cut").is_string()) {
-            s.cutting.exactAtStrokeEnd = c.string("exact_after_cut", "stroke_end", {"stroke_end"}) == "stroke_end";
-            s.cutting.exactAfterCut = true;
-        } else if (c.has("exact_after_cut")) {
-            s.cutting.exactAfterCut = c.boolean("exact_after_cut", true);
-            s.cutting.exactAtStrokeEnd = false;
-        }
-        s.cutting.stepFloor = c.number("step_floor", Cutting{}.stepFloor, 0, 1);
-        s.cutting.floorHybrid = c.string("floor_method", "mass", {"mass", "hybrid"}) == "hybrid";
-        const Cutting dflt;
-        s.cutting.mergeDebris = c.boolean("merge_debris", dflt.mergeDebris);
-        s.cutting.relaxIterations = c.integer("relax_iterations", dflt.relaxIterations, 0, 100);
-        s.cutting.lightShare = c.number("light_share", dflt.lightShare, 0, 0.5);
-        s.cutting.bladeSlot = c.boolean("blade_slot", dflt.bladeSlot);
-        if (c.has("compare")) {
-            const json& cmp = c.raw("compare");
-            c.touch("compare");
-            const char* what = "must be an array of \"subdivision\", \"subdivision_improve\" and \"remesh\"";
-            if (!cmp.is_array()) c.fail("compare", what);
-            for (const auto& m : cmp) {
-                if (!m.is_string() || (m != "subdivision" && m != "remesh" && m != "subdivision_improve"))
-                    c.fail("compare", what);
-                s.cutting.compare.push_back(m.get<std::string>());
-            }
-        }
-        for (auto& k : c.array("cuts")) {
-            CutDef cd;
-            cd.path = k.path();
-            cd.time = k.number("time", 0, 0);
-            cd.point = k.requiredVec3("point");
-            cd.normal = k.requiredUnitVec3("normal");
-            if (k.has("polygon")) {
-                const json& poly = k.raw("polygon");
-                k.touch("polygon");
-                if (!poly.is_array() || poly.size() < 3)
-                    k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
-                for (const auto& q : poly) {
-                    if (!q.is_array() || q.size() != 3 || !q[0].is_number() || !q[1].is_number() || !q[2].is_number())
-                        k.fail("polygon", "must be an array of at least 3 points [x, y, z]");
-                    const Eigen::Vector3d p(q[0].get<double>(), q[1].get<double>(), q[2].get<double>());
-                    if (std::abs(cd.normal.dot(p - cd.point)) > 1e-6 * std::max(1.0, (p - cd.point).norm()))
-                        k.fail("polygon", "its points must lie in the cut plane");
-                    cd.polygon.push_back(p);
-                }
-            }
-            k.finish();
-            if (!s.cutting.cuts.empty() && cd.time < s.cutting.cuts.back().time)
-                k.fail("time", "cuts must be in time order");
-            s.cutting.cuts.push_back(cd);
-        }
-        for (const CutDef& cd : s.cutting.cuts)
-            if (!s.cutting.compare.empty() && !cd.polygon.empty())
-                c.fail("compare", "the baselines cut whole planes; " + cd.path + " is bounded by a polygon");
-        c.finish();
-    }
+    if (root.has("cutting")) readCuttingSection(root.object("cutting"), s);
     {
         int i = 0;
         for (auto& t : root.array("tools")) {
@@ -631,59 +696,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         }
         c.finish();
     }
-    if (root.has("capture")) {
-        ObjectReader c = root.object("capture");
-        s.capture.enabled = c.boolean("enabled", true);
-        s.capture.fps = c.number("fps", 30, 0, 1e5, true);
-        s.capture.playbackFps = c.number("playback_fps", 0, 0, 1000);
-        s.capture.width = c.integer("width", 1280, 16, 8192);
-        s.capture.height = c.integer("height", 720, 16, 8192);
-        s.capture.samples = c.integer("samples", 1, 1, 16);
-        s.capture.colormap = c.string("colormap", "timestep", {"timestep", "displacement", "stress", "none"});
-        s.capture.video = c.boolean("video", true);
-        s.capture.pngEvery = c.integer("png_every", 1, 0, 1000000);
-        s.capture.hud = c.boolean("hud", true);
-        s.capture.wireframe = c.boolean("wireframe", false);
-        s.capture.xray = c.boolean("xray", true);
-        s.capture.criticalFactor = c.number("critical_factor", 1.1, 0, 100, true);
-        s.capture.answeredSeconds = c.number("answered_seconds", 0.5, 0, 1e6);
-        if (c.has("range")) {
-            const json& r = c.raw("range");
-            if (!r.is_array() || r.size() != 2 || !r[0].is_number() || !r[1].is_number() ||
-                !(r[0].get<double>() < r[1].get<double>()) || !std::isfinite(r[0].get<double>()) ||
-                !std::isfinite(r[1].get<double>()))
-                c.fail("range", "must be [min, max] with min < max, in the colour map's unit, got " + r.dump());
-            s.capture.rangeMin = r[0].get<double>();
-            s.capture.rangeMax = r[1].get<double>();
-            c.touch("range");
-        }
-        s.capture.floor = c.boolean("floor", true);
-        s.capture.vtu = c.boolean("vtu", false);
-        s.capture.cutObj = c.boolean("cut_obj", false);
-        if (c.has("floor_height")) s.capture.floorHeight = c.number("floor_height", 0, -1e6, 1e6);
-        if (c.has("check")) {
-            ObjectReader k = c.object("check");
-            CheckSettings& ch = s.capture.check;
-            ch.maxDiff = k.integer("max_diff", ch.maxDiff, 0, 255);
-            ch.maxFailing = k.number("max_failing", ch.maxFailing, 0, 1);
-            if (k.has("frames")) {
-                const json& f = k.raw("frames");
-                if (!f.is_array() || f.empty())
-                    k.fail("frames", "must be a non-empty array of frame numbers or \"last\"");
-                for (const json& e : f) {
-                    if (e.is_string() && e.get<std::string>() == "last")
-                        ch.frames.push_back(-1);
-                    else if (e.is_number_integer() && e.get<long>() >= 0 && e.get<long>() < 100000000)
-                        ch.frames.push_back(e.get<int>());
-                    else
-                        k.fail("frames", "entries must be frame numbers >= 0 or \"last\", got " + e.dump());
-                }
-                k.touch("frames");
-            }
-            k.finish();
-        }
-        c.finish();
-    }
+    if (root.has("capture")) readCaptureSection(root.object("capture"), s);
     if (root.has("output")) {
         ObjectReader o = root.object("output");
         s.writeVtu = o.boolean("vtu", true);

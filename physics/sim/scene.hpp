@@ -30,6 +30,7 @@ struct Region {
     double distance = 0;     // plane: |signed distance| <= distance [m]; sphere radius [m]
     std::vector<int> nodes;  // explicit node indices (0-based)
     std::string path;        // key path, for messages
+    std::string file;        // scene file, for messages
 };
 
 // Time profile of a load: a factor on the force. constant: 1 from start on; ramp: 0 -> 1 over

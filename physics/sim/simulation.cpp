@@ -30,7 +30,7 @@ constexpr double kKeepStepWarnFraction = 0.01;  // keep_step adding more of the 
 constexpr double kMinObjectSize = 1e-3;         // [m] below or above these the scale is most likely wrong
 constexpr double kMaxObjectSize = 10;
 constexpr long kBoundsEvery = 4;           // steps between the speed and displacement checks
-constexpr double kBytesPerTet = 1000;      // a run's peak memory per element: 870 B measured on boxes, plus margin
+constexpr double kBytesPerTet = 1000;      // a run's peak memory per element, with margin
 constexpr double kMaxContactPoints = 5e6;  // docs/scene-format.md, contact.spacing
 constexpr double kMaxVisualOutside = 0.1;  // object.visual: farthest vertex outside, of the object's size
 constexpr int kVisualCapLevels = 2;        // object.visual: cut faces clipped to it on 16 sub-triangles each
@@ -186,8 +186,8 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
     bounds_ = divergenceBounds(sc_, model_);
 
     // Time step: exact, certified and estimated limits, then the scene's policy (docs/method.md sec. 2-3).
-    Stopwatch ts;
     ExactResult exact;
+    const Stage outer = rec_.stages.open(Stage::Timestep);  // the set-up's timestep stage (StageTimer's open)
     try {
         ta_ = TimestepAnalyzer(model_);
         exact = ta_.exact(model_);
@@ -226,19 +226,24 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             ro.dtCertified = ro.dtFloor > 0 ? std::min(ro.dtFloor, initial_.certified) : initial_.certified;
         response_ = CutResponse(ro);
     }
-    rec_.stages[Stage::Timestep] += ts.seconds();
+    rec_.stages.open(outer);
     if (!(exact.dt > 0) || !std::isfinite(exact.dt))
         throw InputError(sc_.file + ": the exact stable step of the object is " + fmt("%g", exact.dt) +
                          " s: check material (E, nu, rho), object.scale and fixed");
     chooseAndApply(true);
     checkStepBudget(sc_, choice_.dt, model_.elements());
+    // a run that would take no step is refused: "ok" always means something was simulated
+    if (finished())
+        throw InputError(
+            sc_.file + ": duration: " +
+            fmt("%g s ends before the first step of %.4g s: the run would simulate nothing", sc_.duration, choice_.dt));
 
     setupContact();
     // Cutting: the engine's bookkeeping exists only in scenes that cut (a scene pays for what it uses).
     for (size_t i = 0; i < sc_.tools.size(); ++i)
         if (sc_.tools[i].kind == ToolDef::Kind::Blade) bladeTools_.push_back(static_cast<int>(i));
     if (!sc_.cutting.cuts.empty() || !bladeTools_.empty()) {
-        Stopwatch sw;
+        const StageTimer t(rec_.stages, Stage::Cuts);
         ensureCutter();
         if (!bladeTools_.empty()) {
             // boxes fattened by the thinnest blade: a node moving less than that per step needs no tree update
@@ -248,7 +253,6 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             bladeMargin_ = margin;
             lastEdge_.resize(bladeTools_.size());
         }
-        rec_.stages[Stage::Cuts] += sw.seconds();
     }
     energyChecked_ = bounds_.energyGrowth > 0 && sc_.tools.empty() && sc_.forces.empty();
     energyRef_ = totalEnergy(model_, state_);
@@ -277,6 +281,9 @@ void Simulation::buildObject() {
     ReadOptions ro;
     ro.scale = sc.scale;
     ro.reorient = sc.reorient;
+    ro.scaleKey = sc.file + ": object.scale";
+    // object.visual.scale when given, else object.scale
+    const std::string visualKey = sc.file + (sc.visualScale != sc.scale ? ": object.visual.scale" : ": object.scale");
     const double d2r = M_PI / 180.0;
     const Eigen::Matrix3d R = (Eigen::AngleAxisd(sc.rotateDeg.z() * d2r, Eigen::Vector3d::UnitZ()) *
                                Eigen::AngleAxisd(sc.rotateDeg.y() * d2r, Eigen::Vector3d::UnitY()) *
@@ -298,13 +305,14 @@ void Simulation::buildObject() {
     if (!sc.surface.empty()) {
         // Mesh intersection: the placed surface in a regular lattice (thesis ch. 6).
         Stopwatch te;
-        SurfaceMesh surf = placed(readSurfaceMesh(sc.surface, sc.scale));
+        SurfaceMesh surf = placed(readSurfaceMesh(sc.surface, sc.scale, ro.scaleKey));
         checkSize(surf.V);
         MiOptions mo;
         mo.cells = sc.surfaceCells;
         mo.h = sc.surfaceH;
         mo.fixOutsideNodes = sc.surfaceFixOutside;
         mo.keepLatticeStep = sc.surfaceKeepStep;
+        mo.sizeKey = sc.file + (sc.surfaceH > 0 ? ": object.surface.h" : ": object.surface.cells");
         MiResult mi = buildMi(surf, sc.material, mo);
         embedding_ = {{"h", mi.h},
                       {"interface_elements", mi.count(ElementClass::Interface)},
@@ -336,7 +344,7 @@ void Simulation::buildObject() {
         // else a contact correcting the heavy nodes next to them each step drives their modes,
         // which sit at the step's limit (docs/method.md, Contact).
         if (sc.cutting.lightShare > 0) markLightNodes(model_, wholeMass(model_), sc.cutting.lightShare);
-        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
+        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale, visualKey)));
     } else {
         const bool box = sc.mesh.empty() && !sc.meshData && sc.tetraSurface.empty();
         if (box) checkMemory(sc.file + ": object.box.cells", 6.0 * sc.boxCells.cast<double>().prod() * kBytesPerTet);
@@ -353,7 +361,7 @@ void Simulation::buildObject() {
         // two threads run slower than one. Spatial order keeps a thread's nodes its own.
         if (!sc.mesh.empty() && sc.reorder) mesh = spatialOrder(mesh, &inputNode_, &inputElement_);
         model_ = buildModel(mesh, sc.material, sc.element);
-        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale)));
+        if (!sc.visual.empty()) embedVisualSurface(placed(readSurfaceMesh(sc.visual, sc.visualScale, visualKey)));
     }
     model_.gravity = sc.gravity;
     model_.massDamping = sc.damping;
@@ -591,9 +599,11 @@ bool Simulation::finished() const { return state_.time >= sc_.duration - 1e-9 * 
 RunStatus Simulation::step() {
     if (status_ != RunStatus::Running) return status_;
     if (finished()) return status_ = RunStatus::Finished;
-    Stopwatch sw, whole;
+    const Stopwatch whole;
+    StageTimes& timer = rec_.stages;  // each stage a StageTimer scope (record.hpp)
     // 1. loads: the scene's applied forces into fExt (zeroed first when loads or tools add to it)
     if (!sc_.forces.empty() || contact_) {
+        const StageTimer t(timer, Stage::Loads);
         state_.fExt.setZero();
         for (size_t l = 0; l < sc_.forces.size(); ++l) {
             const Eigen::Vector3d f =
@@ -601,42 +611,44 @@ RunStatus Simulation::step() {
             for (int n : loadNodes_[l]) state_.fExt.col(n) += f;
         }
     }
-    rec_.stages[Stage::Loads] += sw.lap();
     // 2. contact: penalty forces at the state of the step's start (projection acts after step 5)
     const double tStep = state_.time;
     const bool projection = contact_ && sc_.contactModel == ContactModel::Projection;
     if (contact_ && !projection) {
+        const StageTimer t(timer, Stage::Contact);
         contact_->addForces(state_.x, state_.v, state_.time, choice_.dt, state_.fExt);
-        rec_.stages[Stage::Contact] += sw.lap();
     }
     // 3. cuts: scripted cuts due now, blade sweeps over [t, t + dt]; each is a topology change
+    // (the after-cut step and contact points inside it are their own stages)
     if (cutter_) {
-        const double inner = rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact];
-        const bool go = applyDueCuts() && applyBlades();
-        rec_.stages[Stage::Cuts] += sw.lap() - (rec_.stages[Stage::Timestep] + rec_.stages[Stage::Contact] - inner);
-        if (!go) return status_;
+        const StageTimer t(timer, Stage::Cuts);
+        if (!(applyDueCuts() && applyBlades())) return status_;
     }
-    // 4-5. forces and integration (fem/integrate.hpp; the node update may run inside the force stage)
+    // 4-5. forces and integration (fem/integrate.hpp; the node update may run inside the force
+    // stage, and the Stepper times its force part itself)
     so_.alphaElem = alphaElem_.size() ? &alphaElem_ : nullptr;  // this object's, also after a move
-    stepper_.step(model_, state_, so_);
-    const double stepSeconds = sw.lap();
-    rec_.stages[Stage::Forces] += stepper_.lastForceSeconds();
-    rec_.stages[Stage::Integrate] += stepSeconds - stepper_.lastForceSeconds();
+    {
+        const StageTimer t(timer, Stage::Integrate);
+        stepper_.step(model_, state_, so_);
+    }
+    timer.reassign(Stage::Integrate, Stage::Forces, stepper_.lastForceSeconds());
     // 5b. projection contact: the points inside a tool or collider back onto its surface
     if (projection) {
+        const StageTimer t(timer, Stage::Contact);
         contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v);
-        rec_.stages[Stage::Contact] += sw.lap();
     }
     // 6. checks
-    if (contact_) {
-        const ContactStep& st = contact_->last();
-        Eigen::Vector3d f = Eigen::Vector3d::Zero();
-        for (const auto& r : st.reaction) f += r;
-        rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
+    {
+        const StageTimer t(timer, Stage::Checks);
+        if (contact_) {
+            const ContactStep& st = contact_->last();
+            Eigen::Vector3d f = Eigen::Vector3d::Zero();
+            for (const auto& r : st.reaction) f += r;
+            rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
+        }
+        check();
+        if (status_ == RunStatus::Running) sampleEnergy();
     }
-    check();
-    if (status_ == RunStatus::Running) sampleEnergy();
-    rec_.stages[Stage::Checks] += sw.lap();
     const double total = whole.seconds();
     rec_.wallLoop += total;
     if (tuner_) tuner_->after(total);

@@ -14,7 +14,7 @@
 //   6. checks     non-finite values, divergence bounds, inverted elements, energy samples
 #pragma once
 
-#include "contact/broadphase.hpp"
+#include "mesh/broadphase.hpp"
 #include "contact/contact.hpp"
 #include "cut/xfem.hpp"
 #include "fem/integrate.hpp"

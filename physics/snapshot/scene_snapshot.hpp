@@ -51,7 +51,6 @@ public:
     Camera defaultCamera(const Model& model, double time);  // the scene's camera at time, or framing the object
     std::pair<double, double> mapRange() const;             // the colour map's fixed range [map unit]
     const Floor& floor() const { return floor_; }           // where the scene puts the floor
-    void setFloor(const Floor& f) { floor_ = f; }           // e.g. from a plane collider
 
 private:
     const SceneDef& sc_;

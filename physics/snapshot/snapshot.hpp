@@ -2,6 +2,7 @@
 // render/ reads only this struct, so physics and render stay independent (README.md, data flow).
 #pragma once
 
+#include "contact/tool_shape.hpp"
 #include "mesh/embedding.hpp"
 #include "mesh/mesh.hpp"
 
@@ -14,17 +15,6 @@
 #include <vector>
 
 namespace cutsim {
-
-// A rigid tool, drawn as a solid of its shape.
-struct ToolShape {
-    enum class Kind : std::uint8_t { Sphere, Capsule, Box };
-    Kind kind = Kind::Sphere;
-    Eigen::Vector3d position = Eigen::Vector3d::Zero();               // centre [m]
-    Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();  // local -> world
-    Eigen::Vector3d size = Eigen::Vector3d::Constant(0.01);           // [m] sphere: radius in x;
-                                                             // capsule: radius in x, half-length of the axis (local z)
-                                                             // in y; box: half extents in x, y, z
-};
 
 // A perspective camera.
 struct Camera {

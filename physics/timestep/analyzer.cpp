@@ -8,10 +8,9 @@
 namespace cutsim {
 
 namespace {
-// A local update is a latency path (cut plus update under 1 ms): a parallel region on a busy
-// machine can wait a whole scheduler slice for its other thread (measured on the liver at load
-// 6 on 2 cores: 264 re-estimated elements took 15-30 ms in two threads, 1.4 ms in one). Threads
-// only for milliseconds of work, ~1 us per element or row (as forces.cpp's kParallelElements).
+// A local update is a latency path: a parallel region on a busy machine can wait a whole
+// scheduler slice for its other thread, which costs more than a small update in one. Threads only
+// for milliseconds of work (as forces.cpp's kParallelElements).
 constexpr int kParallelUpdate = 2048;
 
 double minOf(const Eigen::VectorXd& v) { return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity(); }

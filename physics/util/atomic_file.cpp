@@ -1,6 +1,6 @@
 #include "util/atomic_file.hpp"
 
-#include "mesh/mesh.hpp"
+#include "util/input_error.hpp"
 
 #include <filesystem>
 #include <fstream>

@@ -1,6 +1,6 @@
 #include "util/memory.hpp"
 
-#include "mesh/mesh.hpp"
+#include "util/input_error.hpp"
 
 #include <sys/resource.h>
 #include <unistd.h>

@@ -181,6 +181,49 @@ TEST(BadInput, UsageErrorsExitTwo) {
     EXPECT_EQ(test::runCutsim("--help"), 0);
 }
 
+// Limits that depend on the mesh are checked where the scene's key is applied and name the scene
+// file and that key, not only the mesh or surface the key was applied to.
+TEST(BadInput, ScaleAndLatticeLimitsNameTheSceneKey) {
+    const std::string dir = workDir(), probe = test::source("assets/scenes/probe.json");
+    const std::string run = " --out " + dir + "/o --no-render --quiet";
+    // the liver is 0.3 m across: x 1e9 leaves the coordinate range, x 1e-9 falls below the smallest object
+    expectBadInput("run " + probe + run + " --set object.scale=1e9", "probe.json: object.scale: 1e+09 applied to");
+    expectBadInput("run " + probe + run + " --set object.scale=1e9", "coordinates must lie within");
+    expectBadInput("run " + probe + run + " --set object.scale=1e-9", "probe.json: object.scale");
+    // an empty path is the key's error, not a file's
+    expectBadInput("run " + probe + run + " --set object.mesh=", "probe.json: object.mesh: is empty");
+    // lattices: 1000 cells across the liver is above the tet limit; h = 1e-7 m is 1e6 cells along
+    // an axis; h = 10 m is a cell so much larger than the object that no element keeps a share of it
+    const std::string mi = test::source("assets/scenes/demo_mi.json");
+    expectBadInput("run " + mi + run + " --set object.surface.cells=1000", "demo_mi.json: object.surface.cells");
+    json j = json::parse(test::readText(mi));
+    j["object"]["surface"] = {{"path", test::source("assets/meshes/sofa_liver.obj")}, {"h", 1e-7}};
+    expectBadInput("run " + writeScene(dir + "/fine.json", j) + run, "fine.json: object.surface.h: lattice too fine");
+    j["object"]["surface"]["h"] = 10.0;
+    expectBadInput("run " + writeScene(dir + "/coarse.json", j) + run,
+                   "coarse.json: object.surface.h: no lattice element lies inside the surface: the cell edge");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
+// A fixed node the mesh does not have is the scene's error: file, key and the node.
+TEST(BadInput, FixedNodeIdsNameTheSceneFile) {
+    const std::string dir = workDir();
+    json j = barSag();
+    j["fixed"] = json::parse(R"([{"nodes": [0, 5000]}])");
+    expectBadInput("run " + writeScene(dir + "/nodes.json", j) + " --out " + dir + "/o --no-render --quiet",
+                   "nodes.json: fixed[0].nodes: node 5000 does not exist (mesh has 1025)");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
+// A run that would take no step is refused (exit 2): "ok" always means something was simulated.
+TEST(BadInput, ARunThatSimulatesNothingIsRefused) {
+    const std::string dir = workDir();
+    expectBadInput("run " + test::source("assets/scenes/bar_sag.json") + " --out " + dir +
+                       "/o --no-render --quiet --set duration=1e-15",
+                   "bar_sag.json: duration: 1e-15 s ends before the first step");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
 TEST(BadInput, ContactPointsAreBoundedUpFront) {
     const std::string dir = workDir();
     const std::string probe = test::source("assets/scenes/probe.json");

@@ -60,49 +60,90 @@ TEST(OutputFolder, RefusesAFolderOfOtherFiles) {
     EXPECT_EQ(test::readText(out + "/notes.txt"), "keep me\n");
 }
 
-// The kill test: SIGINT when the progress line says 30%.
-TEST(OutputFolder, SigintAtThirtyPercentLeavesNoHalfWrittenOutput) {
-    const std::string dir = workDir(), out = dir + "/out";
+// Runs bar_sag into `out` with frames (small) for `duration` seconds and sends SIGINT when a
+// progress line holding `trigger` appears; the exit status and stderr.
+struct Signalled {
+    int status = 0;
+    bool sent = false;
+    std::string log;
+};
+Signalled runAndSignal(const std::string& out, const std::string& duration, const std::string& trigger) {
+    Signalled r;
     int errPipe[2];
-    ASSERT_EQ(::pipe(errPipe), 0);
+    if (::pipe(errPipe) != 0) return r;
     const pid_t pid = ::fork();
-    ASSERT_GE(pid, 0);
+    if (pid < 0) return r;
     if (pid == 0) {
         ::dup2(errPipe[1], 2);
         ::close(errPipe[0]);
         ::close(errPipe[1]);
-        const std::string scene = barSagPath();
+        const std::string scene = barSagPath(), d = "duration=" + duration;
         ::execl(CUTSIM_BINARY, CUTSIM_BINARY, "run", scene.c_str(), "--out", out.c_str(), "--threads", "1", "--set",
-                "capture.width=160", "--set", "capture.height=90", "--set", "duration=3", nullptr);
+                "capture.width=160", "--set", "capture.height=90", "--set", d.c_str(), nullptr);
         ::_exit(127);
     }
     ::close(errPipe[1]);
     FILE* err = ::fdopen(errPipe[0], "r");
-    std::string log;
     char line[512];
-    bool sent = false;
     while (std::fgets(line, sizeof line, err)) {
-        log += line;
-        if (!sent && std::string(line).find("progress  30%") != std::string::npos) {
+        r.log += line;
+        if (!r.sent && std::string(line).find(trigger) != std::string::npos) {
             ::kill(pid, SIGINT);
-            sent = true;
+            r.sent = true;
         }
     }
     std::fclose(err);
-    int status = 0;
-    ::waitpid(pid, &status, 0);
-    ASSERT_TRUE(sent) << log;
-    ASSERT_TRUE(WIFEXITED(status)) << log;
-    EXPECT_EQ(WEXITSTATUS(status), 128 + SIGINT) << log;
-    EXPECT_FALSE(fs::exists(out)) << "an interrupted run must not create --out";
+    ::waitpid(pid, &r.status, 0);
+    return r;
+}
+
+// The frames an interrupted run kept: its report counts them.
+int keptFrames(const fs::path& dir) {
+    int n = 0;
+    for (const auto& e : fs::recursive_directory_iterator(dir))
+        n += e.path().extension() == ".png" && e.path().filename().string().rfind("frame_", 0) == 0;
+    return n;
+}
+
+// What every interrupted run leaves: exit 128 + SIGINT, --out untouched, FOLDER.incomplete with a
+// report that says so and counts the frames kept, no temporary files. The report, for more checks.
+json expectInterrupted(const std::string& dir, const std::string& out, const Signalled& s) {
+    EXPECT_TRUE(s.sent) << s.log;
+    EXPECT_TRUE(WIFEXITED(s.status)) << s.log;
+    EXPECT_EQ(WEXITSTATUS(s.status), 128 + SIGINT) << s.log;
+    EXPECT_FALSE(fs::exists(out)) << "an interrupted run must not create --out\n" << s.log;
     const std::string incomplete = out + ".incomplete";
-    ASSERT_TRUE(fs::exists(incomplete + "/report.json")) << log;
+    if (!fs::exists(incomplete + "/report.json")) {
+        ADD_FAILURE() << "no report in " << incomplete << "\n" << s.log;
+        return json();
+    }
     const json r = json::parse(test::readText(incomplete + "/report.json"));
     EXPECT_EQ(r["status"], "interrupted");
-    EXPECT_LT(r["sim_time"].get<double>(), 3.0);
-    EXPECT_FALSE(fs::exists(incomplete + "/video.mp4"));
-    EXPECT_FALSE(fs::exists(incomplete + "/final.vtu"));
+    EXPECT_EQ(r["exit_code"], 128 + SIGINT);
+    EXPECT_EQ(r["frames"].get<int>(), keptFrames(incomplete)) << "the report counts the frames it kept";
     EXPECT_EQ(countTmp(dir), 0) << "temporary files or a staging folder were left behind";
+    return r;
+}
+
+// The kill test: SIGINT when the progress line says 30%.
+TEST(OutputFolder, SigintAtThirtyPercentLeavesNoHalfWrittenOutput) {
+    const std::string dir = workDir(), out = dir + "/out";
+    const json r = expectInterrupted(dir, out, runAndSignal(out, "3", "progress  30%"));
+    ASSERT_TRUE(r.is_object());
+    EXPECT_LT(r["sim_time"].get<double>(), 3.0);
+    // 30% of 3 s at 30 frames per second: about 27 frames drawn, each written as a PNG
+    EXPECT_GT(r["frames"].get<int>(), 20);
+    EXPECT_FALSE(fs::exists(out + ".incomplete/video.mp4"));
+    EXPECT_FALSE(fs::exists(out + ".incomplete/final.vtu"));
+}
+
+// A signal that arrives after the last step, while the frames and the report are written, is not
+// swallowed: the run is "interrupted" (exit 130), never "ok" with exit 0.
+TEST(OutputFolder, SigintAfterTheLastStepIsNotSwallowed) {
+    const std::string dir = workDir(), out = dir + "/out";
+    const json r = expectInterrupted(dir, out, runAndSignal(out, "0.5", "progress 100%"));
+    ASSERT_TRUE(r.is_object());
+    EXPECT_GE(r["sim_time"].get<double>(), 0.5 - 1e-9);
 }
 
 }  // namespace

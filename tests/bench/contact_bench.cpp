@@ -9,7 +9,7 @@
 // - BM_ContactRep*: the representations not chosen, for the cost comparison in contact/contact.hpp:
 //   every surface point a collision object in a btCollisionWorld, and a refitted
 //   btBvhTriangleMeshShape against the probe.
-#include "contact/broadphase.hpp"
+#include "mesh/broadphase.hpp"
 #include "contact/contact.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"

@@ -2,7 +2,7 @@
 // weights, the stable stiffness limit (one point on one free node by hand, a box against a dense
 // bisection, the mass scale by hand, explicit steps of an MI slab pressed over its whole top face:
 // bounded at the limit, diverging above it), tool paths, and the element broad phase against a scan.
-#include "contact/broadphase.hpp"
+#include "mesh/broadphase.hpp"
 #include "contact/collider.hpp"
 #include "contact/contact.hpp"
 #include "contact/tool.hpp"

@@ -1,4 +1,4 @@
-#include "contact/broadphase.hpp"
+#include "mesh/broadphase.hpp"
 
 #include <BulletCollision/BroadphaseCollision/btDbvt.h>
 

@@ -1,0 +1,28 @@
+# The layers of physics/, lowest first: a file may include its own layer and the ones below it,
+# never one above (docs/architecture.md). This list is the one definition of the order.
+#   cmake -DSOURCE=... -P tests/layers.cmake
+set(CUTSIM_LAYERS util mesh fem timestep embed improve cut contact sim snapshot)
+
+file(GLOB_RECURSE files RELATIVE ${SOURCE}/physics ${SOURCE}/physics/*.hpp ${SOURCE}/physics/*.cpp)
+set(upward "")
+foreach(f ${files})
+  string(REGEX MATCH "^[^/]+" layer "${f}")
+  list(FIND CUTSIM_LAYERS ${layer} rank)
+  if(rank EQUAL -1)
+    list(APPEND upward "physics/${f}: folder '${layer}' is not in CUTSIM_LAYERS (tests/layers.cmake)")
+    continue()
+  endif()
+  file(STRINGS ${SOURCE}/physics/${f} lines REGEX "^[ \t]*#[ \t]*include[ \t]*\"[^\"]+/")
+  foreach(line ${lines})
+    string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*\"([^\"/]+)/.*" "\\1" target "${line}")
+    list(FIND CUTSIM_LAYERS ${target} to)
+    if(to GREATER rank)
+      list(APPEND upward "physics/${f} (${layer}) includes ${target}/, a higher layer")
+    endif()
+  endforeach()
+endforeach()
+if(upward)
+  list(JOIN upward "\n  " text)
+  list(JOIN CUTSIM_LAYERS " < " order)
+  message(FATAL_ERROR "includes against the layer order ${order}:\n  ${text}")
+endif()
