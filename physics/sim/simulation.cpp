@@ -247,6 +247,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             bladePhase_ = std::make_unique<ElementBroadphase>(margin);
             bladeMargin_ = margin;
             lastEdge_.resize(bladeTools_.size());
+            setupToughness();
         }
         rec_.stages[Stage::Cuts] += sw.seconds();
     }
@@ -627,6 +628,7 @@ RunStatus Simulation::step() {
     const double stepSeconds = sw.lap();
     rec_.stages[Stage::Forces] += stepper_.lastForceSeconds();
     rec_.stages[Stage::Integrate] += stepSeconds - stepper_.lastForceSeconds();
+    if (tough_) pressFront();  // the blade's edge on the crack front (cut/toughness.hpp)
     // 5b. projection contact: the points inside a tool or collider back onto its surface
     if (projection) {
         contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v);
@@ -637,6 +639,7 @@ RunStatus Simulation::step() {
         const ContactStep& st = contact_->last();
         Eigen::Vector3d f = Eigen::Vector3d::Zero();
         for (const auto& r : st.reaction) f += r;
+        if (tough_) f += recordFront(tStep, st);
         rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
     }
     check();
