@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace cutsim {
 
@@ -39,6 +40,7 @@ BladeToughness::BladeToughness(double gc, int samples, double rate)
 
 void BladeToughness::endStroke() {
     points_.clear();
+    frontRest_.clear();
     advanced_ = false;
     reaction_.setZero();
 }
@@ -92,6 +94,16 @@ int BladeToughness::seed(const Model& m, const Eigen::Matrix3Xd& x, const BladeE
             if (b.e < 0 || (whole && !b.whole) || (whole == b.whole && depth > b.depth)) b = {e, depth, whole, w};
         }
     }
+    // the rest coordinate along dir of each sample in the material (NaN: none)
+    sampleRest_.assign(static_cast<size_t>(samples_), std::numeric_limits<double>::quiet_NaN());
+    for (size_t j = 0; j < best.size(); ++j) {
+        const Best& b = best[j];
+        if (b.e < 0) continue;
+        const int* n = m.tets.col(b.e).data();
+        double r0 = 0;
+        for (int k = 0; k < 4; ++k) r0 += b.w[k] * m.X.col(n[k]).dot(dir);
+        sampleRest_[j] = r0;
+    }
     // one point per element: the samples it holds, their weights averaged (points sharing an
     // element would be redundant constraints that Gauss-Seidel resolves slowly)
     double r = 0;
@@ -118,27 +130,20 @@ int BladeToughness::seed(const Model& m, const Eigen::Matrix3Xd& x, const BladeE
     return static_cast<int>(points_.size());
 }
 
-// The crack grows by the front's advance in the rest configuration times its length (G_c is
-// per unit of crack area created, counted in the material).
-double BladeToughness::restFront(const Model& m, const Eigen::Vector3d& dir, double* length) const {
-    double s = 0, l = 0;
-    for (const Point& p : points_) {
-        Eigen::Vector3d c = Eigen::Vector3d::Zero();
-        for (int k = 0; k < 4; ++k) c += p.w[k] * m.X.col(p.node[static_cast<size_t>(k)]);
-        s += p.length * c.dot(dir), l += p.length;
-    }
-    *length = l;
-    return l > 0 ? s / l : 0.0;
-}
-
-void BladeToughness::advanceRest(const Model& m, const Eigen::Vector3d& dir) {
-    double length = 0;
-    const double s = restFront(m, dir, &length);
+// The crack grows by the front's advance in the rest configuration (G_c is per unit of crack area
+// created, counted in the material): at each sample along the edge, how far the rest coordinate
+// of the material at the front moved on since the sample last met it.
+void BladeToughness::advanceRest(double sampleLength) {
     stepArea_ = 0;
-    if (!(length > 0)) return;
-    stepArea_ = length * std::max(0.0, s - rest_);
+    if (frontRest_.size() != sampleRest_.size()) frontRest_ = sampleRest_;
+    for (size_t j = 0; j < sampleRest_.size(); ++j) {
+        const double s = sampleRest_[j];
+        if (std::isnan(s)) continue;
+        double& f = frontRest_[j];
+        if (!std::isnan(f) && s > f) stepArea_ += sampleLength * (s - f);
+        if (std::isnan(f) || s > f) f = s;
+    }
     area_ += stepArea_;
-    rest_ = std::max(rest_, s);
 }
 
 bool BladeToughness::sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const BladeEdge& now,
@@ -153,8 +158,7 @@ bool BladeToughness::sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const
     if (!points_.empty()) return false;
     double reach = 0;
     if (seed(m, x, now, dir, candidates, virtualNode, &reach) == 0) return false;
-    double length = 0;
-    rest_ = restFront(m, dir, &length);
+    frontRest_ = sampleRest_;
     // the first sweep starts behind the elements the edge entered (by its reach, and a margin)
     const Eigen::Vector3d back = (reach + 1e-3 * (now.b - now.a).norm()) * dir;
     front_ = {now.a - back, now.b - back};
@@ -165,7 +169,7 @@ bool BladeToughness::sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const
 void BladeToughness::reseed(const Model& m, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& dir,
                             const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode) {
     seed(m, x, front_, dir, candidates, virtualNode, nullptr);
-    advanceRest(m, dir);
+    advanceRest((front_.b - front_.a).norm() / samples_);
 }
 
 void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const BladeEdge& edge,

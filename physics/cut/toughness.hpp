@@ -84,8 +84,7 @@ private:
         double length = 0;  // edge length it stands for [m]
         double mass = 0, lambda = 0, push = 0, pen = 0, c0 = 0;
     };
-    double restFront(const Model& m, const Eigen::Vector3d& dir, double* length) const;
-    void advanceRest(const Model& m, const Eigen::Vector3d& dir);
+    void advanceRest(double sampleLength);
     int seed(const Model& m, const Eigen::Matrix3Xd& x, const BladeEdge& edge, const Eigen::Vector3d& dir,
              const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode, double* reach);
 
@@ -99,7 +98,9 @@ private:
     Eigen::Vector3d reaction_ = Eigen::Vector3d::Zero();
     CutPhase phase_ = CutPhase::Idle;
     double stepArea_ = 0;  // area the last advance cut [m^2]
-    double rest_ = 0;      // the front's rest coordinate along the cutting direction [m]
+    std::vector<double>
+        sampleRest_;  // rest coordinate along dir of each edge sample's material at the last seed (NaN: none) [m]
+    std::vector<double> frontRest_;  // the furthest each sample's front has reached [m]
     // ledger
     double work_ = 0, area_ = 0, damped_ = 0, peak_ = 0;
     long pressingSteps_ = 0, cuttingSteps_ = 0;

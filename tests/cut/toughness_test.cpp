@@ -88,8 +88,8 @@ TEST(Toughness, SteadyForceIsProportionalToToughness) {
     EXPECT_NEAR(half.steady / full.steady, 0.5, 0.15 * 0.5);
 }
 
-// Without damping the work goes to elastic, kinetic and fracture energy; what is left is the
-// projection's inelastic stops at the front (cut/toughness.hpp): 4-6% here.
+// Without damping the work goes to elastic, kinetic and fracture energy; what is left comes from
+// the projection's stops at the front (docs/method.md, "Tissue toughness"): 4.8% and 7.4% here.
 TEST(Toughness, EnergyBalanceOfTheCut) {
     for (int cells : {4, 8}) {
         const ToughRun r = runToughSlab(50, cells, 0);
