@@ -163,6 +163,11 @@ public:
     const RunRecord& record() const { return rec_; }
     RunRecord& record() { return rec_; }  // drivers add render and encode time
     const DivergenceBounds& bounds() const { return bounds_; }
+    // The tissue's force on tool i in the last step [N]: its contact reaction, and for the blade
+    // whose stroke is open with material.toughness, the crack front's force on its edge.
+    Eigen::Vector3d toolForce(int i) const;
+    // material.toughness: the front's phase in the last step (idle without toughness)
+    CutPhase cutPhase() const { return tough_ ? tough_->phase() : CutPhase::Idle; }
     ContactWorld* contact() { return contact_.get(); }
     const ContactWorld* contact() const { return contact_.get(); }
     const ContactSettings& contactSettings() const { return contactSettings_; }

@@ -87,6 +87,14 @@ Eigen::Vector3d Simulation::recordFront(double t0, const ContactStep& st) {
     return tough_->reaction();
 }
 
+Eigen::Vector3d Simulation::toolForce(int i) const {
+    if (!contact_ || i < 0 || static_cast<size_t>(i) >= contact_->last().reaction.size())
+        return Eigen::Vector3d::Zero();
+    Eigen::Vector3d f = contact_->last().reaction[static_cast<size_t>(i)];
+    if (tough_ && i == stroke_) f += tough_->reaction();
+    return f;
+}
+
 nlohmann::json Simulation::toughnessReport() const {
     return tough_->report(toughStart_[0], toughStart_[1], toughStart_[2], elasticEnergy(model_, state_),
                           kineticEnergy(model_, state_), gravityEnergy(model_, state_));
