@@ -1,5 +1,5 @@
-"""A haptic loop cutting the liver with its toughness: steps assets/scenes/blade.json with
-material.toughness 200 J/m^2 (porcine liver, blade) and reads the blade's force after every step,
+"""A haptic loop cutting the liver with its toughness: steps assets/scenes/blade_toughness.json
+(material.toughness 200 J/m^2, porcine liver, blade) and reads the blade's force after every step,
 as a 1 kHz haptic loop would render it; prints the force and the cutting phase (pressing, then
 rupture and cutting) every millisecond of the stroke, and plots them (haptic_cut.png). Run from
 the checkout after building:
@@ -17,13 +17,13 @@ import numpy as np
 
 import cutsim
 
-SCENE = Path(__file__).resolve().parents[1] / "assets" / "scenes" / "blade.json"
+SCENE = Path(__file__).resolve().parents[1] / "assets" / "scenes" / "blade_toughness.json"
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--toughness", type=float, default=200.0, help="material.toughness [J/m^2]")
-    ap.add_argument("--until", type=float, default=0.45, help="simulated seconds to run")
+    ap.add_argument("--until", type=float, default=0.6, help="simulated seconds to run")
     ap.add_argument("--out", default="haptic_cut.png")
     args = ap.parse_args()
 
@@ -58,7 +58,7 @@ def main():
         ax.axvspan(min(cutting), max(cutting), color="0.9", label="cutting")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("blade force [N]")
-    ax.set_title(f"blade.json, toughness {args.toughness:g} J/m$^2$")
+    ax.set_title(f"blade_toughness.json, toughness {args.toughness:g} J/m$^2$")
     ax.legend(loc="upper left")
     fig.tight_layout()
     fig.savefig(args.out, dpi=120)
