@@ -355,12 +355,16 @@ PYBIND11_MODULE(cutsim, m) {
         .def(
             "tool_force",
             [](PySimulation& s, int i) {
-                const auto& r = checkTool(s.sim(), i).last().reaction;
-                const Eigen::Vector3d f =
-                    static_cast<size_t>(i) < r.size() ? r[static_cast<size_t>(i)] : Eigen::Vector3d::Zero();
+                checkTool(s.sim(), i);
+                const Eigen::Vector3d f = s.sim().toolForce(i);
                 return py::array_t<double>(3, f.data());
             },
-            py::arg("tool") = 0, "Reaction force of the tissue on tool i in the last step [N]")
+            py::arg("tool") = 0,
+            "Reaction force of the tissue on tool i in the last step [N] (with material.toughness, the "
+            "crack front's force on a cutting blade's edge included)")
+        .def(
+            "cut_phase", [](PySimulation& s) { return std::string(cutPhaseName(s.sim().cutPhase())); },
+            "The cutting blade's phase in the last step: idle, pressing or cutting (material.toughness)")
         .def(
             "tool_position",
             [](PySimulation& s, int i) {

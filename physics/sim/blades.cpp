@@ -74,6 +74,7 @@ void Simulation::endStroke() {
     if (stroke_ < 0) return;
     const int was = stroke_;
     cutter_->endStroke();
+    if (tough_) tough_->endStroke();
     stroke_ = -1;
     syncSlot(was);
     refreshSurface();
@@ -155,12 +156,17 @@ bool Simulation::applyBlades() {
             stroke_ = i;
             strokeLog_ = {i, state_.time, rec_.stages, state_.steps, {}};
         }
+        if (tough_ && !toughSweep(tool, t0, from, to)) continue;  // the front holds: nothing to cut
         beforeTopologyChange();  // a sweep may split elements (r.changed() tells after it)
         const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
         if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
         syncSlot(i);
-        if (!r.changed()) continue;
+        if (!r.changed()) {
+            if (tough_) reseedFront(tool, t0);
+            continue;
+        }
         bladePhase_->refit(model_.tets, state_.x);  // the new elements, for the next blade
+        if (tough_) reseedFront(tool, t0);
         ++rec_.bladeCutSteps;
         respondToCut(r, "tools[" + std::to_string(i) + "]", true);
         strokeLog_.latency.push_back(rec_.cuts.back()["latency"].get<double>());

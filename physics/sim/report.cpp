@@ -172,6 +172,7 @@ json Simulation::report(const json& extra) const {
                            {"cut_steps", rec_.bladeCutSteps},
                            {"pending", cutter_->pendingElements()},
                            {"cut_seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Cuts] / double(st.steps) : 0.0}};
+    if (tough_) report["blade"]["toughness"] = toughnessReport();
     report["dt_final"] = {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
                           {"certified", limits_.certified}};
     if (!rec_.compare.is_null()) report["compare"] = rec_.compare;

@@ -613,6 +613,7 @@ SceneDef parseScene(const json& j, const std::string& file) {
         s.material.nu = m.number("nu", s.material.nu, -1, 0.5, true, true);
         s.material.rho = m.number("rho", s.material.rho, 1e-3, 1e6);
         s.damping = m.number("damping", 0, 0, 1e300);
+        s.toughness = m.number("toughness", 0, 0, 1e7);
         m.finish();
     }
     for (auto& f : root.array("fixed")) {

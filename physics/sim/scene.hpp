@@ -177,6 +177,8 @@ struct SceneDef {
 
     Material material;
     double damping = 0;  // mass-proportional damping [1/s]
+    double toughness =
+        0;  // material.toughness: fracture toughness G_c a blade pays per cut area [J/m^2]; 0: geometric cutting
 
     std::vector<Region> fixed;
     Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, -9.81);  // [m/s^2]

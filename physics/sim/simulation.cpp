@@ -252,6 +252,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
             bladePhase_ = std::make_unique<ElementBroadphase>(margin);
             bladeMargin_ = margin;
             lastEdge_.resize(bladeTools_.size());
+            setupToughness();
         }
     }
     energyChecked_ = bounds_.energyGrowth > 0 && sc_.tools.empty() && sc_.forces.empty();
@@ -632,6 +633,10 @@ RunStatus Simulation::step() {
         stepper_.step(model_, state_, so_);
     }
     timer.reassign(Stage::Integrate, Stage::Forces, stepper_.lastForceSeconds());
+    if (tough_) {  // the blade's edge on the crack front (cut/toughness.hpp)
+        const StageTimer t(timer, Stage::Contact);
+        pressFront();
+    }
     // 5b. projection contact: the points inside a tool or collider back onto its surface
     if (projection) {
         const StageTimer t(timer, Stage::Contact);
@@ -644,6 +649,7 @@ RunStatus Simulation::step() {
             const ContactStep& st = contact_->last();
             Eigen::Vector3d f = Eigen::Vector3d::Zero();
             for (const auto& r : st.reaction) f += r;
+            if (tough_) f += recordFront(tStep, st);
             rec_.tool.add(tStep, choice_.dt, f, st.maxDepth, st.contacts);
         }
         check();

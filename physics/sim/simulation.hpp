@@ -16,6 +16,7 @@
 
 #include "mesh/broadphase.hpp"
 #include "contact/contact.hpp"
+#include "cut/toughness.hpp"
 #include "cut/xfem.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/embedding.hpp"
@@ -162,6 +163,11 @@ public:
     const RunRecord& record() const { return rec_; }
     RunRecord& record() { return rec_; }  // drivers add render and encode time
     const DivergenceBounds& bounds() const { return bounds_; }
+    // The tissue's force on tool i in the last step [N]: its contact reaction, and for the blade
+    // whose stroke is open with material.toughness, the crack front's force on its edge.
+    Eigen::Vector3d toolForce(int i) const;
+    // material.toughness: the front's phase in the last step (idle without toughness)
+    CutPhase cutPhase() const { return tough_ ? tough_->phase() : CutPhase::Idle; }
     ContactWorld* contact() { return contact_.get(); }
     const ContactWorld* contact() const { return contact_.get(); }
     const ContactSettings& contactSettings() const { return contactSettings_; }
@@ -205,6 +211,13 @@ private:
     void sampleEnergy();
     void fail(RunStatus s, const std::string& why);
     void recordTool(double t);
+    // material.toughness (sim/toughness_stage.cpp): the blade presses the crack front until it pays
+    void setupToughness();
+    bool toughSweep(const ToolDef& tool, double t, BladeEdge& from, BladeEdge& to);
+    void reseedFront(const ToolDef& tool, double t);
+    void pressFront();
+    Eigen::Vector3d recordFront(double t0, const ContactStep& st);
+    nlohmann::json toughnessReport() const;
     void beforeTopologyChange() {
         if (beforeTopologyChange_) beforeTopologyChange_();
     }
@@ -258,6 +271,9 @@ private:
         std::vector<double> latency;  // each blade step's cut latency [s]
     } strokeLog_;
     CutResponse response_;
+    std::unique_ptr<BladeToughness> tough_;        // material.toughness > 0 with a blade, else null
+    double toughDamped_ = 0;                       // energy the last step's mass damping took [J]
+    double toughStart_[3] = {0, 0, 0};             // elastic, kinetic, gravity energy at the start [J]
     std::vector<ContactWorld::Slot> slots_;        // each blade's slot (cutting.blade_slot), by tool index
     std::vector<ContactWorld::Slot> slotsBefore_;  // ... as its earlier strokes left it
     size_t nextCut_ = 0;

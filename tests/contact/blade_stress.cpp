@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <random>
 #include <string>
+#include <vector>
 
 namespace cutsim {
 namespace {
@@ -72,7 +73,7 @@ json bladeTool(const Stroke& s, const Eigen::Vector3d& lo, const Eigen::Vector3d
                 {"keyframes", {key(0, from), key(*travelTime, to)}}};
 }
 
-void runStrokes(const std::string& object, int strokes, unsigned seed) {
+void runStrokes(const std::string& object, int strokes, unsigned seed, const std::vector<std::string>& sets = {}) {
     const std::string base = test::source("assets/scenes/blade.json");
     std::mt19937 rng(seed);
     // the object's rest box, from a run of the scene that takes no step
@@ -84,8 +85,10 @@ void runStrokes(const std::string& object, int strokes, unsigned seed) {
         const Stroke s = randomStroke(rng, lo, hi);
         double travel = 0;
         const json tool = bladeTool(s, lo, hi, &travel);
-        SceneDef sc = loadScene(
-            base, {"object=" + object, "tools=[" + tool.dump() + "]", "duration=" + std::to_string(travel + 0.05)});
+        std::vector<std::string> all = {"object=" + object, "tools=[" + tool.dump() + "]",
+                                        "duration=" + std::to_string(travel + 0.05)};
+        all.insert(all.end(), sets.begin(), sets.end());
+        SceneDef sc = loadScene(base, all);
         Simulation sim(sc, SimulationOptions{1, false});
         sim.advance(sc.duration);
         sim.finish();
@@ -116,6 +119,11 @@ void runStrokes(const std::string& object, int strokes, unsigned seed) {
 const std::string kLiver = R"({"mesh": "../meshes/liver.msh", "scale": 0.0254})";
 
 TEST(BladeStress, RandomStrokesThroughTheShippedLiver) { runStrokes(kLiver, 140, 1); }
+
+// material.toughness on: the blade presses the liver before it cuts (cut/toughness.hpp)
+TEST(BladeStress, RandomStrokesThroughTheShippedLiverWithLiverToughness) {
+    runStrokes(kLiver, 40, 4, {"material.toughness=200"});
+}
 
 TEST(BladeStress, RandomStrokesThroughTheLiverInASixteenCellLattice) {
     runStrokes(R"({"surface": {"path": "../meshes/sofa_liver.obj", "cells": 16}, "scale": 0.0254})", 40, 2);
