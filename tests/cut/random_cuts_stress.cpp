@@ -59,7 +59,9 @@ TEST(RandomCutsStress, FloorHolds500) {
             EXPECT_EQ(st.invertedRuns, 0);
             EXPECT_EQ(st.cutsBelowFloor, 0);
             EXPECT_GE(st.minDtRatio, 0.95 * (1 - 1e-6));
-            if (hybrid) EXPECT_LE(st.maxAddedMass, 0.005);
+            if (hybrid) {
+                EXPECT_LE(st.maxAddedMass, 0.005);
+            }
         }
 }
 
