@@ -51,12 +51,7 @@ void Simulation::reseedFront(const ToolDef& tool, double t) {
 void Simulation::pressFront() {
     const double c = model_.massDamping, h = choice_.dt;
     toughDamped_ = 0;
-    if (c > 0) {
-        double k = 0;
-        for (int i = 0; i < model_.nodes(); ++i)
-            if (model_.invMass(i) > 0) k += 0.5 * model_.mass(i) * state_.v.col(i).squaredNorm();
-        toughDamped_ = k * ((1 + c * h) * (1 + c * h) - 1);
-    }
+    if (c > 0) toughDamped_ = kineticEnergy(model_, state_) * ((1 + c * h) * (1 + c * h) - 1);
     if (stroke_ < 0 || !tough_->hasFront()) {
         tough_->project(model_.invMass, h, BladeEdge{}, Eigen::Vector3d::Zero(), state_.x, state_.v);
         return;
