@@ -253,6 +253,12 @@ void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const Bl
     reaction_ = -(total / dt) * dir;
 }
 
+CutPhase BladeToughness::phaseOver(double now, double window) const {
+    for (auto it = segments_.rbegin(); it != segments_.rend() && it->end > now - window; ++it)
+        if (it->phase == CutPhase::Cutting) return CutPhase::Cutting;
+    return phase_;
+}
+
 void BladeToughness::record(double t, double dt, long step, double work, double along, double damped) {
     work_ += work;
     damped_ += damped;

@@ -61,6 +61,9 @@ public:
     // The force of the tissue on the blade through its front in the last step [N].
     const Eigen::Vector3d& reaction() const { return reaction_; }
     CutPhase phase() const { return phase_; }
+    // The phase over the last `window` seconds before `now`: cutting when the front advanced in
+    // any step of it (steady cutting alternates pressing and cutting steps), else phase().
+    CutPhase phaseOver(double now, double window) const;
     bool hasFront() const { return !points_.empty(); }
     void endStroke();  // the front is forgotten; the next stroke seeds its own
 

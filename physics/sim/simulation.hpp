@@ -168,6 +168,10 @@ public:
     Eigen::Vector3d toolForce(int i) const;
     // material.toughness: the front's phase in the last step (idle without toughness)
     CutPhase cutPhase() const { return tough_ ? tough_->phase() : CutPhase::Idle; }
+    // ... over the last `window` seconds: cutting when the front advanced in any of its steps
+    CutPhase cutPhaseOver(double window) const {
+        return tough_ ? tough_->phaseOver(state_.time, window) : CutPhase::Idle;
+    }
     ContactWorld* contact() { return contact_.get(); }
     const ContactWorld* contact() const { return contact_.get(); }
     const ContactSettings& contactSettings() const { return contactSettings_; }

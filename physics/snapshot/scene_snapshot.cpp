@@ -183,6 +183,10 @@ RenderSnapshot& SceneSnapshot::update(const Model& model, const State& state, co
         std::snprintf(line, sizeof line, "tool F   %.3f N (%.3f, %.3f, %.3f)", info.toolForce.norm(),
                       info.toolForce.x(), info.toolForce.y(), info.toolForce.z());
         h.lines.push_back(line);
+        if (info.cutPhase) {  // the edge presses the tissue until it pays G_c per area (cut/toughness.hpp)
+            std::snprintf(line, sizeof line, "blade    %s (G_c %g J/m^2)", info.cutPhase, sc_.toughness);
+            h.lines.push_back(line);
+        }
         h.forcePlot = info.forceHistory;
     }
     return snap;
@@ -199,6 +203,8 @@ FrameInfo frameInfoOf(const Simulation& sim, double wall) {
     fi.wall = wall;
     fi.toolForce = sim.record().tool.force;
     fi.forceHistory = sim.record().tool.history;
+    // over a frame's interval: in steady cutting the front alternates pressing and cutting steps
+    if (sim.scene().toughness > 0) fi.cutPhase = cutPhaseName(sim.cutPhaseOver(1 / sim.scene().capture.fps));
     for (const Simulation::Answered& a : sim.answered())
         if (a.time >= fi.time - sim.scene().capture.answeredSeconds) fi.answered.push_back(a.element);
     if (sim.contact())

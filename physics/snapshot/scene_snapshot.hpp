@@ -27,7 +27,8 @@ struct FrameInfo {
     std::vector<ToolShape> tools;                         // tools to draw
     Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();  // reaction force on the tools [N]
     std::vector<float> forceHistory;                      // recent |tool force| samples, oldest first [N]
-    std::vector<int> answered;  // elements a recent cut made critical and the step policy answered
+    const char* cutPhase = nullptr;  // material.toughness: the blade's phase (idle | pressing | cutting); null: off
+    std::vector<int> answered;       // elements a recent cut made critical and the step policy answered
 };
 
 // What a frame of a scene shows (surface, colour map, critical elements, HUD values), built from

@@ -3,12 +3,15 @@
 // tip: the steady force is G_c b, whatever the mesh, and proportional to G_c; the blade's work
 // goes into elastic, kinetic and fracture energy and mass damping.
 #include "sim/simulation.hpp"
+#include "snapshot/scene_snapshot.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 namespace cutsim {
@@ -101,6 +104,41 @@ TEST(Toughness, EnergyBalanceOfTheCut) {
         EXPECT_NEAR(sum, work, 0.10 * work) << "cells " << cells << ": " << e.dump();
         EXPECT_NEAR(e["residual"].get<double>(), work - sum, 1e-12);
     }
+}
+
+// The HUD says what the edge does: pressing until the front pays, then cutting, over a frame's
+// interval (in steady cutting the front alternates pressing and cutting steps).
+TEST(Toughness, TheHudShowsTheBladesPhase) {
+    const SceneDef sc = parseScene(toughSlab(100, 4, 20), "tough-slab.json");
+    Simulation sim(sc, SimulationOptions{1, false});
+    SceneSnapshot snap(sc, sim.model(), Eigen::VectorXd::Constant(sim.model().elements(), 1.0), sim.dt());
+    auto hud = [&] {
+        const auto& lines =
+            snap.update(sim.model(), sim.state(), frameInfoOf(sim, std::numeric_limits<double>::quiet_NaN())).hud.lines;
+        for (const std::string& l : lines)
+            if (l.rfind("blade    ", 0) == 0) return l;
+        return std::string();
+    };
+    EXPECT_EQ(hud(), "blade    idle (G_c 100 J/m^2)");
+    int pressing = 0, cutting = 0;
+    double lastCut = -1;
+    while (sim.state().time < 0.4 && sim.step() == RunStatus::Running) {
+        if (sim.cutPhase() == CutPhase::Cutting) lastCut = sim.state().time;
+        const bool cutRecently = lastCut >= 0 && sim.state().time - lastCut < 1 / sc.capture.fps - 1e-9;
+        if (sim.cutPhase() == CutPhase::Pressing && lastCut < 0) {
+            EXPECT_EQ(hud(), "blade    pressing (G_c 100 J/m^2)") << sim.state().time;
+            ++pressing;
+        } else if (cutRecently) {
+            EXPECT_EQ(hud(), "blade    cutting (G_c 100 J/m^2)") << sim.state().time;
+            ++cutting;
+        }
+    }
+    EXPECT_GT(pressing, 0);
+    EXPECT_GT(cutting, 0);
+    // without toughness the HUD has no phase line
+    const SceneDef plain = parseScene(toughSlab(0, 4, 20), "tough-slab.json");
+    const Simulation geometric(plain, SimulationOptions{1, false});
+    EXPECT_EQ(frameInfoOf(geometric, 0).cutPhase, nullptr);
 }
 
 TEST(Toughness, ZeroToughnessCutsGeometrically) {
