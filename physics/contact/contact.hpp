@@ -121,6 +121,7 @@ struct ContactStep {
     // (*) a point the projection holds by its nodes inside the material alone is measured there
     double residualDepth = 0;  // deepest left after the projection [m]
     int tested = 0;            // points whose distance to a shape was computed [-]
+    std::vector<int> moved;    // nodes the projection moved, sorted (project only)
 };
 
 // Signed distance of the world point x to one part of `tool` whose frame is `frame` [m]

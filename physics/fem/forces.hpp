@@ -60,7 +60,9 @@ void computeForces(const Model& model, State& state, const double* alpha = nullp
 // may be below its watch stretch.
 // sMinPartial > sMin: the bound of the elements with fraction < 1 (StepOptions::holdPartial). Every
 // element is held below kMaxStretch too.
-int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch, double sMinPartial = 0);
+// seeds: the first round looks at these elements only, not at every element's watch mark.
+int limitStretch(const Model& model, State& state, double sMin, std::vector<int>& scratch, double sMinPartial = 0,
+                 const std::vector<int>* seeds = nullptr);
 
 // The largest principal stretch of any element while stretch limiting is on (limitStretch): a
 // light node pulled far out (a cut's or a lattice's control point, a node of tiny elements)

@@ -1,6 +1,7 @@
 #include "fem/integrate.hpp"
 
 #include "fem/forces.hpp"
+#include "fem/kinematics.hpp"
 #include "fem/tet.hpp"
 
 #include <Eigen/Geometry>
@@ -262,6 +263,20 @@ double Stepper::partialStretch(const Model& m, const StepOptions& opt) const {
 void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {
     if (opt.minStretch > 0 && nearFlat > 0)
         s.flags.limited = limitStretch(m, s, opt.minStretch, limitScratch_, partialStretch(m, opt));
+}
+
+int Stepper::repairInverted(const Model& m, State& s, const StepOptions& opt, const std::vector<int>& nodes) {
+    if (!(opt.minStretch > 0) || nodes.empty()) return 0;
+    repairSeeds_.clear();
+    for (const int i : nodes)
+        for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) {
+            const int e = m.nodeSlots[k] >> 2;
+            if (!(deformationGradient(m, s, e).determinant() > 0)) repairSeeds_.push_back(e);
+        }
+    if (repairSeeds_.empty()) return 0;
+    std::sort(repairSeeds_.begin(), repairSeeds_.end());
+    repairSeeds_.erase(std::unique(repairSeeds_.begin(), repairSeeds_.end()), repairSeeds_.end());
+    return limitStretch(m, s, opt.minStretch, limitScratch_, partialStretch(m, opt), &repairSeeds_);
 }
 
 void Stepper::step(const Model& m, State& s, const StepOptions& opt) {

@@ -86,6 +86,11 @@ public:
     double lastForceSeconds() const { return forceSeconds_; }
     // CG iterations of the last backward-Euler step (0 for the direct solver or other schemes).
     int lastSolverIterations() const;
+    // After a contact projection that moved `nodes` (sorted): the elements around them it left
+    // inverted are limited back (limitStretch from those elements), so that an inversion is not
+    // carried into the next step, where the limiter and the contact would meet it again. Nothing
+    // when stretch limiting is off or no such element is inverted. Returns the elements corrected.
+    int repairInverted(const Model& model, State& state, const StepOptions& opt, const std::vector<int>& nodes);
 
 private:
     void forces(const Model& model, State& state, const double* alpha, double watch, bool allRotations = false,
@@ -95,6 +100,7 @@ private:
     std::unique_ptr<ImplicitWorkspace> implicit_;
     double forceSeconds_ = 0;
     std::vector<int> limitScratch_;  // elements below the smallest stretch (reused)
+    std::vector<int> repairSeeds_;   // inverted elements around the nodes a projection moved (reused)
     Eigen::Matrix3Xd lightMean_;     // mean velocity around each of Model::lightNodes at the step's start [m/s]
     ShapeMatchScratch match_;        // hybrid elements' shape matching (Model::matched)
     Eigen::VectorXd matchAlpha_;     // per-element force factor with the matched elements at 0

@@ -71,7 +71,8 @@ double largestStretch(const Model& m, const State& s, int e, Eigen::Matrix<doubl
 
 }  // namespace
 
-int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scratch, double sMinPartial) {
+int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scratch, double sMinPartial,
+                 const std::vector<int>* seeds) {
     // Gauss-Seidel over the violating elements: elements sharing nodes converge together; sigma3
     // is linear in x along its gradient while the singular vectors hold, so a few sweeps suffice.
     // A correction can push a neighbour below the limit: the next round scans the elements around
@@ -95,11 +96,16 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
     for (int round = 0; round < kRounds; ++round) {
         if (round == 0) {
             scratch.clear();
+            if (seeds) {
+                for (const int e : *seeds)
+                    if (below(e)) scratch.push_back(e);
+                if (scratch.empty()) break;
+            }
             // the force stage's bound of each element against the element's own watch (a full
             // element's 2/3 when undeformed stays clear of a 0.2 + margin watch even while partial
             // elements are watched at 0.5 + margin)
             const bool marked = s.nearFlat.size() == static_cast<size_t>(m.elements());
-            for (int e = 0; e < m.elements(); ++e)
+            for (int e = 0; !seeds && e < m.elements(); ++e)
                 if ((!marked || s.nearFlat[static_cast<size_t>(e)] < 255 * (bound(e) + kStretchWatchMargin)) &&
                     below(e))
                     scratch.push_back(e);

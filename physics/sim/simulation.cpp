@@ -641,6 +641,7 @@ RunStatus Simulation::step() {
     if (projection) {
         const StageTimer t(timer, Stage::Contact);
         contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v);
+        stepper_.repairInverted(model_, state_, so_, contact_->last().moved);
     }
     // 6. checks
     {

@@ -130,3 +130,29 @@ TEST(Forces, StretchLimitStopsInversion) {
         }
     }
 }
+
+// After a contact projection: an element it left inverted around the nodes it moved is limited
+// back (the by-hand projection above, node 3 to z = 0.2 h); a moved node whose elements are not
+// inverted, or stretch limiting off, leaves the state as it is.
+TEST(Forces, RepairAfterContactLimitsOnlyInvertedElements) {
+    TetMesh t = test::unitTet();
+    t.X *= 0.01;
+    Model m = buildModel(t, Material{});
+    fixNodes(m, {0, 1, 2});
+    State s = makeState(m);
+    Stepper stepper;
+    StepOptions opt;
+    opt.minStretch = 0.2;
+    s.x.col(3) << 0, 0, 0.001;  // squeezed below the limit, not inverted: not the repair's business
+    EXPECT_EQ(stepper.repairInverted(m, s, opt, {3}), 0);
+    EXPECT_EQ(s.x(2, 3), 0.001);
+    s.x.col(3) << 0, 0, -0.003;
+    StepOptions off = opt;
+    off.minStretch = 0;
+    EXPECT_EQ(stepper.repairInverted(m, s, off, {3}), 0);
+    EXPECT_EQ(stepper.repairInverted(m, s, opt, {}), 0);
+    EXPECT_EQ(s.x(2, 3), -0.003);
+    EXPECT_EQ(stepper.repairInverted(m, s, opt, {3}), 1);
+    EXPECT_NEAR(s.x(2, 3), 0.002, 1e-15);
+    EXPECT_GT(smallestStretchOf(m, s, 0), 0.2 - 1e-12);
+}
