@@ -1,6 +1,7 @@
 // `cutsim view SCENE`: the scene running live in a window, with an orbit camera and a panel.
 // Same scene loading and step as `cutsim run` (run.hpp), same frame content (frames.hpp).
 #include "commands.hpp"
+#include "exit_code.hpp"
 #include "util/stopwatch.hpp"
 #include "frames.hpp"
 #include "fem/forces.hpp"

@@ -1,5 +1,7 @@
 #include "run.hpp"
 
+#include "exit_code.hpp"
+
 #include "fem/forces.hpp"
 #include "frames.hpp"
 #include "output_folder.hpp"
@@ -171,6 +173,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
             sim.record().stages[Stage::Encode] = ct.encode();
         }
         json report = sim.report({{"wall_time", wall.seconds()}, {"frames", frames}, {"video", video}});
+        report["exit_code"] = static_cast<int>(exitCodeOf(sim.status()));
         if (!sink) return report;
         report["capture"] = ct.toJson();
         report["capture"]["surface_seconds"] = surfaceSeconds;

@@ -126,7 +126,6 @@ json Simulation::report(const json& extra) const {
     report["status"] = status_ == RunStatus::Finished ? std::string("ok")
                        : message_.empty()             ? std::string(runStatusName(status_))
                                                       : message_;
-    report["exit_code"] = static_cast<int>(exitCodeOf(status_));
     report["steps"] = st.steps;
     report["sim_time"] = st.time;
     report["wall_time"] = rec_.wallSetup + rec_.wallLoop;

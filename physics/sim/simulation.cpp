@@ -62,14 +62,6 @@ const char* runStatusName(RunStatus s) {
     return "?";
 }
 
-ExitCode exitCodeOf(RunStatus s) {
-    switch (s) {
-    case RunStatus::Diverged: return ExitCode::Diverged;
-    case RunStatus::Refused: return ExitCode::RefusedStep;
-    default: return ExitCode::Ok;
-    }
-}
-
 DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model) {
     DivergenceBounds b;
     b.waveSpeed = sc.material.pWaveSpeed();

@@ -40,18 +40,9 @@ namespace cutsim {
 // stroke ends); in between each drops the contact points of the elements it split [s, simulated].
 inline constexpr double kSurfaceRefresh = 0.01;
 
-// Process exit codes of the command and the status of a run (README, docs/scene-format.md).
-enum class ExitCode : int {
-    Ok = 0,           // the run reached its end with every check passed
-    BadInput = 2,     // a bad scene, mesh or flag; nothing was simulated or written
-    Diverged = 3,     // a check found the state non-finite or outside its physical bounds
-    RefusedStep = 4,  // the step was above the stable limit and integrator.dt.on_limit is refuse
-    NoDisplay = 5,    // cutsim view found no display
-};
-
+// The status of a run (the cutsim program maps it to its exit code: app/exit_code.hpp).
 enum class RunStatus : std::uint8_t { Running, Finished, Diverged, Refused };
 const char* runStatusName(RunStatus s);  // running | ok | diverged | refused
-ExitCode exitCodeOf(RunStatus s);
 
 // Bounds outside which a state is not physics but a blow-up (docs/scene-format.md, "checks").
 // Derived from the scene unless it sets them: see divergenceBounds.
