@@ -1,7 +1,7 @@
 // Random blade strokes through Simulation (the stress label): blade.json's liver, material, fixing
 // and floor, with the blade drawn at random (where it crosses the object, its plane, the tilt of
-// its path in that plane, its speed) on the shipped liver (596 tets), the liver in a 16-cell
-// lattice (MI, ~5k tets) and the liver meshed by object.tetra (~16k tets). Every stroke must end
+// its path in that plane, its speed) on the shipped liver (596 tets), the liver in 16- and 32-cell
+// lattices (MI, ~5k and ~33k tets) and the liver meshed by object.tetra (~16k tets). Every stroke must end
 // ok with nothing inverted, conserve volume and mass through each cut, and never step above its
 // limit: the exact one where it is known, else the certified one.
 #include "sim/simulation.hpp"
@@ -127,6 +127,10 @@ TEST(BladeStress, RandomStrokesThroughTheShippedLiverWithLiverToughness) {
 
 TEST(BladeStress, RandomStrokesThroughTheLiverInASixteenCellLattice) {
     runStrokes(R"({"surface": {"path": "../meshes/sofa_liver.obj", "cells": 16}, "scale": 0.0254})", 40, 2);
+}
+
+TEST(BladeStress, RandomStrokesThroughTheLiverInAThirtyTwoCellLattice) {
+    runStrokes(R"({"surface": {"path": "../meshes/sofa_liver.obj", "cells": 32}, "scale": 0.0254})", 12, 5);
 }
 
 TEST(BladeStress, RandomStrokesThroughATetraLiver) {
