@@ -2,6 +2,7 @@
 // Same scene loading and step as `cutsim run` (run.hpp), same frame content (frames.hpp).
 #include "commands.hpp"
 #include "exit_code.hpp"
+#include "run.hpp"
 #include "util/stopwatch.hpp"
 #include "frames.hpp"
 #include "fem/forces.hpp"
@@ -171,6 +172,7 @@ int runView(const ViewArgs& a) {
     simOpt.threads = a.threads;
     simOpt.renderSurface = true;
     auto sim = std::make_unique<Simulation>(sc, simOpt);
+    printWarnings(*sim);
     if (a.toolAt.size() == 3) {
         if (!sim->contact()) throw InputError(sc.file + ": --tool-at: the scene has no tools");
         sim->holdTool(0, Eigen::Vector3d(a.toolAt[0], a.toolAt[1], a.toolAt[2]));

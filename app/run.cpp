@@ -24,6 +24,11 @@
 namespace cutsim::app {
 
 namespace fs = std::filesystem;
+
+void printWarnings(const Simulation& sim) {
+    for (const WarningStat& w : sim.record().warnings.stat)
+        if (w.count > 0) std::fprintf(stderr, "warning: %s\n", w.first.c_str());
+}
 using nlohmann::json;
 
 namespace {
@@ -122,6 +127,7 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // the renderer is made on the drawing thread while the simulation is built
     std::unique_ptr<FrameSink> sink = capturing ? makeFrameSink(sc, opt.pipelined) : nullptr;
     Simulation sim(sc, so);
+    printWarnings(sim);
 
     // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
     StagedFolder folder(opt.out);

@@ -6,6 +6,10 @@
 
 #include <string>
 
+namespace cutsim {
+class Simulation;
+}
+
 namespace cutsim::app {
 
 struct RunOptions {
@@ -15,6 +19,10 @@ struct RunOptions {
     bool quiet = false;     // no progress output
     bool pipelined = true;  // frames drawn while the physics steps on (false: each before the next step)
 };
+
+// The warnings the simulation raised, each once on stderr as "warning: ..." (report.json lists
+// them with their counts).
+void printWarnings(const Simulation& sim);
 
 // Runs a scene; returns the process exit code (ExitCode: 0 ok, 3 diverged, 4 refused step).
 // Throws InputError for bad input before anything is written.

@@ -60,6 +60,33 @@ private:
     Stage outer_;
 };
 
+// Warnings a run raises, as mjData's: an array indexed by the enum, each with how often it was
+// raised and what it said the first time. The library raises them; the program prints them and
+// report.json lists them ("warnings").
+enum class Warning : std::uint8_t {
+    KeepStepMass,          // object.surface.keep_step added over a percent of the mass, or missed the step
+    ToolStiffnessClamped,  // a tool's stiffness was above the stable limit and lowered to it
+    TetraNotCached,        // object.tetra built the mesh but could not write it to the cache
+    Count
+};
+inline constexpr int kWarnings = static_cast<int>(Warning::Count);
+const char* warningName(Warning w);  // keep_step_mass | tool_stiffness_clamped | tetra_not_cached
+
+struct WarningStat {
+    int count = 0;
+    std::string first;  // what it said the first time
+};
+
+struct Warnings {
+    std::array<WarningStat, kWarnings> stat{};
+    void raise(Warning w, std::string text) {
+        WarningStat& s = stat[static_cast<size_t>(w)];
+        if (s.count++ == 0) s.first = std::move(text);
+    }
+    const WarningStat& operator[](Warning w) const { return stat[static_cast<size_t>(w)]; }
+    nlohmann::json toJson() const;  // [{kind, count, message}] of those raised
+};
+
 // Contact set-up of a scene (Simulation's, from its tools).
 struct ContactSettings {
     double spacing = 0;                // largest gap between contact points [m]
@@ -87,6 +114,7 @@ struct ToolRecord {
 
 struct RunRecord {
     StageTimes stages;
+    Warnings warnings;
     nlohmann::json cuts = nlohmann::json::array();     // one entry per topology change
     nlohmann::json strokes = nlohmann::json::array();  // one entry per blade stroke: its costs by stage
     nlohmann::json energy = nlohmann::json::array();   // samples {time, kinetic, elastic, gravity, total} [s], [J]

@@ -110,6 +110,26 @@ const char* stageName(Stage s) {
     return "?";
 }
 
+const char* warningName(Warning w) {
+    switch (w) {
+    case Warning::KeepStepMass: return "keep_step_mass";
+    case Warning::ToolStiffnessClamped: return "tool_stiffness_clamped";
+    case Warning::TetraNotCached: return "tetra_not_cached";
+    case Warning::Count: break;
+    }
+    return "?";
+}
+
+json Warnings::toJson() const {
+    json j = json::array();
+    for (int w = 0; w < kWarnings; ++w)
+        if (stat[static_cast<size_t>(w)].count > 0)
+            j.push_back({{"kind", warningName(static_cast<Warning>(w))},
+                         {"count", stat[static_cast<size_t>(w)].count},
+                         {"message", stat[static_cast<size_t>(w)].first}});
+    return j;
+}
+
 json StageTimes::toJson() const {
     json j = json::object();
     for (int s = 0; s < kStages; ++s) j[stageName(static_cast<Stage>(s))] = seconds[static_cast<size_t>(s)];
@@ -126,6 +146,7 @@ json Simulation::report(const json& extra) const {
     report["status"] = status_ == RunStatus::Finished ? std::string("ok")
                        : message_.empty()             ? std::string(runStatusName(status_))
                                                       : message_;
+    report["warnings"] = rec_.warnings.toJson();
     report["steps"] = st.steps;
     report["sim_time"] = st.time;
     report["wall_time"] = rec_.wallSetup + rec_.wallLoop;

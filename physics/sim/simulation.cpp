@@ -321,13 +321,15 @@ void Simulation::buildObject() {
                                        {"mass_fraction", ks.massFraction}, {"rounds", ks.rounds},
                                        {"seconds", mi.seconds.keepStep}};
             // More than a percent changes the dynamics visibly: say so (thin parts on a coarse lattice).
-            if (ks.massFraction > kKeepStepWarnFraction || !ks.reached)
-                std::fprintf(
-                    stderr,
-                    "warning: %s: object.surface.keep_step %s the lattice's step %.4g s by adding %.2f%% of "
-                    "the mass (step without it %.4g s); a finer lattice needs less, keep_step false adds none\n",
-                    sc.file.c_str(), ks.reached ? "kept" : "did not reach", mi.dtLattice, 100 * ks.massFraction,
-                    ks.dtBefore);
+            if (ks.massFraction > kKeepStepWarnFraction || !ks.reached) {
+                char text[320];
+                std::snprintf(text, sizeof text,
+                              "%s: object.surface.keep_step %s the lattice's step %.4g s by adding %.2f%% of the mass "
+                              "(step without it %.4g s); a finer lattice needs less, keep_step false adds none",
+                              sc.file.c_str(), ks.reached ? "kept" : "did not reach", mi.dtLattice,
+                              100 * ks.massFraction, ks.dtBefore);
+                rec_.warnings.raise(Warning::KeepStepMass, text);
+            }
         }
         model_ = std::move(mi.model);
         model_.elementModel = sc.element;
@@ -415,6 +417,9 @@ TetMesh Simulation::tetraMesh() {
                        {"step_quality", r.dtAfter / r.dtScale},
                        {"volume_error", (r.volumeMesh - r.volumeSurface) / r.volumeSurface},
                        {"boundary_distance_rel", r.boundaryDistance / r.diagonal}});
+    if (!r.cacheError.empty())
+        rec_.warnings.raise(Warning::TetraNotCached,
+                            sc_.tetraSurface + ": the mesh is not cached (" + r.cacheError + ")");
     return m;
 }
 
@@ -560,10 +565,12 @@ void Simulation::setupContact() {
                 throw InputError(sc_.file + ": tools: " + t.name + ": stiffness is required with an implicit scheme");
             t.stiffness = kDefaultStiffnessFraction * c.stiffnessLimit;
         } else if (t.stiffness > c.stiffnessLimit) {
-            std::fprintf(stderr,
-                         "warning: tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; "
-                         "using the limit\n",
-                         t.name.c_str(), t.stiffness, c.stiffnessLimit, dt);
+            char text[256];
+            std::snprintf(
+                text, sizeof text,
+                "tool %s: stiffness %.4g N/m is above the stable limit %.4g N/m for dt %.3g s; using the limit",
+                t.name.c_str(), t.stiffness, c.stiffnessLimit, dt);
+            rec_.warnings.raise(Warning::ToolStiffnessClamped, text);
             t.stiffness = c.stiffnessLimit;
             c.clamped.push_back(t.name);
         }

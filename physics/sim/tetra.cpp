@@ -214,10 +214,13 @@ TetMesh tetraCached(const std::string& path, double scale, const TetraOptions& o
         fs::rename(tmp, file, ec);
         if (ec) fs::remove(tmp, ec);
     } catch (const InputError& e) {
-        std::fprintf(stderr, "warning: %s: the mesh is not cached (%s)\n", path.c_str(), e.what());
+        report.cacheError = e.what();
         cacheFile.clear();
     }
-    if (ec) cacheFile.clear();
+    if (ec) {
+        if (report.cacheError.empty()) report.cacheError = ec.message();
+        cacheFile.clear();
+    }
     r.mesh.source = path;
     return std::move(r.mesh);
 }

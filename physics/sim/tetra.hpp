@@ -35,6 +35,7 @@ struct TetraReport {
     double minVolume = 0;         // smallest element volume of the result [m^3]
     int inverted = 0;             // elements of the result with volume <= 0
     std::vector<std::pair<std::string, double>> seconds;  // per phase: check, tetgen, improve, order [s]
+    std::string cacheError;  // tetraCached: why the built mesh could not be cached (empty: cached)
 };
 
 struct TetraResult {

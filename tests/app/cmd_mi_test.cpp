@@ -143,6 +143,9 @@ TEST(CmdMi, KeepStepWarnsWhenItAddsMoreThanAPercent) {
     std::ifstream in(dir + "/out/report.json");
     const json r = json::parse(in);
     const double frac = r["embedding"]["keep_step"]["mass_fraction"].get<double>();
+    ASSERT_EQ(r["warnings"].size(), 1u);
+    EXPECT_EQ(r["warnings"][0]["kind"], "keep_step_mass");
+    EXPECT_NE(r["warnings"][0]["message"].get<std::string>().find("keep_step kept"), std::string::npos);
     EXPECT_GT(frac, 0.01);
     EXPECT_LT(frac, 0.1);
     char pct[32];

@@ -1,6 +1,7 @@
 // The probe scene end to end (`cutsim run`): the force on the probe grows with depth, returns to
 // zero once the probe has left, and the surface is not left inside it. Scenes without tools make
 // no Bullet world. Bad tool keys are refused with their key path.
+#include "sim/simulation.hpp"
 #include "test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -102,6 +103,16 @@ TEST(Probe, TooStiffPenaltyIsLoweredToTheStableLimit) {
     EXPECT_EQ(tool["stiffness_clamped"], json::array({"probe"}));
     EXPECT_EQ(tool["stiffness"][0].get<double>(), tool["stiffness_limit"].get<double>());
     EXPECT_LT(tool["stiffness_limit"].get<double>(), 1e9);
+    ASSERT_EQ(r["warnings"].size(), 1u);
+    EXPECT_EQ(r["warnings"][0]["kind"], "tool_stiffness_clamped");
+    EXPECT_EQ(r["warnings"][0]["count"], 1);
+    // the library records it and prints nothing: the program says it once
+    EXPECT_EQ(err.find("warning: "), err.rfind("warning: "));
+    const Simulation sim(parseScene(j, p), SimulationOptions{1, false});
+    const WarningStat& w = sim.record().warnings[Warning::ToolStiffnessClamped];
+    EXPECT_EQ(w.count, 1);
+    EXPECT_NE(w.first.find("tool probe: stiffness 1e+09 N/m is above the stable limit"), std::string::npos) << w.first;
+    EXPECT_EQ(sim.record().warnings[Warning::KeepStepMass].count, 0);
 }
 
 TEST(Probe, BadToolKeysAreRefusedWithTheirPath) {
