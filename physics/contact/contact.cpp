@@ -569,12 +569,12 @@ void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& 
 // m_c = 1 / sum_i (w_i^2 / m_i); contacts sharing nodes are solved by projected Gauss-Seidel in a
 // fixed order (deterministic). No stiffness, so no limit on the step (docs/method.md, Contact).
 void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double dt, Eigen::Matrix3Xd& x,
-                           Eigen::Matrix3Xd& v) {
+                           Eigen::Matrix3Xd& v, std::vector<int>* moved) {
     Impl& m = *impl_;
     m.gather(x, v, time, time - dt, true);
     ContactStep& st = m.last;
     st.residualDepth = 0;
-    st.moved.clear();
+    if (moved) moved->clear();
     if (m.touches.empty()) return;
     auto applyTo = [&](Eigen::Matrix3Xd& y, const Touch& tc, const Eigen::Vector3d& impulse) {
         for (int i = tc.first; i < tc.first + tc.n; ++i) {
@@ -736,18 +736,20 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
     }
     // the reaction on each tool: minus the momentum given to the tissue over the step
     for (const Touch& tc : m.touches) {
-        if (tc.mass > 0)
+        if (moved && tc.mass > 0)
             for (int i = tc.first; i < tc.first + tc.n; ++i)
                 if (m.terms[static_cast<size_t>(i)].w != 0 && m.terms[static_cast<size_t>(i)].im > 0)
-                    st.moved.push_back(m.terms[static_cast<size_t>(i)].node);
+                    moved->push_back(m.terms[static_cast<size_t>(i)].node);
         if (tc.mass > 0 && tc.depth > 0)
             st.residualDepth = std::max(st.residualDepth, tc.depth - tc.n_.dot(m.combine(x, tc) - tc.c0));
         if (tc.shape < 0) continue;
         const Shape& sh = m.shapes[static_cast<size_t>(tc.shape)];
         if (sh.tool >= 0 && dt > 0) st.reaction[static_cast<size_t>(sh.tool)] -= (tc.lambda * tc.n_ + tc.tangent) / dt;
     }
-    std::sort(st.moved.begin(), st.moved.end());
-    st.moved.erase(std::unique(st.moved.begin(), st.moved.end()), st.moved.end());
+    if (moved) {
+        std::sort(moved->begin(), moved->end());
+        moved->erase(std::unique(moved->begin(), moved->end()), moved->end());
+    }
 }
 
 }  // namespace cutsim

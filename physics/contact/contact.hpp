@@ -121,7 +121,6 @@ struct ContactStep {
     // (*) a point the projection holds by its nodes inside the material alone is measured there
     double residualDepth = 0;  // deepest left after the projection [m]
     int tested = 0;            // points whose distance to a shape was computed [-]
-    std::vector<int> moved;    // nodes the projection moved, sorted (project only)
 };
 
 // Signed distance of the world point x to one part of `tool` whose frame is `frame` [m]
@@ -174,7 +173,9 @@ public:
     // velocities v (3 x nNodes) of the points inside a tool or collider are corrected in place
     // (invMass: nNodes [1/kg], 0 for fixed nodes). Fills last(); the reaction is the momentum
     // given over dt.
-    void project(const Eigen::VectorXd& invMass, double time, double dt, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
+    // moved, when given: the nodes the projection moved, sorted (Stepper::repairInverted).
+    void project(const Eigen::VectorXd& invMass, double time, double dt, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v,
+                 std::vector<int>* moved = nullptr);
     const ContactStep& last() const;
     // Separated pieces of the surface (joined by no node) touch each other, with Coulomb friction
     // (project only; off by default). Pieces: connected parts of the current surface.

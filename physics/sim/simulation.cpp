@@ -639,8 +639,10 @@ RunStatus Simulation::step() {
     // 5b. projection contact: the points inside a tool or collider back onto its surface
     if (projection) {
         const StageTimer t(timer, Stage::Contact);
-        contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v);
-        stepper_.repairInverted(model_, state_, so_, contact_->last().moved);
+        // the nodes it moved only where a repair can use them (light nodes under stretch limiting)
+        const bool repair = so_.minStretch > 0 && !model_.lightNodes.empty();
+        contact_->project(model_.invMass, state_.time, choice_.dt, state_.x, state_.v, repair ? &projected_ : nullptr);
+        if (repair) stepper_.repairInverted(model_, state_, so_, projected_);
     }
     // 6. checks
     {

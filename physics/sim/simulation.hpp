@@ -266,6 +266,7 @@ private:
         std::vector<double> latency;  // each blade step's cut latency [s]
     } strokeLog_;
     CutResponse response_;
+    std::vector<int> projected_;                   // nodes the last projection moved (repairInverted)
     std::unique_ptr<BladeToughness> tough_;        // material.toughness > 0 with a blade, else null
     double toughDamped_ = 0;                       // energy the last step's mass damping took [J]
     double toughStart_[3] = {0, 0, 0};             // elastic, kinetic, gravity energy at the start [J]

@@ -25,6 +25,15 @@ double smallestStretchOf(const Model& m, const State& s, int e) {
     return F.determinant() < 0 ? -s3 : s3;
 }
 
+// The 1 cm unit tet with its corners 0, 1, 2 (on z = 0) clamped.
+Model clampedTet() {
+    TetMesh t = test::unitTet();
+    t.X *= 0.01;
+    Model m = buildModel(t, Material{});
+    fixNodes(m, {0, 1, 2});
+    return m;
+}
+
 }  // namespace
 
 // Stretch limiting by hand: three corners clamped on z = 0, the fourth pushed straight down
@@ -32,10 +41,7 @@ double smallestStretchOf(const Model& m, const State& s, int e) {
 // 0 first (its gradient for node 3 is e_z / h); then sigma3 = z / h along e_z, gradient e_z / h
 // again, so node 3 ends at z = 0.2 h exactly, x and y unchanged, its closing velocity stopped.
 TEST(Forces, StretchLimitProjectsByHand) {
-    TetMesh t = test::unitTet();
-    t.X *= 0.01;
-    Model m = buildModel(t, Material{});
-    fixNodes(m, {0, 1, 2});
+    Model m = clampedTet();
     State s = makeState(m);
     s.x.col(3) << 0, 0, -0.003;
     s.v.col(3) << 0.5, -0.25, -2.0;
@@ -61,10 +67,7 @@ TEST(Forces, StretchLimitProjectsByHand) {
 // at the larger bound: the same tet squeezed to z = 0.3 h is left alone at sMin 0.2, and brought
 // to z = 0.5 h exactly (the same projection as above) when it stands for half its volume.
 TEST(Forces, StretchLimitHoldsPartialElementsAtTheirBound) {
-    TetMesh t = test::unitTet();
-    t.X *= 0.01;
-    Model m = buildModel(t, Material{});
-    fixNodes(m, {0, 1, 2});
+    Model m = clampedTet();
     State s = makeState(m);
     s.x.col(3) << 0, 0, 0.003;
     std::vector<int> scratch;
@@ -135,10 +138,7 @@ TEST(Forces, StretchLimitStopsInversion) {
 // limited back (the by-hand projection above, node 3 to z = 0.2 h); a moved node that is not
 // light, one whose elements are not inverted, or stretch limiting off, leave the state as it is.
 TEST(Forces, RepairAfterContactLimitsOnlyInvertedElements) {
-    TetMesh t = test::unitTet();
-    t.X *= 0.01;
-    Model m = buildModel(t, Material{});
-    fixNodes(m, {0, 1, 2});
+    Model m = clampedTet();
     State s = makeState(m);
     Stepper stepper;
     StepOptions opt;
