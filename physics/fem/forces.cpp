@@ -58,6 +58,7 @@ constexpr int kLanesF = 2 * kLanes;
 typedef float LaneF __attribute__((vector_size(4 * kLanesF)));
 typedef float LaneHalf __attribute__((vector_size(4 * kLanes)));
 
+#ifdef CUTSIM_LANE_TRANSPOSE  // the full-block loads and writes, where the lanes are transposed
 inline LaneF joinLanes(Lane lo, Lane hi) {
     const LaneHalf a = __builtin_convertvector(lo, LaneHalf), b = __builtin_convertvector(hi, LaneHalf);
     return __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
@@ -68,6 +69,7 @@ inline Lane lowLanes(LaneF v) {
 inline Lane highLanes(LaneF v) {
     return __builtin_convertvector(__builtin_shufflevector(v, v, 8, 9, 10, 11, 12, 13, 14, 15), Lane);
 }
+#endif
 
 // Lane count and scalar of a lane type.
 template <class L>

@@ -159,3 +159,40 @@ TEST(Forces, RepairAfterContactLimitsOnlyInvertedElements) {
     EXPECT_NEAR(s.x(2, 3), 0.002, 1e-15);
     EXPECT_GT(smallestStretchOf(m, s, 0), 0.2 - 1e-12);
 }
+
+// A light node whose gradient is small (the unit tet squashed along a direction tilted slightly
+// towards node 3: sigma3's gradient there is 0.02 of the heavy nodes') takes no momentum from the
+// heavy nodes' stop and is not thrown by the position correction. Weighted with the others it
+// would get sqrt(m_heavy / m_light) / 2 times their closing rate (hundreds of m/s here) and a
+// correction of 0.5 m; here its velocity is kept, its move stays within an edge or two, and the
+// heavy nodes' closing rate is removed with the kinetic energy going down.
+TEST(Forces, LightNodeTakesNoMomentumFromTheStopAndStaysNearItsElement) {
+    TetMesh t = test::unitTet();
+    const double h = 0.01;
+    t.X *= h;
+    Model m = buildModel(t, Material{});
+    m.invMass << 1e3, 1e3, 1e3, 1e12;  // kg^-1: node 3 weighs 1e-12 kg, the others 1 g
+    m.mass = m.invMass.cwiseInverse();
+    m.lightNodes = {3};
+    State s = makeState(m);
+    s.x.col(1) << 0.1 * h, 0, 0.02 * h;
+    s.v.col(1) << -1.0, 0, 0;  // closing
+    const Eigen::Vector3d x3 = s.x.col(3);
+    auto kinetic = [&] {
+        double k = 0;
+        for (int i = 0; i < 4; ++i) k += 0.5 * m.mass(i) * s.v.col(i).squaredNorm();
+        return k;
+    };
+    const double before = kinetic();
+    std::vector<int> scratch;
+    EXPECT_EQ(limitStretch(m, s, 0.2, scratch), 1);
+    EXPECT_EQ(s.v.col(3), Eigen::Vector3d::Zero().eval());
+    EXPECT_LT((s.x.col(3) - x3).norm(), 2 * h);
+    EXPECT_LE(kinetic(), before);
+    EXPECT_GT(smallestStretchOf(m, s, 0), 0.2 - 1e-9);
+    // the heavy nodes no longer close: sigma3's rate over them is >= 0 (finite differences)
+    State later = s;
+    const double dt = 1e-7;
+    for (int i = 0; i < 3; ++i) later.x.col(i) += dt * s.v.col(i);
+    EXPECT_GE(smallestStretchOf(m, later, 0) - smallestStretchOf(m, s, 0), -1e-9);
+}
