@@ -1,6 +1,7 @@
 // The surface's triangle trees (per piece, one btDbvt per cut that made its triangles) and how they
 // follow the surface's motion.
 #include "contact/world.hpp"
+#include "mesh/dbvt.hpp"
 
 #include <algorithm>
 
@@ -113,20 +114,6 @@ void ContactWorld::Impl::refitLeaf(int t, const Eigen::Matrix3Xd& v, double dt, 
     }
 }
 
-namespace {
-// Every inner box of the tree merged again from its children, bottom up (each once).
-void mergeUp(btDbvt& tree, std::vector<btDbvtNode*>& stack) {
-    if (!tree.m_root || tree.m_root->isleaf()) return;
-    // pre-order onto the stack, then merged in reverse: children before their parent
-    stack.assign(1, tree.m_root);
-    for (size_t i = 0; i < stack.size(); ++i)
-        for (btDbvtNode* c : stack[i]->childs)
-            if (!c->isleaf()) stack.push_back(c);
-    for (auto it = stack.rbegin(); it != stack.rend(); ++it)
-        Merge((*it)->childs[0]->volume, (*it)->childs[1]->volume, (*it)->volume);
-}
-}  // namespace
-
 // The surface nodes [first, end) that moved more than `trigger` take x as their reference, and the
 // triangles following them are refitted, each once.
 void ContactWorld::Impl::resetNodes(const int* first, const int* end, const Eigen::Matrix3Xd& x,
@@ -156,7 +143,7 @@ void ContactWorld::Impl::resetNodes(const int* first, const int* end, const Eige
     const bool bulk = whole && 8 * dirty.size() >= whole->nodes.size();
     for (const int t : dirty) refitLeaf(t, v, dt, !bulk);
     if (bulk)
-        for (btDbvt& tree : whole->trees) mergeUp(tree, mergeStack);
+        for (btDbvt& tree : whole->trees) mergeInnerBoxes(tree, mergeStack);
 }
 
 void ContactWorld::Impl::refitMoved(Piece& piece, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt) {

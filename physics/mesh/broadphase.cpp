@@ -1,6 +1,6 @@
 #include "mesh/broadphase.hpp"
 
-#include <BulletCollision/BroadphaseCollision/btDbvt.h>
+#include "mesh/dbvt.hpp"
 
 #include <algorithm>
 
@@ -35,6 +35,7 @@ struct ElementBroadphase::Impl {
     Eigen::Matrix3Xd xRef;  // node positions when the leaves were last set
     double carry = 0;       // how far an appended node's original had moved from there [m]
     double drift = 0;       // bound on how far any element's box has moved out of its leaf's [m]
+    std::vector<btDbvtNode*> mergeStack;
 };
 
 ElementBroadphase::ElementBroadphase(double margin) : impl_(std::make_unique<Impl>()) { impl_->margin = margin; }
@@ -76,14 +77,20 @@ void ElementBroadphase::refit(const Eigen::Matrix4Xi& tets, const Eigen::Matrix3
     }
     m.drift = far + m.carry;
     if (m.margin > 0 && m.drift < kDriftMargins * m.margin) return;
-    for (int e = 0; e < had; ++e) {
-        btDbvtVolume v = elementBox(tets, x, e);
-        btDbvtNode* leaf = m.leaves[static_cast<size_t>(e)];
-        if (m.margin > 0) {
+    if (m.margin > 0) {
+        // every leaf set in place and the inner boxes merged again once: the tree keeps its shape
+        // (Bullet's update removes and inserts each leaf, at many times the cost)
+        for (int e = 0; e < had; ++e) {
+            btDbvtVolume v = elementBox(tets, x, e);
             v.Expand(btVector3(m.margin, m.margin, m.margin));
-            m.tree.update(leaf, v);
-        } else if (!(leaf->volume.Mins() == v.Mins() && leaf->volume.Maxs() == v.Maxs())) {
-            m.tree.update(leaf, v);
+            m.leaves[static_cast<size_t>(e)]->volume = v;
+        }
+        mergeInnerBoxes(m.tree, m.mergeStack);
+    } else {
+        for (int e = 0; e < had; ++e) {
+            btDbvtVolume v = elementBox(tets, x, e);
+            btDbvtNode* leaf = m.leaves[static_cast<size_t>(e)];
+            if (!(leaf->volume.Mins() == v.Mins() && leaf->volume.Maxs() == v.Maxs())) m.tree.update(leaf, v);
         }
     }
     m.xRef = x;

@@ -691,5 +691,32 @@ TEST(ElementBroadphase, EqualsBruteForceBeforeAndAfterRefit) {
     for (int e : bruteForce(mesh.tets, x, lo, hi)) EXPECT_TRUE(std::binary_search(got.begin(), got.end(), e)) << e;
 }
 
+// A fattened tree whose nodes move past a few margins sets its leaves again in place (inner boxes
+// merged bottom up): every element whose box overlaps a query is returned, round after round of
+// motions that stretch, shift and shear the mesh.
+TEST(ElementBroadphase, FattenedTreeStaysASupersetThroughLargeMotions) {
+    const TetMesh mesh = test::boxMesh(0.06, 0.06, 0.06, 6, 6, 6);
+    Eigen::Matrix3Xd x = mesh.X;
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-0.02, 0.09), jitter(-0.002, 0.002), ext(0.001, 0.03);
+    ElementBroadphase fat(0.001);
+    fat.refit(mesh.tets, x);
+    std::vector<int> got;
+    for (int round = 0; round < 8; ++round) {
+        for (int i = 0; i < x.cols(); ++i) {  // a shear growing with height, a shift and a jitter
+            x(0, i) += 0.1 * mesh.X(2, i) + 0.002;
+            x.col(i) += Eigen::Vector3d(jitter(rng), jitter(rng), jitter(rng));
+        }
+        fat.refit(mesh.tets, x);
+        for (int q = 0; q < 40; ++q) {
+            const Eigen::Vector3d lo(u(rng), u(rng), u(rng));
+            const Eigen::Vector3d hi = lo + Eigen::Vector3d(ext(rng), ext(rng), ext(rng));
+            fat.query(lo, hi, got);
+            for (int e : bruteForce(mesh.tets, x, lo, hi))
+                EXPECT_TRUE(std::binary_search(got.begin(), got.end(), e)) << "round " << round << " element " << e;
+        }
+    }
+}
+
 }  // namespace
 }  // namespace cutsim
