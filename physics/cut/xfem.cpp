@@ -457,12 +457,11 @@ void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
     if (pass.fresh.empty()) return;
     const int E0 = pass.E0, E1 = E0 + static_cast<int>(pass.fresh.size());
     m.tets.conservativeResize(4, E1);
-    m.DmInv.conservativeResize(9, E1);
     m.volume.conservativeResize(E1);
     m.fraction.conservativeResize(E1);
     if (m.massShare.cols() == E0) m.massShare.conservativeResize(4, E1);
-    s.rot.conservativeResize(9, E1);
-    s.fe.resize(12, E1);
+    // the widest per-element arrays have room (fem/state.hpp reserveElements), else a quarter more
+    if (s.rot.cols() < E1 || s.fe.cols() < E1 || m.DmInv.cols() < E1) reserveElements(m, s, E1 + E1 / 4 + 16);
     for (size_t k = 0; k < pass.fresh.size(); ++k) {
         const int e = E0 + static_cast<int>(k), src = pass.fresh[k].src;
         const int p = parent_[static_cast<size_t>(src)];

@@ -37,7 +37,8 @@ struct Model {
 
     // Elements
     Eigen::Matrix4Xi tets;                           // node indices (4 x nElems)
-    Eigen::Matrix<double, 9, Eigen::Dynamic> DmInv;  // inverse rest shape matrix, column-major (9 x nElems) [1/m]
+    Eigen::Matrix<double, 9, Eigen::Dynamic> DmInv;  // inverse rest shape matrix, column-major (9 x nElems,
+                                                     // more columns after cuts: capacity) [1/m]
     Eigen::VectorXd volume;                          // rest volume of the (parent) element (nElems) [m^3]
     Eigen::VectorXd fraction;                        // share of the volume this element stands for (nElems) [-];
                                                      // 1 for an ordinary element, < 1 for a virtual element of a cut

@@ -31,4 +31,13 @@ void resizeState(const Model& m, State& s) {
     }
 }
 
+void reserveElements(Model& m, State& s, Eigen::Index elements) {
+    auto reserve = [elements](auto& a) {
+        if (a.cols() < elements) a.conservativeResize(Eigen::NoChange, elements);
+    };
+    reserve(m.DmInv);
+    reserve(s.rot);
+    reserve(s.fe);
+}
+
 }  // namespace cutsim

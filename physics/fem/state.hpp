@@ -26,8 +26,10 @@ struct State {
     Eigen::Matrix3Xd a;     // acceleration from f, Newmark's a_n (3 x nNodes) [m/s^2]
     Eigen::Matrix3Xd fExt;  // applied nodal forces, besides gravity (3 x nNodes) [N]
     Eigen::Matrix<double, 9, Eigen::Dynamic> rot;  // element rotation R of the last force evaluation,
-                                                   // column-major 3x3 (9 x nElems); warm start for inverted elements
-    Eigen::Matrix<double, 12, Eigen::Dynamic> fe;  // elastic force per element and local node (12 x nElems) [N]:
+                                                   // column-major 3x3 (9 x nElems, more after cuts:
+                                                   // capacity); warm start for inverted elements
+    Eigen::Matrix<double, 12, Eigen::Dynamic> fe;  // elastic force per element and local node (12 x nElems,
+                                                   // more after cuts) [N]:
                                                    // all of it after elementForces; scratch of computeForces, which
                                                    // on large meshes fills only the slots of nodes two threads share
     std::vector<unsigned char> sharedNode;         // scratch of computeForces: node's elements span two ranges
@@ -45,5 +47,11 @@ State makeState(const Model& model);
 
 // Resizes per-element arrays after the model's elements changed (new elements start unrotated).
 void resizeState(const Model& model, State& state);
+
+// Room for `elements` elements in the widest per-element arrays (Model::DmInv, State::rot and
+// State::fe: 240 bytes an element), which a cut grows by a quarter at a time: without it a fine
+// mesh's first blade cut reallocates and moves them (tens of milliseconds at 100k elements).
+// Never shrinks them.
+void reserveElements(Model& model, State& state, Eigen::Index elements);
 
 }  // namespace cutsim

@@ -590,6 +590,9 @@ void Simulation::ensureCutter() {
     if (cutter_) return;
     cutter_ = std::make_unique<CutEngine>(cutOptions(sc_.cutting));
     cutter_->prepare(model_);
+    // room for the cuts' elements now, not at the first cut (fem/state.hpp)
+    const Eigen::Index ne = model_.elements();
+    reserveElements(model_, state_, ne + ne / 4 + 16);
 }
 
 // ---- the step ----

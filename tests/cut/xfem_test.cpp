@@ -91,6 +91,33 @@ TEST(Polyhedron, FaceAreaAndTies) {
     EXPECT_NEAR(faceAreaFraction({off}), 0.0, 1e-15);
 }
 
+// A cut within the room reserved for elements (fem/state.hpp reserveElements) appends in place:
+// the widest per-element arrays stay where they are, and the same cut without the room gives the
+// same model, column for column.
+TEST(Xfem, CutAppendsIntoReservedRoom) {
+    Model m = unitBox(4), plain = m;
+    State s = makeState(m), sPlain = makeState(plain);
+    reserveElements(m, s, m.elements() + 200);
+    EXPECT_EQ(s.rot.cols(), m.elements() + 200);
+    reserveElements(m, s, 1);  // never shrinks
+    EXPECT_EQ(m.DmInv.cols(), m.elements() + 200);
+    const double* dm = m.DmInv.data();
+    const double* rot = s.rot.data();
+    const double* fe = s.fe.data();
+    CutEngine eng, engPlain;
+    const CutResult r = eng.cut(m, s, plane({0.37, 0, 0}, {1, 0, 0}));
+    engPlain.cut(plain, sPlain, plane({0.37, 0, 0}, {1, 0, 0}));
+    ASSERT_GT(r.split, 0);
+    ASSERT_LE(m.elements(), plain.elements() + 200);
+    EXPECT_EQ(m.DmInv.data(), dm);
+    EXPECT_EQ(s.rot.data(), rot);
+    EXPECT_EQ(s.fe.data(), fe);
+    ASSERT_EQ(m.elements(), plain.elements());
+    EXPECT_EQ(m.tets, plain.tets);
+    EXPECT_EQ(m.DmInv.leftCols(m.elements()), plain.DmInv.leftCols(plain.elements()));
+    EXPECT_EQ(s.rot.leftCols(m.elements()), sPlain.rot.leftCols(plain.elements()));
+}
+
 TEST(Xfem, PlaneCutSplitsBoxExactly) {
     Model m = unitBox(4);
     State s = makeState(m);
@@ -112,7 +139,7 @@ TEST(Xfem, PlaneCutSplitsBoxExactly) {
     EXPECT_NEAR(cutArea, 2.0, 1e-12);
     // State arrays follow the model.
     EXPECT_EQ(s.x.cols(), m.nodes());
-    EXPECT_EQ(s.rot.cols(), m.elements());
+    EXPECT_GE(s.rot.cols(), m.elements());  // with room for the next cuts' elements
 }
 
 // Undirected edges of a triangle mesh used by other than one face each way: 0 for a closed,
