@@ -49,9 +49,9 @@ State makeState(const Model& model);
 void resizeState(const Model& model, State& state);
 
 // Room for `elements` elements in the widest per-element arrays (Model::DmInv, State::rot and
-// State::fe: 240 bytes an element), which a cut grows by a quarter at a time: without it a fine
-// mesh's first blade cut reallocates and moves them (tens of milliseconds at 100k elements).
-// Never shrinks them.
+// State::fe: 240 bytes an element), which a cut grows by a quarter at a time: without room, a
+// blade step that appends a few elements now and then reallocates and moves them whole, the
+// slowest part of a cut on a fine mesh. Never shrinks them.
 void reserveElements(Model& model, State& state, Eigen::Index elements);
 
 }  // namespace cutsim

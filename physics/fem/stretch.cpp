@@ -154,8 +154,8 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
                 // (sigma3 is linear along g only near x). A node that would is held, as if fixed,
                 // and the others take the correction (the last one that can move goes an edge's
                 // length). Without it a light node with a small gradient takes a move of up to
-                // sqrt(m_heavy / m_light) / 2 times the heavy nodes' (1.4 m for a 2e-11 kg node of
-                // a 32-cell liver lattice, its cell 6 mm).
+                // sqrt(m_heavy / m_light) / 2 times the heavy nodes' (docs/method.md, Cutting finer
+                // objects).
                 const double edge = std::cbrt(6 * std::sqrt(2.0) * m.volume(e));
                 Eigen::Matrix<double, 3, 4> dx = Eigen::Matrix<double, 3, 4>::Zero();
                 bool held[4] = {false, false, false, false};
@@ -187,8 +187,7 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
                 // together, weighted as above; each light node stops its own part alone. Every
                 // stop takes energy out, and a light node no longer takes the heavy ones' momentum:
                 // stopped with the others, a light node whose gradient is small gets up to
-                // sqrt(m_heavy / m_light) / 2 times their closing speed (~1,000 m/s for a 2e-11 kg
-                // node of a 32-cell liver lattice).
+                // sqrt(m_heavy / m_light) / 2 times their closing speed.
                 double rate = 0, wv[4], vdenom = 0;
                 bool heavy[4];
                 for (int a = 0; a < 4; ++a) {
