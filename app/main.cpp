@@ -1,5 +1,6 @@
 // The cutsim command: subcommands register themselves in commands.hpp.
 #include "commands.hpp"
+#include "util/memory.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -8,6 +9,7 @@
 #include <new>
 
 int main(int argc, char** argv) {
+    cutsim::mapLargeArrays();  // arrays a cut grows are remapped, not copied
     CLI::App app{"cutsim: explicit FEM soft-tissue cutting simulator"};
     app.require_subcommand(1);
     cutsim::app::registerCommands(app);

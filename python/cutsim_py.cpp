@@ -6,6 +6,7 @@
 #include "sim/simulation.hpp"
 #include "snapshot/scene_snapshot.hpp"
 #include "util/atomic_file.hpp"
+#include "util/memory.hpp"
 
 #ifdef CUTSIM_HAVE_RENDER
 #include "renderer.hpp"
@@ -290,6 +291,7 @@ py::dict limitsDict(const StepLimits& l) {
 
 PYBIND11_MODULE(cutsim, m) {
     using namespace cutsim;
+    mapLargeArrays();  // arrays a cut grows are remapped, not copied (util/memory.hpp)
     m.doc() = "cutsim: explicit FEM soft-tissue cutting (docs/python.md).\n\n"
               "Simulation.positions, velocities, rest_positions and element_steps are read-only numpy views of "
               "the simulation's memory (no copy) that follow the steps. A cut (cut_plane, cut_polygon, "

@@ -5,6 +5,7 @@
 #include "mesh/mesh.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
+#include "util/memory.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -30,6 +31,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "error: STEPS must be a positive integer, not '%s'\n", argv[2]);
         return 2;
     }
+    cutsim::mapLargeArrays();  // the arrays a cut grows are remapped, not copied
     try {
         const cutsim::SceneDef scene = cutsim::loadScene(argv[1]);
         cutsim::Simulation sim(scene, {.threads = 1});

@@ -10,7 +10,6 @@
 #include <cstddef>
 #include <numeric>
 #include <tuple>
-#include <unordered_set>
 
 namespace cutsim {
 
@@ -109,6 +108,8 @@ void CutEngine::prepare(const Model& m) {
     fraction0_ = m.fraction;
     fixed0_ = m.fixed;
     mass0_ = wholeMass(m);  // an MI lattice node's light share is of its whole cells' mass
+    volume0_ = m.volume.dot(m.fraction);
+    massRef_ = m.mass.sum();
 
     // Face adjacency: sort (face key, element, corner) and pair equal keys.
     std::vector<std::tuple<std::array<int, 3>, int, int>> faces;
@@ -423,10 +424,15 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
 // spreads over the covered part of the plane however the body has moved away from the blade. A
 // neighbour counts when it shares the face's three nodes (still one body there).
 void CutEngine::visitFromCandidates(Model& m, State& s, Pass& pass, const std::vector<int>& candidates) {
-    std::vector<int> queue;
-    std::unordered_set<int> queued;
+    std::vector<int>& queue = visitQueue_;
+    queue.clear();
+    // elements queued in this pass carry its stamp (no set to build per blade step)
+    if (visitMark_.size() < static_cast<size_t>(pass.E0)) visitMark_.resize(static_cast<size_t>(pass.E0), 0);
+    if (++visitStamp_ == 0) std::fill(visitMark_.begin(), visitMark_.end(), 0), visitStamp_ = 1;
     auto enqueue = [&](int e) {
-        if (e >= 0 && e < pass.E0 && queued.insert(e).second) queue.push_back(e);
+        if (e < 0 || e >= pass.E0 || visitMark_[static_cast<size_t>(e)] == visitStamp_) return;
+        visitMark_[static_cast<size_t>(e)] = visitStamp_;
+        queue.push_back(e);
     };
     for (int e : candidates) enqueue(e);
     size_t done = 0;
@@ -486,8 +492,10 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     prepare(m);
     CutResult r;
     r.cut = cutId;
-    r.volumeBefore = m.volume.dot(m.fraction);
-    r.massBefore = m.mass.sum();
+    const bool local = candidates != nullptr;  // a blade step: sums over what it touched
+    massChange_ = 0;
+    r.volumeBefore = local ? volume0_ : m.volume.dot(m.fraction);
+    r.massBefore = local ? massRef_ : m.mass.sum();
     if (opts_.lumping != MassLumping::Enrichment && m.massShare.cols() != m.elements()) {
         m.massShare.resize(4, m.elements());
         for (int e = 0; e < m.elements(); ++e) m.massShare.col(e).setConstant(m.fraction(e) / 4.0);
@@ -511,8 +519,19 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
     if (opts_.mergeDebris && r.crossed > 0) mergeDebris(m, s.x, r);
     if (opts_.relaxIterations > 0 && r.crossed > 0) relaxCutNodes(m, s, r);
     if (r.crossed > 0) markLightNodes(m);
-    r.volumeAfter = m.volume.dot(m.fraction);
-    r.massAfter = m.mass.sum();
+    if (local) {
+        // every parent cut keeps its material V f0 over its virtual elements
+        double before = 0, after = 0;
+        for (int p : parents) {
+            before += m.volume(p) * fraction0_[p];
+            for (int g : virtualsOf(p)) after += m.volume(g) * m.fraction(g);
+        }
+        r.volumeAfter = r.volumeBefore + (after - before);
+        r.massAfter = r.massBefore + massChange_;
+    } else {
+        r.volumeAfter = m.volume.dot(m.fraction);
+        r.massAfter = m.mass.sum();
+    }
     r.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
     return r;
 }
@@ -581,7 +600,15 @@ void CutEngine::finishRelink(Model& m, const std::vector<int>& parents, const st
     changedNodes.erase(std::unique(changedNodes.begin(), changedNodes.end()), changedNodes.end());
     // Only these rows and masses changed: a blade step costs what it cut, not the mesh.
     updateIncidence(m, changedNodes, r.changedElements);
+    const Eigen::Index n0 = m.mass.size();
+    double before = 0, after = 0;
+    for (int i : changedNodes)
+        if (i < n0) before += m.mass(i);
     updateMasses(m, changedNodes);
+    for (int i : changedNodes) after += m.mass(i);
+    for (Eigen::Index i = n0; i < m.nodes(); ++i)  // an appended node no changed element holds
+        if (!std::binary_search(changedNodes.begin(), changedNodes.end(), static_cast<int>(i))) after += m.mass(i);
+    massChange_ += after - before;
     r.changedNodes = std::move(changedNodes);
 }
 
@@ -744,7 +771,7 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
             for (int a = 0; a < 4 && !held; ++a) {
                 const int node = m.tets(a, e);
                 held = m.fixed[static_cast<size_t>(node)] != 0;
-                for (int sl = m.nodeSlotStart[node]; sl < m.nodeSlotStart[node + 1]; ++sl) {
+                for (int sl = m.nodeSlotStart[node]; sl < m.nodeSlotEnd[node]; ++sl) {
                     const int g = m.nodeSlots[static_cast<size_t>(sl)] / 4;
                     if (mark[static_cast<size_t>(g)] <= base) {
                         mark[static_cast<size_t>(g)] = stamp;
@@ -791,7 +818,9 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
     }
     if (r.merged == 0) return;
     followFused(m, r);
+    const double before = m.mass.sum();
     updateMasses(m);
+    massChange_ += m.mass.sum() - before;
     buildIncidence(m);
     std::sort(r.changedElements.begin(), r.changedElements.end());
     r.changedElements.erase(std::unique(r.changedElements.begin(), r.changedElements.end()), r.changedElements.end());
@@ -803,8 +832,8 @@ void CutEngine::relaxCutNodes(const Model& m, State& s, const CutResult& r) cons
     std::vector<int> nodes;
     for (int n : r.changedNodes) {
         if (n >= m.nodes() || m.invMass(n) == 0) continue;
-        bool onlyCut = m.nodeSlotStart[n] < m.nodeSlotStart[n + 1];
-        for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1] && onlyCut; ++sl)
+        bool onlyCut = m.nodeSlotStart[n] < m.nodeSlotEnd[n];
+        for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotEnd[n] && onlyCut; ++sl)
             onlyCut = virt_.count(m.nodeSlots[static_cast<size_t>(sl)] / 4) > 0;
         if (onlyCut) nodes.push_back(n);
     }

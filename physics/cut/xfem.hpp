@@ -85,20 +85,24 @@ struct BladeEdge {
 };
 
 struct CutResult {
-    int cut = -1;                              // id of this cut (a blade stroke keeps one id)
-    int crossed = 0;                           // virtual elements the surface went through
-    int split = 0;                             // of those, split into two (the rest had an empty side)
-    int pending = 0;                           // elements the surface entered but did not cross yet
-    int dropped = 0;                           // sides below minFraction, merged into the other side
-    int merged = 0;                            // severed pieces below one element fused back (mergeDebris)
-    std::vector<int> newNodes;                 // appended node indices
-    std::vector<int> newElements;              // appended element indices
-    std::vector<int> elementSource;            // element each new element was copied from (newElements.size())
-    std::vector<int> changedElements;          // elements whose nodes, fraction or mass share changed, and new ones
-    std::vector<int> changedNodes;             // nodes whose mass or incident elements changed
-    double volumeBefore = 0, volumeAfter = 0;  // sum of V * fraction [m^3]
-    double massBefore = 0, massAfter = 0;      // sum of lumped masses [kg]
-    double seconds = 0;                        // wall time of the cut [s]
+    int cut = -1;                      // id of this cut (a blade stroke keeps one id)
+    int crossed = 0;                   // virtual elements the surface went through
+    int split = 0;                     // of those, split into two (the rest had an empty side)
+    int pending = 0;                   // elements the surface entered but did not cross yet
+    int dropped = 0;                   // sides below minFraction, merged into the other side
+    int merged = 0;                    // severed pieces below one element fused back (mergeDebris)
+    std::vector<int> newNodes;         // appended node indices
+    std::vector<int> newElements;      // appended element indices
+    std::vector<int> elementSource;    // element each new element was copied from (newElements.size())
+    std::vector<int> changedElements;  // elements whose nodes, fraction or mass share changed, and new ones
+    std::vector<int> changedNodes;     // nodes whose mass or incident elements changed
+    // Sums of V * fraction [m^3] and of the lumped masses [kg]. A cut through the whole mesh sums
+    // the arrays; a blade step sums what it touched (each parent it cut against that parent's
+    // material, the masses of the nodes it changed before and after) onto the sums when the engine
+    // was prepared, so that it costs what it cut.
+    double volumeBefore = 0, volumeAfter = 0;
+    double massBefore = 0, massAfter = 0;
+    double seconds = 0;  // wall time of the cut [s]
     bool changed() const { return crossed > 0; }
 };
 
@@ -264,10 +268,14 @@ private:
     CutOptions opts_;
     bool prepared_ = false;
     int nextCut_ = 0;
-    Eigen::Matrix4Xi tets0_;                 // original elements (4 x nParents)
-    std::vector<std::uint8_t> fixed0_;       // prescribed original nodes (nNodes0)
-    Eigen::VectorXd mass0_;                  // each original node's mass with its elements whole (wholeMass) [kg]
-    Eigen::VectorXd fraction0_;              // fraction of each parent before any cut (nParents) [-]
+    Eigen::Matrix4Xi tets0_;                   // original elements (4 x nParents)
+    std::vector<std::uint8_t> fixed0_;         // prescribed original nodes (nNodes0)
+    Eigen::VectorXd mass0_;                    // each original node's mass with its elements whole (wholeMass) [kg]
+    Eigen::VectorXd fraction0_;                // fraction of each parent before any cut (nParents) [-]
+    double volume0_ = 0, massRef_ = 0;         // sum of V fraction, and of the node masses, when prepared
+    double massChange_ = 0;                    // change of the node masses' sum in this application [kg]
+    std::vector<int> visitQueue_, visitMark_;  // visitFromCandidates' queue and its marks
+    int visitStamp_ = 0;
     Eigen::Matrix4Xi adj_;                   // parent across the face opposite each corner, or -1 (4 x nParents)
     std::vector<int> ringStart_, ring_;      // original node -> parents (CSR)
     std::vector<int> parent_;                // parent of each element (nElems)

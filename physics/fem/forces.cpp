@@ -356,7 +356,7 @@ inline Eigen::Vector3d nodeLoad(const Model& m, const State& s, int i) { return 
 // Node i's load plus its element slots in state.fe, in element order.
 inline void gatherNode(const Model& m, State& s, int i) {
     Eigen::Vector3d f = nodeLoad(m, s, i);
-    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) {
+    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotEnd[i]; ++k) {
         const int slot = m.nodeSlots[k];
         f += Eigen::Map<const Eigen::Vector3d>(s.fe.col(slot >> 2).data() + 3 * (slot & 3));
     }
@@ -448,7 +448,7 @@ void forcesFused(const Model& m, State& s, const double* alpha, double watch, bo
         // span two ranges exactly when its first and last lie on two sides of a range boundary.
         for (int i = split(nn, t); i < split(nn, t + 1); ++i) {
             s.f.col(i) = nodeLoad(m, s, i);
-            const int k0 = m.nodeSlotStart[i], k1 = m.nodeSlotStart[i + 1];
+            const int k0 = m.nodeSlotStart[i], k1 = m.nodeSlotEnd[i];
             bool shared = false;
             for (int b = 1; b < nt && k1 > k0; ++b)
                 shared =

@@ -196,7 +196,7 @@ void Stepper::forces(const Model& m, State& s, const double* alpha, double watch
 // neighbours count (at rest): a copy hanging at the clamp is damped towards it.
 template <class F>
 void forNeighbours(const Model& m, int n, F&& f) {
-    for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1]; ++sl) {
+    for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotEnd[n]; ++sl) {
         const int e = m.nodeSlots[static_cast<size_t>(sl)] / 4;
         for (int a = 0; a < 4; ++a) {
             const int o = m.tets(a, e);
@@ -270,7 +270,7 @@ int Stepper::repairInverted(const Model& m, State& s, const StepOptions& opt, co
     repairSeeds_.clear();
     for (const int i : nodes) {
         if (!std::binary_search(m.lightNodes.begin(), m.lightNodes.end(), i)) continue;
-        for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k) {
+        for (int k = m.nodeSlotStart[i]; k < m.nodeSlotEnd[i]; ++k) {
             const int e = m.nodeSlots[k] >> 2;
             if (!(deformationGradient(m, s, e).determinant() > 0)) repairSeeds_.push_back(e);
         }

@@ -8,6 +8,7 @@
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace cutsim {
 
@@ -74,7 +75,7 @@ void updateMasses(Model& m, const std::vector<int>& nodes) {
     const bool shares = m.massShare.cols() == m.elements(), added = m.addedMass.size() == n;
     for (int i : nodes) {
         double mi = 0;
-        for (int sl = m.nodeSlotStart[i]; sl < m.nodeSlotStart[i + 1]; ++sl) {
+        for (int sl = m.nodeSlotStart[i]; sl < m.nodeSlotEnd[i]; ++sl) {
             const int e = m.nodeSlots[sl] / 4, a = m.nodeSlots[sl] % 4;
             mi += shares ? rho * m.volume(e) * m.massShare(a, e) : rho * m.volume(e) * m.fraction(e) / 4.0;
         }
@@ -106,57 +107,59 @@ void fixNodes(Model& m, const std::vector<int>& nodes) {
 }
 
 void buildIncidence(Model& m) {
-    m.nodeSlotStart.assign(m.nodes() + 1, 0);
+    const size_t n = static_cast<size_t>(m.nodes());
+    m.nodeSlotStart.assign(n, 0);
     for (int e = 0; e < m.elements(); ++e)
-        for (int a = 0; a < 4; ++a) ++m.nodeSlotStart[m.tets(a, e) + 1];
-    for (int i = 0; i < m.nodes(); ++i) m.nodeSlotStart[i + 1] += m.nodeSlotStart[i];
-    m.nodeSlots.resize(4 * m.elements());
-    std::vector<int> fill(m.nodeSlotStart.begin(), m.nodeSlotStart.end() - 1);
+        for (int a = 0; a < 4; ++a) ++m.nodeSlotStart[static_cast<size_t>(m.tets(a, e))];
+    int sum = 0;
+    for (size_t i = 0; i < n; ++i) sum += std::exchange(m.nodeSlotStart[i], sum);
+    // room for a cut's rows to move to the end without reallocating at once
+    m.nodeSlots.reserve(4 * static_cast<size_t>(m.elements()) * 5 / 4 + 64);
+    m.nodeSlots.resize(4 * static_cast<size_t>(m.elements()));
+    m.nodeSlotEnd = m.nodeSlotStart;
     for (int e = 0; e < m.elements(); ++e)
-        for (int a = 0; a < 4; ++a) m.nodeSlots[fill[m.tets(a, e)]++] = 4 * e + a;
+        for (int a = 0; a < 4; ++a) m.nodeSlots[static_cast<size_t>(m.nodeSlotEnd[m.tets(a, e)]++)] = 4 * e + a;
 }
 
 void updateIncidence(Model& m, const std::vector<int>& rows, const std::vector<int>& elements) {
-    const int n = m.nodes(), n0 = static_cast<int>(m.nodeSlotStart.size()) - 1;
-    if (n0 < 0 || n < n0) return buildIncidence(m);
-    std::vector<char> inElems(static_cast<size_t>(m.elements()), 0);
-    for (int e : elements) inElems[static_cast<size_t>(e)] = 1;
-    // New lists of the rows: their old slots of unchanged elements, plus the changed elements' slots.
-    std::vector<int> rowOf(static_cast<size_t>(n), -1);
-    std::vector<std::vector<int>> lists(rows.size());
-    for (size_t k = 0; k < rows.size(); ++k) rowOf[static_cast<size_t>(rows[k])] = static_cast<int>(k);
-    for (size_t k = 0; k < rows.size(); ++k) {
-        const int i = rows[k];
-        if (i < n0)
-            for (int sl = m.nodeSlotStart[i]; sl < m.nodeSlotStart[i + 1]; ++sl)
-                if (!inElems[static_cast<size_t>(m.nodeSlots[sl] / 4)]) lists[k].push_back(m.nodeSlots[sl]);
-    }
-    for (int e : elements)
-        for (int a = 0; a < 4; ++a)
-            if (const int k = rowOf[static_cast<size_t>(m.tets(a, e))]; k >= 0)
-                lists[static_cast<size_t>(k)].push_back(4 * e + a);
-    for (auto& l : lists) std::sort(l.begin(), l.end());
-    // Copy the other rows in runs around the changed ones.
-    std::vector<int> start(static_cast<size_t>(n) + 1), slots;
-    slots.reserve(4 * static_cast<size_t>(m.elements()));
-    for (int i = 0; i < n;) {
-        start[static_cast<size_t>(i)] = static_cast<int>(slots.size());
-        if (const int k = rowOf[static_cast<size_t>(i)]; k >= 0) {
-            slots.insert(slots.end(), lists[static_cast<size_t>(k)].begin(), lists[static_cast<size_t>(k)].end());
-            ++i;
-            continue;
+    const int n = m.nodes(), n0 = static_cast<int>(m.nodeSlotStart.size());
+    if (n0 == 0 || n < n0 || m.nodeSlotEnd.size() != m.nodeSlotStart.size()) return buildIncidence(m);
+    m.nodeSlotStart.resize(static_cast<size_t>(n), 0);  // appended nodes: empty rows until written
+    m.nodeSlotEnd.resize(static_cast<size_t>(n), 0);
+    std::vector<int> changed(elements);
+    std::sort(changed.begin(), changed.end());
+    changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+    // the changed elements' slots by node
+    std::vector<std::pair<int, int>> fresh;
+    fresh.reserve(4 * changed.size());
+    for (int e : changed)
+        for (int a = 0; a < 4; ++a) fresh.emplace_back(m.tets(a, e), 4 * e + a);
+    std::sort(fresh.begin(), fresh.end());
+    std::vector<int> list;
+    for (int i : rows) {
+        if (i < 0 || i >= n) throw std::logic_error("updateIncidence: row " + std::to_string(i) + " is not a node");
+        const size_t si = static_cast<size_t>(i);
+        list.clear();
+        // its slots of unchanged elements, then the changed elements' slots at it
+        for (int k = m.nodeSlotStart[si]; k < m.nodeSlotEnd[si]; ++k) {
+            const int slot = m.nodeSlots[static_cast<size_t>(k)];
+            if (!std::binary_search(changed.begin(), changed.end(), slot >> 2)) list.push_back(slot);
         }
-        int j = i;  // the run of unchanged old rows [i, j)
-        while (j < n0 && rowOf[static_cast<size_t>(j)] < 0) ++j;
-        if (j == i) throw std::logic_error("updateIncidence: an appended node is not among the rows");
-        const int shift = static_cast<int>(slots.size()) - m.nodeSlotStart[i];
-        slots.insert(slots.end(), m.nodeSlots.begin() + m.nodeSlotStart[i], m.nodeSlots.begin() + m.nodeSlotStart[j]);
-        for (int q = i + 1; q < j; ++q) start[static_cast<size_t>(q)] = m.nodeSlotStart[q] + shift;
-        i = j;
+        for (auto it = std::lower_bound(fresh.begin(), fresh.end(), std::pair<int, int>{i, -1});
+             it != fresh.end() && it->first == i; ++it)
+            list.push_back(it->second);
+        std::sort(list.begin(), list.end());
+        list.erase(std::unique(list.begin(), list.end()), list.end());                  // a row listed twice
+        if (static_cast<int>(list.size()) > m.nodeSlotEnd[si] - m.nodeSlotStart[si]) {  // grew: to the end
+            m.nodeSlotStart[si] = static_cast<int>(m.nodeSlots.size());
+            m.nodeSlots.insert(m.nodeSlots.end(), list.begin(), list.end());
+        } else {
+            std::copy(list.begin(), list.end(), m.nodeSlots.begin() + m.nodeSlotStart[si]);
+        }
+        m.nodeSlotEnd[si] = m.nodeSlotStart[si] + static_cast<int>(list.size());
     }
-    start[static_cast<size_t>(n)] = static_cast<int>(slots.size());
-    m.nodeSlotStart = std::move(start);
-    m.nodeSlots = std::move(slots);
+    // gaps over half the live slots (4 per element): rebuilt in node order
+    if (m.nodeSlots.size() > 6 * static_cast<size_t>(m.elements()) + 1024) buildIncidence(m);
 }
 
 Eigen::SparseMatrix<double> assembleStiffness(const Model& m) {

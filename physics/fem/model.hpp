@@ -9,6 +9,7 @@
 #include <Eigen/SparseCore>
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace cutsim {
@@ -66,11 +67,18 @@ struct Model {
     // V fraction for the stiffness: 0 for a matched element.
     double stiffnessVolume(int e) const { return isMatched(e) ? 0.0 : volume(e) * fraction(e); }
 
-    // Node -> incident element slots (CSR): slot s = 4*e + a means local node a of element e; a
-    // node's slots in ascending element order (computeForces sums in it and finds the nodes two
-    // threads share from the first and last).
-    std::vector<int> nodeSlotStart;  // (nNodes + 1)
-    std::vector<int> nodeSlots;      // (4 * nElems)
+    // Node -> incident element slots: slot s = 4*e + a means local node a of element e; node i's
+    // slots are nodeSlots[nodeSlotStart[i], nodeSlotEnd[i]), in ascending element order
+    // (computeForces sums in it and finds the nodes two threads share from the first and last).
+    // Built in node order; a cut rewrites its rows in place or moves them to the end, leaving
+    // gaps until the next rebuild (updateIncidence).
+    std::vector<int> nodeSlotStart;  // (nNodes)
+    std::vector<int> nodeSlotEnd;    // (nNodes)
+    std::vector<int> nodeSlots;      // (4 * nElems, plus gaps)
+    std::span<const int> slotsOf(int i) const {
+        return {nodeSlots.data() + nodeSlotStart[static_cast<size_t>(i)],
+                nodeSlots.data() + nodeSlotEnd[static_cast<size_t>(i)]};
+    }
 
     int nodes() const { return static_cast<int>(X.cols()); }
     int elements() const { return static_cast<int>(tets.cols()); }
@@ -104,7 +112,8 @@ void fixNodes(Model& model, const std::vector<int>& nodes);
 void buildIncidence(Model& model);
 // The same after a local change: `elements` are the appended elements and every element whose
 // corners changed; `rows` every node that gained or lost a corner of them (appended nodes
-// included). Rows outside it are copied, so the cost is a copy of the slots, not a rebuild.
+// included). Only those rows are written (in place, or at the end when they grew), so a cut
+// costs what it changed; the slots are rebuilt when gaps outgrow half the live ones.
 void updateIncidence(Model& model, const std::vector<int>& rows, const std::vector<int>& elements);
 
 // Assembled rest stiffness K (3n x 3n), each element scaled by its fraction. DOF 3i+k.

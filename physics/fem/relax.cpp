@@ -16,7 +16,7 @@ void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int ite
             Eigen::Matrix3d K = Eigen::Matrix3d::Zero();
             double size = 1e300;
             floorDet.clear();
-            for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotStart[n + 1]; ++sl) {
+            for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotEnd[n]; ++sl) {
                 const int e = m.nodeSlots[static_cast<size_t>(sl)] / 4, a = m.nodeSlots[static_cast<size_t>(sl)] % 4;
                 const Eigen::Matrix3d F = deformationGradient(m, s, e);
                 floorDet.push_back(0.5 * std::min(F.determinant(), 1.0));
@@ -46,7 +46,7 @@ void relaxNodes(const Model& m, State& s, const std::vector<int>& nodes, int ite
             for (int tries = 0; tries < 6; ++tries, dx *= 0.5) {
                 s.x.col(n) = x0 + dx;
                 bool ok = true;
-                for (int sl = m.nodeSlotStart[n], k = 0; sl < m.nodeSlotStart[n + 1] && ok; ++sl, ++k)
+                for (int sl = m.nodeSlotStart[n], k = 0; sl < m.nodeSlotEnd[n] && ok; ++sl, ++k)
                     ok = deformationGradient(m, s, m.nodeSlots[static_cast<size_t>(sl)] / 4).determinant() >=
                          floorDet[static_cast<size_t>(k)];
                 if (ok) break;

@@ -115,8 +115,7 @@ int limitStretch(const Model& m, State& s, double sMinAll, std::vector<int>& scr
             for (const int e : scratch)
                 for (int a = 0; a < 4; ++a) {
                     const int i = m.tets(a, e);
-                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotStart[i + 1]; ++k)
-                        around.push_back(m.nodeSlots[k] >> 2);
+                    for (int k = m.nodeSlotStart[i]; k < m.nodeSlotEnd[i]; ++k) around.push_back(m.nodeSlots[k] >> 2);
                 }
             std::sort(around.begin(), around.end());
             around.erase(std::unique(around.begin(), around.end()), around.end());

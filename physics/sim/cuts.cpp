@@ -69,7 +69,7 @@ void Simulation::respondToCut(const CutResult& r, const std::string& key, bool b
         if (ta_.estimates().r1r(e) < criticalBound) criticalAtCut.push_back(e);
     limits_.exact = res.exact;
     limits_.certified = ta_.certifiedDt();
-    limits_.estimate = ta_.minDt().r1r;
+    limits_.estimate = ta_.minR1r();
     const double updateSeconds = res.updateSeconds, exactSeconds = res.exactSeconds;
     rec_.floorMass += res.addedMass();
     stepper_.reset();
@@ -188,7 +188,7 @@ void Simulation::settleExact() {
     }();
     limits_.exact = res.exact;
     limits_.certified = ta_.certifiedDt();
-    limits_.estimate = ta_.minDt().r1r;
+    limits_.estimate = ta_.minR1r();
     rec_.floorMass += res.addedMass();
     stepper_.reset();
     chooseAndApply(false);

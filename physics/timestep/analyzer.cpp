@@ -108,7 +108,7 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
         const std::uint8_t isFree = m.invMass(i) > 0;
         const bool flipped = free_[i] != isFree || i >= oldNodes;
         free_[i] = isFree;
-        for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
+        for (int s = m.nodeSlotStart[i]; s < m.nodeSlotEnd[i]; ++s) {
             const int e = m.nodeSlots[s] / 4;
             if (elemStamp_[e] != stamp_) elemStamp_[e] = stamp_, elems.push_back(e);
             if (flipped) markGeom(e);
@@ -142,12 +142,14 @@ void TimestepAnalyzer::updateMovedNodes(const Model& m, const std::vector<int>& 
     std::vector<int> elems;
     std::vector<char> seen(m.elements(), 0);
     for (int i : movedNodes)
-        for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
+        for (int s = m.nodeSlotStart[i]; s < m.nodeSlotEnd[i]; ++s) {
             const int e = m.nodeSlots[s] / 4;
             if (!seen[e]) seen[e] = 1, elems.push_back(e);
         }
     update(m, elems, movedNodes);
 }
+
+double TimestepAnalyzer::minR1r() const { return minOf(est_.r1r); }
 
 TimestepAnalyzer::Minima TimestepAnalyzer::minDt() const {
     return {minOf(est_.r1r), minOf(est_.hs), minOf(est_.hp), minOf(est_.le), minOf(est_.element)};

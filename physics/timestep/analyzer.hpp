@@ -54,6 +54,7 @@ public:
         double r1r, hs, hp, le, element;
     };
     Minima minDt() const;
+    double minR1r() const;  // minDt().r1r alone (after each cut)
 
     std::vector<std::pair<std::string, double>> correlations() const { return correlationsWithR1R(est_, shapes_); }
 

@@ -31,7 +31,7 @@ void assembleStiffnessRow(const Model& m, int i, std::vector<int>& nbr, std::vec
     // it; reset after use), so no search.
     thread_local std::vector<int> list, place, where;
     if (where.size() < static_cast<size_t>(m.nodes())) where.resize(static_cast<size_t>(m.nodes()), -1);
-    const int s0 = m.nodeSlotStart[i], s1 = m.nodeSlotStart[i + 1];
+    const int s0 = m.nodeSlotStart[i], s1 = m.nodeSlotEnd[i];
     list.assign(1, i);
     where[static_cast<size_t>(i)] = 0;
     place.resize(static_cast<size_t>(4 * (s1 - s0)));
@@ -76,7 +76,7 @@ StiffnessRows assembleStiffnessRows(const Model& m) {
 Eigen::Vector3d nodeStiffnessDiagonal(const Model& m, int i) {
     Eigen::Vector3d d = Eigen::Vector3d::Zero();
     const double eh = m.material.pWaveModulus(), mu = m.material.mu();
-    for (int s = m.nodeSlotStart[i]; s < m.nodeSlotStart[i + 1]; ++s) {
+    for (int s = m.nodeSlotStart[i]; s < m.nodeSlotEnd[i]; ++s) {
         const int e = m.nodeSlots[s] / 4, a = m.nodeSlots[s] % 4;
         // Eqs. 4.3-4.10: the diagonal of K_e needs only the shape gradients; here node a's three
         // entries (as elementStiffnessDiagonal), from g_a alone.

@@ -3,6 +3,9 @@
 #include "util/input_error.hpp"
 
 #include <sys/resource.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <unistd.h>
 
 #include <algorithm>
@@ -31,6 +34,16 @@ void checkMemory(const std::string& what, double bytes) {
     std::snprintf(buf, sizeof buf, "needs about %.3g GB of memory, above the %.3g GB this process may use", bytes / 1e9,
                   limit / 1e9);
     throw InputError(what + ": " + buf);
+}
+
+void mapLargeArrays(std::size_t threshold) {
+#if defined(__GLIBC__)
+    // a set threshold also stops glibc raising it to the largest block freed, which would put
+    // the arrays back on the heap after the first one is freed
+    mallopt(M_MMAP_THRESHOLD, static_cast<int>(threshold));
+#else
+    (void)threshold;
+#endif
 }
 
 }  // namespace cutsim

@@ -2,6 +2,7 @@
 // (a bad_alloc thrown in an OpenMP region cannot reach any handler).
 #pragma once
 
+#include <cstddef>
 #include <string>
 
 namespace cutsim {
@@ -12,5 +13,12 @@ double memoryLimitBytes();
 
 // InputError naming `what` when `bytes` is above memoryLimitBytes(); says both in GB.
 void checkMemory(const std::string& what, double bytes);
+
+// Allocations of `threshold` bytes and more as their own mapped pages (glibc's M_MMAP_THRESHOLD;
+// elsewhere nothing). A cut grows the per-element and per-node arrays by a few columns at each
+// blade step: a mapped array grows by remapping its pages, where one on the heap is often copied
+// whole (a 100k-element model's arrays are ~20 MB; docs/method.md, "Cutting finer objects"). The
+// cutsim program and the Python module set it at start; a program embedding the library should too.
+void mapLargeArrays(std::size_t threshold = 256 * 1024);
 
 }  // namespace cutsim

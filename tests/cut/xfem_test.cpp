@@ -10,7 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <span>
 #include <cstdio>
 #include <map>
 #include <numeric>
@@ -344,9 +346,10 @@ TEST(Xfem, BladeStepsUpdateIncidenceAndMassesAsAFullRebuild) {
         Model full = m;
         buildIncidence(full);
         updateMasses(full);
-        ASSERT_EQ(full.nodeSlotStart, m.nodeSlotStart) << "step " << steps;
-        ASSERT_EQ(full.nodeSlots, m.nodeSlots) << "step " << steps;
+        ASSERT_LE(m.nodeSlots.size(), 6 * static_cast<size_t>(m.elements()) + 1024) << "step " << steps;
         for (int i = 0; i < m.nodes(); ++i) {
+            const std::span<const int> a = full.slotsOf(i), b = m.slotsOf(i);
+            ASSERT_TRUE(std::equal(a.begin(), a.end(), b.begin(), b.end())) << "node " << i << " step " << steps;
             ASSERT_EQ(full.mass(i), m.mass(i)) << "node " << i << " step " << steps;
             ASSERT_EQ(full.invMass(i), m.invMass(i)) << "node " << i << " step " << steps;
         }
