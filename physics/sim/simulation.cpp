@@ -8,6 +8,7 @@
 #include "sim/tetra.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
+#include "util/cpu_load.hpp"
 #include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
@@ -126,15 +127,17 @@ struct Simulation::ThreadTuner {
     static constexpr double kWindowSeconds = 0.03, kMargin = 0.9, kClearLoss = 2, kCost = 0.04;
     static constexpr long kChunk = 16, kMinSteps = 64, kHoldFactor = 30;
     static constexpr int kSettle = 2;  // steps after a switch that are not timed (threads waking up)
-    int many = 2;                      // all cores
+    int cores = 2;
+    int many = 2;  // the cores the other processes leave free
     int current = 1;
     bool measuring = true;
     long inChunk = 0, hold = 0, held = 0;
     int settle = 0;
-    long steps[2] = {0, 0};  // timed steps on one thread [0] and on all cores [1]
+    long steps[2] = {0, 0};  // timed steps on one thread [0] and on `many` [1]
     double seconds[2] = {0, 0};
+    OtherProcessesLoad others;
 
-    explicit ThreadTuner(int cores) : many(cores) { setThreads(1); }
+    explicit ThreadTuner(int n) : cores(n), many(n) { setThreads(1); }
     void use(int n) {
         if (n != current) settle = kSettle;
         current = n;
@@ -142,7 +145,16 @@ struct Simulation::ThreadTuner {
     }
     void after(double stepSeconds) {
         if (!measuring) {
-            if (++held >= hold) measuring = true, inChunk = 0, steps[0] = steps[1] = 0, seconds[0] = seconds[1] = 0;
+            if (++held < hold) return;
+            held = 0;
+            // A core the other processes kept more than half busy over the hold is not ours: a
+            // parallel step waits for its descheduled thread. With no second core free, one
+            // thread is held again without measuring (each turn on both cores cost a busy
+            // machine about twice a step).
+            const double load = others.sample();
+            many = load > 0.5 ? std::max(1, cores - static_cast<int>(std::ceil(load - 0.5))) : cores;
+            if (many == 1) return use(1);
+            measuring = true, inChunk = 0, steps[0] = steps[1] = 0, seconds[0] = seconds[1] = 0;
             return;
         }
         if (settle > 0) {
@@ -163,6 +175,7 @@ struct Simulation::ThreadTuner {
         use(win == 1 ? many : 1);
         measuring = false;
         held = 0;
+        others.sample();  // the hold's load is counted from here
         const double lost = double(steps[1 - win] + kSettle) * std::max(0.0, per[1 - win] - per[win]);
         hold = std::max(kHoldFactor * (steps[0] + steps[1]), static_cast<long>(lost / (kCost * per[win])));
     }
