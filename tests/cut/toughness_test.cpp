@@ -91,8 +91,9 @@ TEST(Toughness, SteadyForceIsProportionalToToughness) {
     EXPECT_NEAR(half.steady / full.steady, 0.5, 0.15 * 0.5);
 }
 
-// Without damping the work goes to elastic, kinetic and fracture energy; what is left comes from
-// the projection's stops at the front (docs/method.md, "Tissue toughness"): 4.8% and 7.4% here.
+// Without damping the work goes to elastic, kinetic and fracture energy; the ledger counts more
+// fracture than the blade paid (the rupture's crack, paid from the energy stored while pressing;
+// docs/method.md, "Tissue toughness"): 4.8% and 7.4% here.
 TEST(Toughness, EnergyBalanceOfTheCut) {
     for (int cells : {4, 8}) {
         const ToughRun r = runToughSlab(50, cells, 0);
