@@ -32,10 +32,14 @@ bool OtherProcessesLoad::read(double& wall, double& busy, double& self) const {
 
 double OtherProcessesLoad::sample() {
     double wall = 0, busy = 0, self = 0;
-    if (!read(wall, busy, self)) return known_ = false, -1;
-    const bool was = known_;
-    const double dWall = wall - wall_, load = was && dWall >= 0.05 ? (busy - busy_ - (self - self_)) / dWall : -1;
-    if (!was || dWall >= 0.05) wall_ = wall, busy_ = busy, self_ = self, known_ = true;
+    if (!read(wall, busy, self)) {
+        known_ = false;
+        return -1;
+    }
+    const double dWall = wall - wall_;
+    if (known_ && dWall < 0.05) return -1;  // too short to read: the interval runs on
+    const double load = known_ ? (busy - busy_ - (self - self_)) / dWall : -1;
+    wall_ = wall, busy_ = busy, self_ = self, known_ = true;
     return load;
 }
 
