@@ -41,6 +41,10 @@ void mapLargeArrays(std::size_t threshold) {
     // a set threshold also stops glibc raising it to the largest block freed, which would put
     // the arrays back on the heap after the first one is freed
     mallopt(M_MMAP_THRESHOLD, static_cast<int>(threshold));
+    // and stops it raising the trim threshold with it: left at 128 KiB, every thread's arena
+    // hands its top back to the kernel after each frame's GL buffers are freed, and each of those
+    // madvise calls stops the other core to flush its TLB. 64 MiB is glibc's own ceiling.
+    mallopt(M_TRIM_THRESHOLD, 64 << 20);
 #else
     (void)threshold;
 #endif

@@ -19,6 +19,7 @@ void checkMemory(const std::string& what, double bytes);
 // blade step: a mapped array grows by remapping its pages, where one on the heap is often copied
 // whole (a 100k-element model's arrays are ~20 MB; docs/method.md, "Cutting finer objects"). The
 // cutsim program and the Python module set it at start; a program embedding the library should too.
+// Freed heap tops are kept up to 64 MiB rather than handed back at once.
 void mapLargeArrays(std::size_t threshold = 256 * 1024);
 
 }  // namespace cutsim
