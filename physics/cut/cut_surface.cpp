@@ -21,6 +21,13 @@ std::vector<std::uint8_t> CutEngine::virtualNodes(const Model& m) const {
     return v;
 }
 
+bool CutEngine::isVirtualNode(const Model& m, int n) const {
+    if (!cuts() || originalNode(n) == n) return false;
+    const std::span<const int> slots = m.slotsOf(n);
+    return !slots.empty() &&
+           std::all_of(slots.begin(), slots.end(), [&](int s) { return m.fraction(s / 4) < 1; });  // as partialNodes
+}
+
 EmbeddedSurface CutEngine::surface(const Model& m) const {
     if (!prepared_) return boundarySurface(m.tets, m.X);
     static const ConvexPiece whole = referenceTet();

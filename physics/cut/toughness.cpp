@@ -49,8 +49,7 @@ void BladeToughness::endStroke() {
 // deepest in; cut pieces only when no whole element holds it). Returns how many were found and
 // the largest distance behind the edge any of their elements reaches (reach).
 int BladeToughness::seed(const Model& m, const Eigen::Matrix3Xd& x, const BladeEdge& edge, const Eigen::Vector3d& dir,
-                         const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode,
-                         double* reach) {
+                         const std::vector<int>& candidates, const VirtualNodeTest& isVirtual, double* reach) {
     points_.clear();
     const Eigen::Vector3d ab = edge.b - edge.a;
     const double len = ab.norm();
@@ -81,8 +80,8 @@ int BladeToughness::seed(const Model& m, const Eigen::Matrix3Xd& x, const BladeE
         }
         if (s0 > s1) continue;
         bool whole = true;
-        for (int k = 0; k < 4 && !virtualNode.empty(); ++k)
-            if (virtualNode[static_cast<size_t>(n[k])]) whole = false;
+        for (int k = 0; k < 4 && whole; ++k)
+            if (isVirtual(n[k])) whole = false;
         const int j0 = std::max(0, static_cast<int>(std::floor(s0 * samples_ - 0.5))),
                   j1 = std::min(samples_ - 1, static_cast<int>(std::ceil(s1 * samples_ - 0.5)));
         for (int j = j0; j <= j1; ++j) {
@@ -148,7 +147,7 @@ void BladeToughness::advanceRest(double sampleLength) {
 
 bool BladeToughness::sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const BladeEdge& now,
                                 const Eigen::Vector3d& dir, const std::vector<int>& candidates,
-                                const std::vector<std::uint8_t>& virtualNode, BladeEdge& from, BladeEdge& to) {
+                                const VirtualNodeTest& isVirtual, BladeEdge& from, BladeEdge& to) {
     if (advanced_) {
         advanced_ = false;
         from = front_, to = target_;
@@ -157,7 +156,7 @@ bool BladeToughness::sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const
     }
     if (!points_.empty()) return false;
     double reach = 0;
-    if (seed(m, x, now, dir, candidates, virtualNode, &reach) == 0) return false;
+    if (seed(m, x, now, dir, candidates, isVirtual, &reach) == 0) return false;
     frontRest_ = sampleRest_;
     // the first sweep starts behind the elements the edge entered (by its reach, and a margin)
     const Eigen::Vector3d back = (reach + 1e-3 * (now.b - now.a).norm()) * dir;
@@ -167,8 +166,8 @@ bool BladeToughness::sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const
 }
 
 void BladeToughness::reseed(const Model& m, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& dir,
-                            const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode) {
-    seed(m, x, front_, dir, candidates, virtualNode, nullptr);
+                            const std::vector<int>& candidates, const VirtualNodeTest& isVirtual) {
+    seed(m, x, front_, dir, candidates, isVirtual, nullptr);
     advanceRest((front_.b - front_.a).norm() / samples_);
 }
 

@@ -26,12 +26,14 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace cutsim {
 
 enum class CutPhase : std::uint8_t { Idle, Pressing, Cutting };
-const char* cutPhaseName(CutPhase p);  // idle | pressing | cutting
+using VirtualNodeTest = std::function<bool(int)>;  // node -> virtual (CutEngine::isVirtualNode)
+const char* cutPhaseName(CutPhase p);              // idle | pressing | cutting
 
 class BladeToughness {
 public:
@@ -43,16 +45,16 @@ public:
     // Blade stage, for the blade whose stroke is open, at the step's start: the edges the cut
     // engine sweeps this step. Without a front yet, one is seeded where the blade's edge `now`
     // (cutting direction `dir`, unit) lies in the material (elements `candidates`, nodes at x;
-    // `virtualNode` flags of CutEngine::virtualNodes, may be empty). Returns true when the front
+    // `isVirtual` as CutEngine::isVirtualNode, asked only when seeding). Returns true when the front
     // advanced in the last step: then from, to are the old and the new front (the first advance
     // starts behind the elements the seed points lie in, so the engine covers their whole
     // cross-section).
     bool sweepEdges(const Model& m, const Eigen::Matrix3Xd& x, const BladeEdge& now, const Eigen::Vector3d& dir,
-                    const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode, BladeEdge& from,
+                    const std::vector<int>& candidates, const VirtualNodeTest& isVirtual, BladeEdge& from,
                     BladeEdge& to);
     // After the engine swept to the new front: its points, in the elements ahead of it.
     void reseed(const Model& m, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& dir,
-                const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode);
+                const std::vector<int>& candidates, const VirtualNodeTest& isVirtual);
     // After the step's integration, before contact: the edge `edge` at the step's end presses the
     // front points (velocities, then positions, or the capped impulse and an advance). invMass of
     // the model; dt the step [s].
@@ -89,7 +91,7 @@ private:
     };
     void advanceRest(double sampleLength);
     int seed(const Model& m, const Eigen::Matrix3Xd& x, const BladeEdge& edge, const Eigen::Vector3d& dir,
-             const std::vector<int>& candidates, const std::vector<std::uint8_t>& virtualNode, double* reach);
+             const std::vector<int>& candidates, const VirtualNodeTest& isVirtual, double* reach);
 
     double gc_;
     int samples_;

@@ -160,6 +160,9 @@ public:
     // for the far side of an element, on partial elements only, so they lie outside the material of
     // every element they move (ContactWorld::setSurface's `outside`).
     std::vector<std::uint8_t> virtualNodes(const Model& m) const;
+    // One node's flag of virtualNodes, from its incident elements (m's incidence current): what a
+    // blade step asks of a few nodes, at a cost that does not grow with the mesh.
+    bool isVirtualNode(const Model& m, int n) const;
     const CutOptions& options() const { return opts_; }
 
 private:

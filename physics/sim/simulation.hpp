@@ -210,6 +210,7 @@ private:
     void setupToughness();
     bool toughSweep(const ToolDef& tool, double t, BladeEdge& from, BladeEdge& to);
     void reseedFront(const ToolDef& tool, double t);
+    VirtualNodeTest isVirtualNode() const;
     void pressFront();
     Eigen::Vector3d recordFront(double t0, const ContactStep& st);
     nlohmann::json toughnessReport() const;

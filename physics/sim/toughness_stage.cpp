@@ -20,6 +20,10 @@ Eigen::Vector3d toughCutDirection(const ToolDef& tool, double t) {
 
 }  // namespace
 
+VirtualNodeTest Simulation::isVirtualNode() const {
+    return [this](int n) { return cutter_->isVirtualNode(model_, n); };
+}
+
 void Simulation::setupToughness() {
     if (!(sc_.toughness > 0) || bladeTools_.empty()) return;
     tough_ = std::make_unique<BladeToughness>(sc_.toughness, kFrontSamples, sc_.forceRate);
@@ -32,8 +36,7 @@ void Simulation::setupToughness() {
 // front is seeded where the edge entered the material). The candidates follow the sweep's box.
 bool Simulation::toughSweep(const ToolDef& tool, double t, BladeEdge& from, BladeEdge& to) {
     const BladeEdge now = from;
-    if (!tough_->sweepEdges(model_, state_.x, now, toughCutDirection(tool, t), candidates_,
-                            cutter_->virtualNodes(model_), from, to))
+    if (!tough_->sweepEdges(model_, state_.x, now, toughCutDirection(tool, t), candidates_, isVirtualNode(), from, to))
         return false;
     Eigen::Vector3d lo = from.a, hi = from.a;
     for (const Eigen::Vector3d& p : {from.b, to.a, to.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
@@ -42,7 +45,7 @@ bool Simulation::toughSweep(const ToolDef& tool, double t, BladeEdge& from, Blad
 }
 
 void Simulation::reseedFront(const ToolDef& tool, double t) {
-    tough_->reseed(model_, state_.x, toughCutDirection(tool, t), candidates_, cutter_->virtualNodes(model_));
+    tough_->reseed(model_, state_.x, toughCutDirection(tool, t), candidates_, isVirtualNode());
 }
 
 // After the integration, before contact: the energy mass damping took in the step (symplectic

@@ -347,7 +347,10 @@ TEST(Xfem, BladeStepsUpdateIncidenceAndMassesAsAFullRebuild) {
         buildIncidence(full);
         updateMasses(full);
         ASSERT_LE(m.nodeSlots.size(), 6 * static_cast<size_t>(m.elements()) + 1024) << "step " << steps;
+        const std::vector<std::uint8_t> virt = eng.virtualNodes(m);  // and one node's flag from its rows
         for (int i = 0; i < m.nodes(); ++i) {
+            ASSERT_EQ(eng.isVirtualNode(m, i), virt.empty() ? false : virt[static_cast<size_t>(i)] != 0)
+                << "node " << i << " step " << steps;
             const std::span<const int> a = full.slotsOf(i), b = m.slotsOf(i);
             ASSERT_TRUE(std::equal(a.begin(), a.end(), b.begin(), b.end())) << "node " << i << " step " << steps;
             ASSERT_EQ(full.mass(i), m.mass(i)) << "node " << i << " step " << steps;
@@ -357,6 +360,8 @@ TEST(Xfem, BladeStepsUpdateIncidenceAndMassesAsAFullRebuild) {
     EXPECT_GT(steps, 5);
     EXPECT_GT(copies, 0);
     EXPECT_EQ(piecesAscending(m).size(), 2u);
+    const std::vector<std::uint8_t> virt = eng.virtualNodes(m);
+    EXPECT_GT(std::count(virt.begin(), virt.end(), 1), 0);  // the check above saw virtual nodes
 }
 
 // A blade at rest sweeps no new area: it splits nothing, even where the tissue it entered has
