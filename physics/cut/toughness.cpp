@@ -14,6 +14,12 @@ namespace {
 constexpr int kFrontSweeps = 32;
 constexpr double kFrontSettled = 1e-9;
 
+// The volume ratio below which an element at the front is crushed: the edge cuts there whatever
+// the front's force. On a fine mesh the edge is a line load on ever smaller elements, which
+// G = F / b alone would let it crush to inversion before the whole front pays G_c b; tissue under
+// a sharp edge fails first (docs/method.md, "Tissue toughness").
+constexpr double kCrushedVolume = 0.5;
+
 // Barycentric coordinates of p in the tet of nodes n at positions x; false for a flat tet.
 bool frontBarycentric(const Eigen::Matrix3Xd& x, const int* n, const Eigen::Vector3d& p, Eigen::Vector4d& w) {
     Eigen::Matrix3d D;
@@ -171,8 +177,9 @@ void BladeToughness::reseed(const Model& m, const Eigen::Matrix3Xd& x, const Eig
     advanceRest((front_.b - front_.a).norm() / samples_);
 }
 
-void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const BladeEdge& edge,
-                             const Eigen::Vector3d& dir, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+void BladeToughness::project(const Model& m, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir,
+                             Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+    const Eigen::VectorXd& invMass = m.invMass;
     reaction_.setZero();
     stepArea_ = 0;
     phase_ = points_.empty() ? CutPhase::Idle : CutPhase::Pressing;
@@ -189,6 +196,7 @@ void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const Bl
         }
     };
     double length = 0, reached = 0;  // the front's length in the material, and where the edge reached it [m]
+    bool crushed = false;            // an element the edge presses is crushed
     for (Point& p : points_) {
         double w2 = 0;
         for (int k = 0; k < 4; ++k) w2 += p.w[k] * p.w[k] * invMass(p.node[static_cast<size_t>(k)]);
@@ -198,6 +206,18 @@ void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const Bl
         p.push = 0;
         if (p.mass > 0) length += p.length;
         if (p.mass > 0 && p.pen > 0) reached += p.length;
+        if (p.mass > 0 && p.pen > 0 && !crushed)  // the point's element and those around its nodes
+            for (int k = 0; k < 4 && !crushed; ++k)
+                for (int slot : m.slotsOf(p.node[static_cast<size_t>(k)])) {
+                    const int e = slot / 4;
+                    const int* n = m.tets.col(e).data();
+                    Eigen::Matrix3d d;
+                    d << x.col(n[1]) - x.col(n[0]), x.col(n[2]) - x.col(n[0]), x.col(n[3]) - x.col(n[0]);
+                    if ((d * m.dmInv(e)).determinant() < kCrushedVolume) {
+                        crushed = true;
+                        break;
+                    }
+                }
     }
     dir_ = dir;
     if (!(reached > 0)) return;  // the edge has left the front (or not reached it): no force
@@ -219,10 +239,11 @@ void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const Bl
     double total = 0;
     for (Point& p : points_) total += p.lambda;
     const double cap = gc_ * length * dt;  // impulse G_c b dt: the front's force at most G_c b
-    if (total > cap) {
+    if (total > cap || crushed) {
         // rupture or steady cutting: the capped impulse, the edge slides past the points, and the
-        // area it slid over is cut (paid G_c each)
-        const double s = cap / total;
+        // area it slid over is cut (paid G_c each, or crushed)
+        const double s = std::min(1.0, cap / total);
+        crushedSteps_ += total <= cap;
         for (Point& p : points_) {
             if (!(p.lambda > 0)) continue;
             apply(v, p, (s - 1) * p.lambda);
@@ -232,7 +253,7 @@ void BladeToughness::project(const Eigen::VectorXd& invMass, double dt, const Bl
         phase_ = CutPhase::Cutting;
         target_ = edge;
         advanced_ = true;
-        reaction_ = -(cap / dt) * dir;
+        reaction_ = -(std::min(cap, total) / dt) * dir;
         return;
     }
     // pressing: the points move with the edge (depths linearised about where the step left them)
@@ -299,6 +320,7 @@ nlohmann::json BladeToughness::report(double elastic0, double kinetic0, double g
             {"peak_force", peak_},
             {"pressing_steps", pressingSteps_},
             {"cutting_steps", cuttingSteps_},
+            {"crushed_steps", crushedSteps_},
             {"phases", segs},
             {"energy",
              {{"work", work_},

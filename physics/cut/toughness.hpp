@@ -56,10 +56,10 @@ public:
     void reseed(const Model& m, const Eigen::Matrix3Xd& x, const Eigen::Vector3d& dir,
                 const std::vector<int>& candidates, const VirtualNodeTest& isVirtual);
     // After the step's integration, before contact: the edge `edge` at the step's end presses the
-    // front points (velocities, then positions, or the capped impulse and an advance). invMass of
-    // the model; dt the step [s].
-    void project(const Eigen::VectorXd& invMass, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir,
-                 Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
+    // front points (velocities, then positions, or the capped impulse and an advance); m the
+    // model (masses, rest shapes); dt the step [s].
+    void project(const Model& m, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir, Eigen::Matrix3Xd& x,
+                 Eigen::Matrix3Xd& v);
     // The force of the tissue on the blade through its front in the last step [N].
     const Eigen::Vector3d& reaction() const { return reaction_; }
     CutPhase phase() const { return phase_; }
@@ -108,7 +108,7 @@ private:
     std::vector<double> frontRest_;  // the furthest each sample's front has reached [m]
     // ledger
     double work_ = 0, area_ = 0, damped_ = 0, peak_ = 0;
-    long pressingSteps_ = 0, cuttingSteps_ = 0;
+    long pressingSteps_ = 0, cuttingSteps_ = 0, crushedSteps_ = 0;
     struct Segment {
         CutPhase phase;
         long first, last;   // steps

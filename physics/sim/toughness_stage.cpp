@@ -56,13 +56,13 @@ void Simulation::pressFront() {
     toughDamped_ = 0;
     if (c > 0) toughDamped_ = kineticEnergy(model_, state_) * ((1 + c * h) * (1 + c * h) - 1);
     if (stroke_ < 0 || !tough_->hasFront()) {
-        tough_->project(model_.invMass, h, BladeEdge{}, Eigen::Vector3d::Zero(), state_.x, state_.v);
+        tough_->project(model_, h, BladeEdge{}, Eigen::Vector3d::Zero(), state_.x, state_.v);
         return;
     }
     const ToolDef& tool = contact_->tools()[static_cast<size_t>(stroke_)];
     BladeEdge e;
     bladeEdge(tool, state_.time, e.a, e.b);
-    tough_->project(model_.invMass, h, e, toughCutDirection(tool, state_.time), state_.x, state_.v);
+    tough_->project(model_, h, e, toughCutDirection(tool, state_.time), state_.x, state_.v);
 }
 
 // The step [t0, t0 + dt]'s blade work (every blade's contact reaction and the front's, along its

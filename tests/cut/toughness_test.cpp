@@ -142,6 +142,34 @@ TEST(Toughness, TheHudShowsTheBladesPhase) {
     EXPECT_EQ(frameInfoOf(geometric, 0).cutPhase, nullptr);
 }
 
+// A toughness the edge's force cannot reach (G_c b = 2 kN): the edge presses until the tissue
+// under it is crushed to half its volume, then cuts there, and no whole element under the edge is
+// ever inverted (the cut pieces beside the blade are the contact's).
+TEST(Toughness, AnEdgeCutsWhereItCrushesTheTissue) {
+    const SceneDef sc = parseScene(toughSlab(1e5, 4, 20), "tough-slab.json");
+    Simulation sim(sc, SimulationOptions{1, false});
+    double least = 1;  // smallest volume ratio of a whole element over the run
+    while (sim.step() == RunStatus::Running) {
+        const Model& m = sim.model();
+        for (int e = 0; e < m.elements(); ++e) {
+            if (m.fraction(e) < 1) continue;
+            Eigen::Matrix3d d;
+            for (int c = 0; c < 3; ++c)
+                d.col(c) = sim.state().x.col(m.tets(c + 1, e)) - sim.state().x.col(m.tets(0, e));
+            least = std::min(least, (d * m.dmInv(e)).determinant());
+        }
+    }
+    ASSERT_EQ(sim.status(), RunStatus::Finished) << sim.message();
+    const json t = sim.report()["blade"]["toughness"];
+    EXPECT_GT(t["cutting_steps"].get<long>(), 0);
+    EXPECT_EQ(t["crushed_steps"].get<long>(), t["cutting_steps"].get<long>());  // every one crushed
+    EXPECT_LT(t["peak_force"].get<double>(), 0.1 * 1e5 * kSlabWidth);
+    EXPECT_GT(t["cut_area"].get<double>(), 0.01 * kSlabWidth);  // the crack runs on, 10 mm and more
+    EXPECT_GT(least, 0.0);
+    // the ordinary toughness is paid by the force on this mesh: no step is crushed
+    EXPECT_EQ(runToughSlab(100, 4).report["blade"]["toughness"]["crushed_steps"].get<long>(), 0);
+}
+
 TEST(Toughness, ZeroToughnessCutsGeometrically) {
     const SceneDef sc = parseScene(toughSlab(0, 4, 20), "tough-slab.json");
     Simulation sim(sc, SimulationOptions{1, false});
