@@ -237,11 +237,13 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
                          " s: check material (E, nu, rho), object.scale and fixed");
     chooseAndApply(true);
     checkStepBudget(sc_, choice_.dt, model_.elements());
-    // a run that would take no step is refused: "ok" always means something was simulated
-    if (finished())
-        throw InputError(
-            sc_.file + ": duration: " +
-            fmt("%g s ends before the first step of %.4g s: the run would simulate nothing", sc_.duration, choice_.dt));
+    // a run that would take no step, or only one that ends past the duration, is refused: "ok"
+    // always means the scene's time was simulated
+    if (sc_.duration < choice_.dt * (1 - 1e-9))
+        throw InputError(sc_.file + ": duration: " +
+                         fmt("%g s is shorter than one step of %.4g s: the run would simulate nothing of it; give a "
+                             "longer duration or a smaller step",
+                             sc_.duration, choice_.dt));
 
     setupContact();
     // Cutting: the engine's bookkeeping exists only in scenes that cut (a scene pays for what it uses).

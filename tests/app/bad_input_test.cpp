@@ -216,12 +216,17 @@ TEST(BadInput, FixedNodeIdsNameTheSceneFile) {
 }
 
 // A run that would take no step is refused (exit 2): "ok" always means something was simulated.
+// A duration shorter than one step is refused too: its one step would end past the duration (it
+// ended "ok" with sim_time 4.1e-4 s for a duration of 1e-4 s).
 TEST(BadInput, ARunThatSimulatesNothingIsRefused) {
-    const std::string dir = workDir();
-    expectBadInput("run " + test::source("assets/scenes/bar_sag.json") + " --out " + dir +
-                       "/o --no-render --quiet --set duration=1e-15",
-                   "bar_sag.json: duration: 1e-15 s ends before the first step");
+    const std::string dir = workDir(), run = "run " + test::source("assets/scenes/bar_sag.json") + " --out " + dir +
+                                             "/o --no-render --quiet --set duration=";
+    expectBadInput(run + "1e-15", "bar_sag.json: duration: 1e-15 s is shorter than one step of 0.0004102 s");
+    expectBadInput(run + "1e-4", "bar_sag.json: duration: 0.0001 s is shorter than one step");
     EXPECT_FALSE(fs::exists(dir + "/o"));
+    // one step is enough
+    std::string err;
+    EXPECT_EQ(test::runCutsim(run + "0.00042", nullptr, &err), 0) << err;
 }
 
 TEST(BadInput, ContactPointsAreBoundedUpFront) {

@@ -133,7 +133,7 @@ TEST(CmdMi, SceneSurfaceObjectRunsAndReportsItsEmbedding) {
 TEST(CmdMi, KeepStepWarnsWhenItAddsMoreThanAPercent) {
     const std::string dir = ownDir("warn");
     json scene = {{"object", {{"surface", {{"path", test::data("surface/igl_decimated-knight.off")}, {"cells", 8}}}}},
-                  {"duration", 0.001}};
+                  {"duration", 0.02}};  // two steps
     std::ofstream(dir + "/knight.json") << scene.dump(2);
     std::string out, err;
     ASSERT_EQ(test::runCutsim("run " + dir + "/knight.json --out " + dir + "/out --no-render --quiet", &out, &err), 0)
@@ -183,7 +183,7 @@ TEST(CmdMi, FixOutsideFromFlagAndSceneKey) {
     // scene: object.surface.fix_outside, reported back in report.json's embedding
     json scene = {{"object", {{"surface", {{"path", "cube.obj"}, {"h", 0.3}, {"fix_outside", true}}}}},
                   {"material", {{"E", 1e5}}},
-                  {"duration", 0.005}};
+                  {"duration", 0.02}};  // two steps
     std::ofstream(dir + "/s.json") << scene.dump(2);
     ASSERT_EQ(test::runCutsim("run " + dir + "/s.json --out " + dir + "/out --no-render --quiet", nullptr, &err), 0)
         << err;
