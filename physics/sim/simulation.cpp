@@ -20,6 +20,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string_view>
 
 namespace cutsim {
 
@@ -412,13 +413,16 @@ TetMesh Simulation::tetraMesh() {
     o.size = sc_.tetraSize;
     o.improve = sc_.tetraImprove;
     o.material = sc_.material;
+    o.sizeKey = sc_.file + ": object.tetra.size";
     bool cached = false;
     TetraReport r;
     std::string file;
     TetMesh m;
     try {
-        m = tetraCached(sc_.tetraSurface, sc_.scale, o, cached, r, file);
+        m = tetraCached(sc_.tetraSurface, sc_.scale, o, cached, r, file, sc_.file + ": object.scale");
     } catch (const InputError& e) {
+        // the errors of object.scale and object.tetra.size name their key already
+        if (std::string_view(e.what()).starts_with(sc_.file + ": ")) throw;
         throw InputError(sc_.file + ": object.tetra: " + e.what());
     }
     tetra_ = {{"surface", sc_.tetraSurface},

@@ -111,12 +111,17 @@ TetraResult tetraFromSurface(SurfaceMesh surface, const TetraOptions& opts) {
     // tet of edge `size` makes the median element about that tet
     const double tetVolume = kBoundOverMedian * opts.size * opts.size * opts.size / (6 * std::sqrt(2.0));
     const double estimate = kBoundOverMedian * r.volumeSurface / tetVolume;
-    if (estimate > kMaxTets)
+    if (estimate > kMaxTets && opts.sizeKey.empty())
         throw InputError(src, 0,
                          fmt("--size %g m makes about %.3g tets of this %.3g m^3 volume (at most %.0e): is the scale "
                              "right?",
                              opts.size, estimate, r.volumeSurface, kMaxTets));
-    checkMemory(src, estimate * kBytesPerTet);
+    if (estimate > kMaxTets)  // the key's error, the surface named beside it
+        throw InputError(opts.sizeKey + ": " +
+                         fmt("%g m makes about %.3g tets of the %.3g m^3 volume of %s (at most %.0e): is the scale "
+                             "right?",
+                             opts.size, estimate, r.volumeSurface, src.c_str(), kMaxTets));
+    checkMemory(opts.sizeKey.empty() ? src : opts.sizeKey + " (surface " + src + ")", estimate * kBytesPerTet);
     r.seconds.emplace_back("check", sw.seconds());
 
     // 2. TetGen (Si 2015): the surface kept (p), radius-edge ratio at most 1.4 (q), the volume bound
@@ -172,7 +177,7 @@ TetraResult tetraFromSurface(SurfaceMesh surface, const TetraOptions& opts) {
 }
 
 TetMesh tetraCached(const std::string& path, double scale, const TetraOptions& opts, bool& cached, TetraReport& report,
-                    std::string& cacheFile) {
+                    std::string& cacheFile, const std::string& scaleKey) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw InputError(path, 0, "cannot open the surface file");
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -203,7 +208,7 @@ TetMesh tetraCached(const std::string& path, double scale, const TetraOptions& o
         }
     }
     cached = false;
-    TetraResult r = tetraFromSurface(readSurfaceMesh(path, scale), opts);
+    TetraResult r = tetraFromSurface(readSurfaceMesh(path, scale, scaleKey), opts);
     report = r.report;
     // Written whole or not at all, under a name of this process, then renamed into place: a
     // reader never sees half a mesh, and two runs building the same mesh do not collide.

@@ -15,8 +15,10 @@ namespace cutsim {
 struct TetraOptions {
     double size = 0;  // target edge length [m]: TetGen's volume bound is a regular tet of this edge
     bool improve = true;
-    Material material;  // for the exact step (the improver's measure)
-    int threads = 1;    // the improver's threads (its result depends on the count)
+    Material material;    // for the exact step (the improver's measure)
+    int threads = 1;      // the improver's threads (its result depends on the count)
+    std::string sizeKey;  // where size was given ("scene.json: object.tetra.size"): the errors of the
+                          // mesh's size name it (else the surface file and --size)
 };
 
 struct TetraReport {
@@ -52,8 +54,8 @@ TetraResult tetraFromSurface(SurfaceMesh surface, const TetraOptions& opts);
 // the cache when built before with the same file content and options. The cache folder is
 // $CUTSIM_CACHE, else $XDG_CACHE_HOME/cutsim, else ~/.cache/cutsim (files tetra-<hash>.msh,
 // written through a temporary file and a rename). `cached` tells which; `report` is filled when
-// built.
+// built. scaleKey as ReadOptions::scaleKey.
 TetMesh tetraCached(const std::string& path, double scale, const TetraOptions& opts, bool& cached, TetraReport& report,
-                    std::string& cacheFile);
+                    std::string& cacheFile, const std::string& scaleKey = {});
 
 }  // namespace cutsim

@@ -205,6 +205,20 @@ TEST(BadInput, ScaleAndLatticeLimitsNameTheSceneKey) {
     EXPECT_FALSE(fs::exists(dir + "/o"));
 }
 
+// object.tetra: the scale and the target edge length name their keys, not object.tetra or --size.
+TEST(BadInput, TetraLimitsNameTheSceneKey) {
+    const std::string dir = workDir(), run = " --out " + dir + "/o --no-render --quiet";
+    json j = barSag();
+    j["object"] = {{"tetra", {{"surface", test::source("assets/meshes/sofa_liver.obj")}, {"size", 0.01}}},
+                   {"scale", 1e9}};
+    expectBadInput("run " + writeScene(dir + "/big.json", j) + run, "big.json: object.scale: 1e+09 applied to");
+    j["object"]["scale"] = 0.0254;
+    j["object"]["tetra"]["size"] = 1e-5;
+    expectBadInput("run " + writeScene(dir + "/fine.json", j) + run,
+                   "fine.json: object.tetra.size: 1e-05 m makes about");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
 // A fixed node the mesh does not have is the scene's error: file, key and the node.
 TEST(BadInput, FixedNodeIdsNameTheSceneFile) {
     const std::string dir = workDir();

@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 
 std::string refusal(const std::string& file) {
     try {
-        tetraFromSurface(readSurfaceMesh(test::data(file)), TetraOptions{0.05, true, {}, 1});
+        tetraFromSurface(readSurfaceMesh(test::data(file)), TetraOptions{0.05, true, {}, 1, {}});
     } catch (const InputError& e) {
         return e.what();
     }
