@@ -116,6 +116,15 @@ void writeSurfaceObj(const Simulation& sim, const std::string& path) {
     writeFileAtomic(path, out);
 }
 
+// The frame PNGs in `dir`, as an interrupted run keeps them.
+int keptPngs(const fs::path& dir) {
+    std::error_code ec;
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(dir, ec))
+        n += e.path().extension() == ".png" && e.path().filename().string().rfind("frame_", 0) == 0;
+    return n;
+}
+
 }  // namespace
 
 int runScene(const SceneDef& sc, const RunOptions& opt) {
@@ -128,6 +137,8 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     std::unique_ptr<FrameSink> sink = capturing ? makeFrameSink(sc, opt.pipelined) : nullptr;
     Simulation sim(sc, so);
     printWarnings(sim);
+    // from here on a signal stops the run between steps and leaves its outputs whole
+    const InterruptGuard interrupt;
 
     // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
     StagedFolder folder(opt.out);
@@ -191,7 +202,6 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Progress progress(sc.duration, opt.quiet);
     const double frameDt = 1.0 / sc.capture.fps;
     double nextFrame = 0;
-    const InterruptGuard interrupt;
     while (sim.status() == RunStatus::Running && !sim.finished() && !interrupt.signal()) {
         if (sim.state().time >= nextFrame - 1e-12) {
             frame();
@@ -203,10 +213,13 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     // A signal at any time before the outputs move into place, also after the last step, makes the
     // run "interrupted": the frames so far and a report that says so, under FOLDER.incomplete.
     auto interrupted = [&](int sig) {
-        const int frames = sink ? sink->frames() : 0;  // taken frames are drawn and written before reset returns
-        json report = makeReport(frames, "");
-        sink.reset();  // an unfinished video is removed, not left as video.mp4.tmp
-        if (fs::exists(out / "video.mp4")) report["video"] = (folder.incomplete() / "video.mp4").string();
+        json report = makeReport(sink ? sink->frames() : 0, "");
+        sink.reset();  // taken frames are drawn and written; an unfinished video is removed, not left as .tmp
+        // the frames kept: the video's when it was finished, else the PNGs (png_every thins them)
+        if (fs::exists(out / "video.mp4"))
+            report["video"] = (folder.incomplete() / "video.mp4").string();
+        else
+            report["frames"] = keptPngs(out / "frames");
         report["status"] = "interrupted";
         report["exit_code"] = 128 + sig;
         report["message"] = std::string("stopped by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") +
@@ -243,6 +256,13 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
         std::fprintf(stderr, "%s: %s, %ld steps of %.3g s (exact limit %.3g s), %.2f s wall, %d frames -> %s\n",
                      sc.name.c_str(), report["status"].get<std::string>().c_str(), sim.state().steps, sim.dt(),
                      sim.initialLimits().exact, wall.seconds(), sink ? sink->frames() : 0, opt.out.c_str());
+    // A signal as the outputs moved into place: they are whole, but the caller asked to stop (a
+    // script's loop must not go on), so the exit says so.
+    if (const int sig = interrupt.signal()) {
+        std::fprintf(stderr, "%s: %s after the outputs were in place; %s is complete\n", sc.name.c_str(),
+                     sig == SIGINT ? "SIGINT" : "SIGTERM", opt.out.c_str());
+        return 128 + sig;
+    }
     return static_cast<int>(exitCodeOf(sim.status()));
 }
 

@@ -67,7 +67,8 @@ struct Signalled {
     bool sent = false;
     std::string log;
 };
-Signalled runAndSignal(const std::string& out, const std::string& duration, const std::string& trigger) {
+Signalled runAndSignal(const std::string& out, const std::string& duration, const std::string& trigger,
+                       const std::string& pngEvery = "1") {
     Signalled r;
     int errPipe[2];
     if (::pipe(errPipe) != 0) return r;
@@ -77,9 +78,9 @@ Signalled runAndSignal(const std::string& out, const std::string& duration, cons
         ::dup2(errPipe[1], 2);
         ::close(errPipe[0]);
         ::close(errPipe[1]);
-        const std::string scene = barSagPath(), d = "duration=" + duration;
+        const std::string scene = barSagPath(), d = "duration=" + duration, p = "capture.png_every=" + pngEvery;
         ::execl(CUTSIM_BINARY, CUTSIM_BINARY, "run", scene.c_str(), "--out", out.c_str(), "--threads", "1", "--set",
-                "capture.width=160", "--set", "capture.height=90", "--set", d.c_str(), nullptr);
+                "capture.width=160", "--set", "capture.height=90", "--set", d.c_str(), "--set", p.c_str(), nullptr);
         ::_exit(127);
     }
     ::close(errPipe[1]);
@@ -135,6 +136,20 @@ TEST(OutputFolder, SigintAtThirtyPercentLeavesNoHalfWrittenOutput) {
     EXPECT_GT(r["frames"].get<int>(), 20);
     EXPECT_FALSE(fs::exists(out + ".incomplete/video.mp4"));
     EXPECT_FALSE(fs::exists(out + ".incomplete/final.vtu"));
+}
+
+// With a PNG every 2nd frame, or none, and the unfinished video removed, the report counts the
+// frames kept (it counted the frames drawn: 27 beside 14 PNGs, 27 beside none).
+TEST(OutputFolder, AnInterruptedReportCountsTheFramesKept) {
+    const std::string dir = workDir();
+    json r = expectInterrupted(dir, dir + "/half", runAndSignal(dir + "/half", "3", "progress  30%", "2"));
+    ASSERT_TRUE(r.is_object());
+    EXPECT_GT(r["frames"].get<int>(), 10);
+    EXPECT_LE(r["capture"]["frames"].get<int>(), 2 * r["frames"].get<int>());  // drawn: every 2nd kept
+    r = expectInterrupted(dir, dir + "/none", runAndSignal(dir + "/none", "3", "progress  30%", "0"));
+    ASSERT_TRUE(r.is_object());
+    EXPECT_EQ(r["frames"].get<int>(), 0);
+    EXPECT_GT(r["capture"]["frames"].get<int>(), 20) << "frames were drawn, into the video the signal removed";
 }
 
 // A signal that arrives after the last step, while the frames and the report are written, is not
