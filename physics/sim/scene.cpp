@@ -8,6 +8,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <numbers>
@@ -404,6 +405,18 @@ void readObjectSection(ObjectReader& root, SceneDef& s) {
         b.finish();
     }
     s.scale = o.number("scale", 1, 0, 1e9, true);
+    // a box or an inline mesh is known here: the coordinate range after scaling is the scale's
+    // limit (a mesh file's is checked where it is read, naming this key too)
+    if (s.meshData)
+        detail::checkCoordinateRange(s.meshData->source, s.scale * s.meshData->X, o.where("scale"), s.scale);
+    const Eigen::Vector3d box = s.scale * s.boxSize;
+    if (o.has("box") && ((box.array() < kMinExtent).any() || (box.array() > kMaxCoordinate).any())) {
+        char why[160];
+        std::snprintf(why, sizeof why,
+                      "%g makes the box %g x %g x %g m; it must lie within [1e-6, 1e6] m in every axis", s.scale,
+                      box.x(), box.y(), box.z());
+        o.fail("scale", why);
+    }
     s.translate = o.vec3("translate", s.translate);
     s.rotateDeg = o.vec3("rotate_deg", s.rotateDeg);
     s.reorient = o.boolean("reorient", false);

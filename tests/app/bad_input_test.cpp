@@ -205,6 +205,23 @@ TEST(BadInput, ScaleAndLatticeLimitsNameTheSceneKey) {
     EXPECT_FALSE(fs::exists(dir + "/o"));
 }
 
+// A box's or an inline mesh's coordinates are known where object.scale is read: their range after
+// scaling is checked there (with any_size a box 1e9 m long ran "ok", and at 1e-9 was blamed on
+// fixed[0]).
+TEST(BadInput, BoxAndInlineMeshScaleIsCheckedWhereItIsRead) {
+    const std::string dir = workDir(), run = " --out " + dir + "/o --no-render --quiet --set object.any_size=true";
+    const std::string bar = test::source("assets/scenes/bar_sag.json");
+    expectBadInput("run " + bar + run + " --set object.scale=1e9", "bar_sag.json: object.scale: 1e+09 makes the box");
+    expectBadInput("run " + bar + run + " --set object.scale=1e-9", "bar_sag.json: object.scale: 1e-09 makes the box");
+    json j = barSag();
+    j["object"] = json::parse(R"({"mesh": {"nodes": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                                           "tets": [[0, 1, 2, 3]]}, "scale": 1e9})");
+    j["fixed"] = json::array();
+    expectBadInput("run " + writeScene(dir + "/inline.json", j) + run,
+                   "inline.json: object.scale: 1e+09 applied to " + dir + "/inline.json: object.mesh: coordinates");
+    EXPECT_FALSE(fs::exists(dir + "/o"));
+}
+
 // object.tetra: the scale and the target edge length name their keys, not object.tetra or --size.
 TEST(BadInput, TetraLimitsNameTheSceneKey) {
     const std::string dir = workDir(), run = " --out " + dir + "/o --no-render --quiet";
