@@ -384,21 +384,22 @@ void Simulation::buildObject() {
         std::vector<int> nodes = selectNodes(reg, model_.X);
         if (reg.kind == Region::Kind::Nodes && !nodeOf.empty())
             for (int& n : nodes) n = nodeOf[static_cast<size_t>(n)];
+        // an embedded object's nodes are its lattice's: a coarse one can be what the region misses
+        if (nodes.empty() && !embedding_.is_null())
+            throw InputError(sc.file + ": " + reg.path +
+                             fmt(": selects no node of the lattice, whose nodes lie %.3g m apart (%s)",
+                                 embedding_["h"].get<double>(),
+                                 sc.surfaceH > 0 ? "object.surface.h" : "object.surface.cells"));
+        if (nodes.empty()) throw InputError(sc.file + ": " + reg.path + ": selects no node");
         return nodes;
     };
-    for (const auto& reg : sc.fixed) {
-        const auto nodes = regionNodes(reg);
-        if (nodes.empty()) throw InputError(sc.file + ": " + reg.path + ": selects no node");
-        for (int n : nodes) model_.fixed[static_cast<size_t>(n)] = 1;
-    }
+    for (const auto& reg : sc.fixed)
+        for (int n : regionNodes(reg)) model_.fixed[static_cast<size_t>(n)] = 1;
     updateMasses(model_);
     if (model_.freeDofs() == 0)
         throw InputError(sc.file + ": " + (sc.fixed.empty() ? std::string("object") : sc.fixed.back().path) + ": " +
                          fmt("every node of the object (%d) is fixed or massless: nothing can move", model_.nodes()));
-    for (const auto& f : sc.forces) {
-        loadNodes_.push_back(regionNodes(f.region));
-        if (loadNodes_.back().empty()) throw InputError(sc.file + ": " + f.region.path + ": selects no node");
-    }
+    for (const auto& f : sc.forces) loadNodes_.push_back(regionNodes(f.region));
     rec_.initial = {{"nodes", model_.nodes()},
                     {"elements", model_.elements()},
                     {"fixed_nodes", model_.nodes() - model_.freeDofs() / 3},

@@ -202,6 +202,12 @@ TEST(BadInput, ScaleAndLatticeLimitsNameTheSceneKey) {
     j["object"]["surface"]["h"] = 10.0;
     expectBadInput("run " + writeScene(dir + "/coarse.json", j) + run,
                    "coarse.json: object.surface.h: no lattice element lies inside the surface: the cell edge");
+    // h = 0.5 m keeps elements, but none of their nodes lies in demo_mi's 3 cm thick fixed slab:
+    // the region's error names the lattice's spacing and its key (it said only "selects no node")
+    j["object"]["surface"]["h"] = 0.5;
+    expectBadInput("run " + writeScene(dir + "/coarse.json", j) + run,
+                   "coarse.json: fixed[0]: selects no node of the lattice, whose nodes lie 0.5 m apart "
+                   "(object.surface.h)");
     EXPECT_FALSE(fs::exists(dir + "/o"));
 }
 
