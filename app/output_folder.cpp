@@ -1,6 +1,6 @@
 #include "output_folder.hpp"
 
-#include "mesh/mesh.hpp"
+#include "util/input_error.hpp"
 
 #include <unistd.h>
 
