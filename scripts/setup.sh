@@ -7,7 +7,7 @@
 set -euo pipefail
 DEMO=(build-essential cmake ninja-build ccache pkg-config
       libeigen3-dev libspectra-dev libbullet-dev libtet1.5-dev
-      libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libglfw3-dev libimgui-dev libstb-dev libpng-dev
+      libegl-dev libgl-dev libegl-mesa0 libgl1-mesa-dri libglfw3-dev libimgui-dev libstb-dev libdeflate-dev
       nlohmann-json3-dev libcli11-dev ffmpeg)
 TEST=(libgmsh-dev libcgal-dev libgtest-dev libgmock-dev libbenchmark-dev
       xvfb xauth gnuplot-nox clang-format

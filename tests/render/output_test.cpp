@@ -34,6 +34,19 @@ TEST(RenderOutput, PngRoundTrip) {
     EXPECT_EQ(back.rgba, img.rgba);
 }
 
+// An opaque image is written as RGB (a quarter less to compress) and reads back the same.
+TEST(RenderOutput, OpaquePngRoundTrip) {
+    const std::string dir = test::tempDir();
+    Image img = pattern(64, 9, 2);
+    for (size_t i = 3; i < img.rgba.size(); i += 4) img.rgba[i] = 255;
+    render::writePng(dir + "/o.png", img);
+    EXPECT_EQ(render::readPng(dir + "/o.png").rgba, img.rgba);
+    std::ifstream f(dir + "/o.png", std::ios::binary);
+    std::vector<char> head(26);
+    f.read(head.data(), 26);
+    EXPECT_EQ(head[25], 2);  // IHDR colour type 2: truecolour without alpha
+}
+
 TEST(RenderOutput, PngToUnwritableFolderThrows) {
     const std::string dir = test::tempDir();
     // A regular file where a folder should be: unwritable even for root.
