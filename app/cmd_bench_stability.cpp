@@ -99,11 +99,12 @@ bool stableRun(const Model& m0, const StepOptions& opt, int steps, double* growt
     return true;
 }
 
-int runStability(const StabilityArgs& a) {
+// The sweep's meshes: a single tet (--tiny) or the cantilever, and the liver when present.
+std::vector<SweepModel> sweepModels(bool tiny) {
     std::vector<SweepModel> models;
     Cantilever bar;
-    models.push_back({a.tiny ? "single tet" : "cantilever 20x2x2", Model{}});
-    if (a.tiny) {
+    models.push_back({tiny ? "single tet" : "cantilever 20x2x2", Model{}});
+    if (tiny) {
         TetMesh t;
         t.X.resize(3, 4);
         t.X << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
@@ -119,7 +120,11 @@ int runStability(const StabilityArgs& a) {
             models.push_back({"liver (sofa_liver.msh)", std::move(m)});
         }
     }
-    const int steps = a.tiny ? std::min(a.steps, 400) : a.steps;
+    return models;
+}
+
+// Section 1: the largest stable fraction of the exact step per mesh, integrator and scheme.
+void sweepSchemes(const std::vector<SweepModel>& models, int steps, bool quiet, json& j) {
     // alpha_e: eq. 3.16 as written, which puts each damped element exactly at its own limit;
     // alpha_e_0.95: the same with a 5% margin on the element steps (dt_e -> 0.95 dt_e).
     struct Scheme {
@@ -131,11 +136,8 @@ int runStability(const StabilityArgs& a) {
                                          {Integrator::Newmark, 0},
                                          {Integrator::SymplecticEuler, 1.0},
                                          {Integrator::SymplecticEuler, 0.95}};
-    json j;
-    j["steps"] = steps;
-    j["energy_factor"] = 1e3;
     j["sweeps"] = json::array();
-    if (!a.json) std::printf("%-26s %-22s %-9s %18s\n", "mesh", "integrator", "scheme", "largest stable f");
+    if (!quiet) std::printf("%-26s %-22s %-9s %18s\n", "mesh", "integrator", "scheme", "largest stable f");
     for (const auto& sm : models) {
         const Model& m = sm.model;
         const double dtExact = exactCriticalDt(m).dt;
@@ -169,19 +171,22 @@ int runStability(const StabilityArgs& a) {
                                    {"scheme", scheme},
                                    {"largest_stable_fraction", largest},
                                    {"runs", runs}});
-            if (!a.json)
+            if (!quiet)
                 std::printf("%-26s %-22s %-9s %18.3f\n", sm.name.c_str(), integratorName(sc.integrator), scheme.c_str(),
                             largest);
         }
     }
-    // After XFEM cuts: the same sweep (plain symplectic Euler) relative to the exact limit of the
-    // cut model, one model per lumping option.
+}
+
+// Section 2: after XFEM cuts, the same sweep (plain symplectic Euler) relative to the exact limit
+// of the cut model, one model per lumping option.
+void sweepAfterCuts(bool tiny, int steps, bool quiet, json& j) {
     j["after_cuts"] = json::array();
-    if (!a.json)
+    if (!quiet)
         std::printf("\nafter cuts (symplectic Euler, plain; fractions of the cut model's exact limit)\n%-26s %-18s %8s "
                     "%14s %18s\n",
                     "mesh", "lumping", "crossed", "dt cut/uncut", "largest stable f");
-    for (AfterCutModel& ac : afterCutModels(a.tiny)) {
+    for (AfterCutModel& ac : afterCutModels(tiny)) {
         // Plain: without the damping of the light control points (Model::lightNodes), which is
         // what sets the limit of a cut model and which lets it run past that limit.
         ac.model.lightNodes.clear();
@@ -206,125 +211,138 @@ int runStability(const StabilityArgs& a) {
                                    {"integrator", "symplectic_euler"},
                                    {"largest_stable_fraction", largest},
                                    {"runs", runs}});
-        if (!a.json)
+        if (!quiet)
             std::printf("%-26s %-18s %8d %14.4f %18.3f\n", ac.mesh.c_str(), ac.lumping.c_str(), ac.crossed,
                         dtExact / ac.dtUncut, largest);
     }
-    // Random cut sequences (the stress test of cutting, short): 1-4 random planes per run, steps at
-    // 0.9 of the current exact limit between cuts; a failure is a non-finite value or a node faster
-    // than kBlowUpSpeed.
+}
+
+// Section 3: random cut sequences (the stress test of cutting, short): 1-4 random planes per run,
+// steps at 0.9 of the current exact limit between cuts; a failure is a non-finite value or a node
+// faster than kBlowUpSpeed.
+void randomCutSequences(const StabilityArgs& a, json& j) {
     j["random_cuts"] = json::array();
-    if (a.cutRuns > 0) {
-        if (!a.json)
-            std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
-                        "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
-                        "scaling), certified (local, then the exact step and keepStep), globally (keepStep) or hybrid "
-                        "(the elements under it matched, then certified))\n%-10s %6s "
-                        "%9s %6s %6s %9s %9s %14s %15s %13s %12s %11s %9s %13s %14s\n",
-                        a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
-                        "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
-                        "floor ms/cut");
-        std::vector<std::pair<std::string, Model>> objects;
-        objects.emplace_back("bar", randomCutBarModel());
-        const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
-        if (fs::exists(liver)) objects.emplace_back("liver", randomCutLiverModel(readTetMesh(liver, ReadOptions{})));
-        unsigned seed = 21;
-        for (const auto& [name, model] : objects) {
-            // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
-            // and with the step floor held locally and globally (timestep/floor.hpp, keepStep), and
-            // certified after the hybrid matched every element under it (timestep/hybrid.hpp)
-            struct Variant {
-                double limit;
-                const char* floor;
-            };
-            using Floor = RandomCutOptions::Floor;
-            for (const Variant& v : {Variant{0.0, "-"}, Variant{0.2, "-"}, Variant{0.2, "local"},
-                                     Variant{0.2, "certified"}, Variant{0.2, "global"}, Variant{0.2, "hybrid"}}) {
-                const double limit = v.limit;
-                const std::string fl = v.floor;
-                RandomCutOptions ro{MassLumping::Enrichment, 0.9, limit};
-                ro.stepFloor = fl == "-" ? 0.0 : 0.95;
-                ro.floor = fl == "global"      ? Floor::Global
-                           : fl == "certified" ? Floor::Certified
-                           : fl == "hybrid"    ? Floor::HybridCertified
-                                               : Floor::Local;
-                const auto t0 = WallClock::now();
-                const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, ro);
-                j["random_cuts"].push_back({{"object", name},
-                                            {"min_stretch", limit},
-                                            {"floor", v.floor},
-                                            {"cuts_below_floor", st.cutsBelowFloor},
-                                            {"cuts_topped_up", st.toppedUp},
-                                            {"max_matched_share", st.maxMatchedShare},
-                                            {"max_added_mass", st.maxAddedMass},
-                                            {"max_floor_seconds", st.maxFloorSeconds},
-                                            {"mean_floor_seconds", st.cuts ? st.floorSeconds / st.cuts : 0.0},
-                                            {"runs", st.runs},
-                                            {"cuts", st.cuts},
-                                            {"steps", st.steps},
-                                            {"failures", st.failures},
-                                            {"inverted_runs", st.invertedRuns},
-                                            {"inverted_at_end", st.invertedAtEnd},
-                                            {"limited_runs", st.limitedRuns},
-                                            {"limited_steps", st.limitedSteps},
-                                            {"max_speed", st.maxSpeed},
-                                            {"min_dt_ratio", st.minDtRatio},
-                                            {"max_volume_error", st.maxVolumeError},
-                                            {"max_mass_error", st.maxMassError},
-                                            {"first_failure", st.firstFailure},
-                                            {"seconds", secondsSince(t0)}});
-                char matched[48] = "";
-                if (ro.floor == Floor::HybridCertified)
-                    std::snprintf(matched, sizeof matched, "  matched <= %.1f%%", 100 * st.maxMatchedShare);
-                if (!a.json)
-                    std::printf(
-                        "%-10s %6.2f %9s %6d %6d %9ld %9d %14d %15d %13d %12.4f %11d %9d %12.3f%% %6.3f/%-7.3f%s%s%s\n",
-                        name.c_str(), limit, v.floor, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns,
-                        st.invertedAtEnd, st.limitedRuns, st.minDtRatio, st.cutsBelowFloor, st.toppedUp,
-                        100 * st.maxAddedMass, st.cuts ? 1e3 * st.floorSeconds / st.cuts : 0.0,
-                        1e3 * st.maxFloorSeconds, matched,
-                        st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
-            }
-            ++seed;
+    if (a.cutRuns <= 0) return;
+    if (!a.json)
+        std::printf("\nrandom cuts (%d steps between cuts, 0.9 of the exact limit, enrichment lumping; limit: "
+                    "integrator.min_stretch; floor: 0.95 of the uncut exact step, held locally (R1R mass "
+                    "scaling), certified (local, then the exact step and keepStep), globally (keepStep) or hybrid "
+                    "(the elements under it matched, then certified))\n%-10s %6s "
+                    "%9s %6s %6s %9s %9s %14s %15s %13s %12s %11s %9s %13s %14s\n",
+                    a.cutSteps, "object", "limit", "floor", "runs", "cuts", "steps", "failures", "inverted runs",
+                    "inverted at end", "limited runs", "min dt ratio", "below floor", "topped up", "max mass add",
+                    "floor ms/cut");
+    std::vector<std::pair<std::string, Model>> objects;
+    objects.emplace_back("bar", randomCutBarModel());
+    const std::string liver = std::string(CUTSIM_DATA_DIR) + "/tet/sofa_liver.msh";
+    if (fs::exists(liver)) objects.emplace_back("liver", randomCutLiverModel(readTetMesh(liver, ReadOptions{})));
+    unsigned seed = 21;
+    for (const auto& [name, model] : objects) {
+        // the same sequences plain and with stretch limiting (fem/forces.hpp limitStretch)
+        // and with the step floor held locally and globally (timestep/floor.hpp, keepStep), and
+        // certified after the hybrid matched every element under it (timestep/hybrid.hpp)
+        struct Variant {
+            double limit;
+            const char* floor;
+        };
+        using Floor = RandomCutOptions::Floor;
+        for (const Variant& v : {Variant{0.0, "-"}, Variant{0.2, "-"}, Variant{0.2, "local"}, Variant{0.2, "certified"},
+                                 Variant{0.2, "global"}, Variant{0.2, "hybrid"}}) {
+            const double limit = v.limit;
+            const std::string fl = v.floor;
+            RandomCutOptions ro{MassLumping::Enrichment, 0.9, limit};
+            ro.stepFloor = fl == "-" ? 0.0 : 0.95;
+            ro.floor = fl == "global"      ? Floor::Global
+                       : fl == "certified" ? Floor::Certified
+                       : fl == "hybrid"    ? Floor::HybridCertified
+                                           : Floor::Local;
+            const auto t0 = WallClock::now();
+            const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, ro);
+            j["random_cuts"].push_back({{"object", name},
+                                        {"min_stretch", limit},
+                                        {"floor", v.floor},
+                                        {"cuts_below_floor", st.cutsBelowFloor},
+                                        {"cuts_topped_up", st.toppedUp},
+                                        {"max_matched_share", st.maxMatchedShare},
+                                        {"max_added_mass", st.maxAddedMass},
+                                        {"max_floor_seconds", st.maxFloorSeconds},
+                                        {"mean_floor_seconds", st.cuts ? st.floorSeconds / st.cuts : 0.0},
+                                        {"runs", st.runs},
+                                        {"cuts", st.cuts},
+                                        {"steps", st.steps},
+                                        {"failures", st.failures},
+                                        {"inverted_runs", st.invertedRuns},
+                                        {"inverted_at_end", st.invertedAtEnd},
+                                        {"limited_runs", st.limitedRuns},
+                                        {"limited_steps", st.limitedSteps},
+                                        {"max_speed", st.maxSpeed},
+                                        {"min_dt_ratio", st.minDtRatio},
+                                        {"max_volume_error", st.maxVolumeError},
+                                        {"max_mass_error", st.maxMassError},
+                                        {"first_failure", st.firstFailure},
+                                        {"seconds", secondsSince(t0)}});
+            char matched[48] = "";
+            if (ro.floor == Floor::HybridCertified)
+                std::snprintf(matched, sizeof matched, "  matched <= %.1f%%", 100 * st.maxMatchedShare);
+            if (!a.json)
+                std::printf(
+                    "%-10s %6.2f %9s %6d %6d %9ld %9d %14d %15d %13d %12.4f %11d %9d %12.3f%% %6.3f/%-7.3f%s%s%s\n",
+                    name.c_str(), limit, v.floor, st.runs, st.cuts, st.steps, st.failures, st.invertedRuns,
+                    st.invertedAtEnd, st.limitedRuns, st.minDtRatio, st.cutsBelowFloor, st.toppedUp,
+                    100 * st.maxAddedMass, st.cuts ? 1e3 * st.floorSeconds / st.cuts : 0.0, 1e3 * st.maxFloorSeconds,
+                    matched, st.firstFailure.empty() ? "" : "  first: ", st.firstFailure.c_str());
+        }
+        ++seed;
+    }
+}
+
+// Section 4: energy drift of a long undamped run at 0.9 of the limit (symplectic Euler): relative
+// to the energy put in, largest deviation and final deviation.
+void energyDrift(const SweepModel& sm, bool tiny, bool quiet, json& j) {
+    Model mm = sm.model;
+    mm.gravity.setZero();
+    State s = makeState(mm);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int i = 0; i < mm.nodes(); ++i)
+        if (mm.invMass(i) > 0) s.v.col(i) << 1e-3 * u(rng), 1e-3 * u(rng), 1e-3 * u(rng);
+    const double dt = 0.9 * exactCriticalDt(mm).dt;
+    const long n = tiny ? 2000 : 200000;
+    // Symplectic Euler conserves a shadow energy: the measured one oscillates (by O(omega dt),
+    // large near the limit) but must not drift. Drift: mean over the last tenth of the run
+    // minus mean over the first tenth, sampled every step.
+    Stepper st;
+    const double e0 = kineticEnergy(mm, s);
+    double maxDev = 0, first = 0, last = 0;
+    const long tenth = n / 10;
+    for (long k = 0; k < n; ++k) {
+        st.step(mm, s, StepOptions{Integrator::SymplecticEuler, dt});
+        if (k < tenth || k >= n - tenth) {
+            const double e = kineticEnergy(mm, s) + elasticEnergy(mm, s);
+            (k < tenth ? first : last) += e / tenth;
+            maxDev = std::max(maxDev, std::abs(e - e0) / e0);
         }
     }
-    // Energy drift of a long undamped run at 0.9 of the limit (symplectic Euler): relative to the
-    // energy put in, largest deviation and final deviation.
-    {
-        const Model& m = models[0].model;
-        Model mm = m;
-        mm.gravity.setZero();
-        State s = makeState(mm);
-        std::mt19937 rng(11);
-        std::uniform_real_distribution<double> u(-1, 1);
-        for (int i = 0; i < mm.nodes(); ++i)
-            if (mm.invMass(i) > 0) s.v.col(i) << 1e-3 * u(rng), 1e-3 * u(rng), 1e-3 * u(rng);
-        const double dt = 0.9 * exactCriticalDt(mm).dt;
-        const long n = a.tiny ? 2000 : 200000;
-        // Symplectic Euler conserves a shadow energy: the measured one oscillates (by O(omega dt),
-        // large near the limit) but must not drift. Drift: mean over the last tenth of the run
-        // minus mean over the first tenth, sampled every step.
-        Stepper st;
-        const double e0 = kineticEnergy(mm, s);
-        double maxDev = 0, first = 0, last = 0;
-        const long tenth = n / 10;
-        for (long k = 0; k < n; ++k) {
-            st.step(mm, s, StepOptions{Integrator::SymplecticEuler, dt});
-            if (k < tenth || k >= n - tenth) {
-                const double e = kineticEnergy(mm, s) + elasticEnergy(mm, s);
-                (k < tenth ? first : last) += e / tenth;
-                maxDev = std::max(maxDev, std::abs(e - e0) / e0);
-            }
-        }
-        const double drift = (last - first) / e0;
-        j["energy_drift"] = {{"mesh", models[0].name}, {"integrator", "symplectic_euler"},
-                             {"fraction", 0.9},        {"steps", n},
-                             {"oscillation", maxDev},  {"drift", drift}};
-        if (!a.json)
-            std::printf("\nenergy, %s, symplectic Euler at 0.9, %ld steps: oscillation max |E-E0|/E0 = %.3e, "
-                        "drift (last tenth - first tenth)/E0 = %.3e\n",
-                        models[0].name.c_str(), n, maxDev, drift);
-    }
+    const double drift = (last - first) / e0;
+    j["energy_drift"] = {{"mesh", sm.name},       {"integrator", "symplectic_euler"},
+                         {"fraction", 0.9},       {"steps", n},
+                         {"oscillation", maxDev}, {"drift", drift}};
+    if (!quiet)
+        std::printf("\nenergy, %s, symplectic Euler at 0.9, %ld steps: oscillation max |E-E0|/E0 = %.3e, "
+                    "drift (last tenth - first tenth)/E0 = %.3e\n",
+                    sm.name.c_str(), n, maxDev, drift);
+}
+
+int runStability(const StabilityArgs& a) {
+    const std::vector<SweepModel> models = sweepModels(a.tiny);
+    const int steps = a.tiny ? std::min(a.steps, 400) : a.steps;
+    json j;
+    j["steps"] = steps;
+    j["energy_factor"] = 1e3;
+    sweepSchemes(models, steps, a.json, j);
+    sweepAfterCuts(a.tiny, steps, a.json, j);
+    randomCutSequences(a, j);
+    energyDrift(models[0], a.tiny, a.json, j);
     if (a.json) std::cout << jsonText(j);
     return 0;
 }
