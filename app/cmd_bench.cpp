@@ -499,86 +499,85 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
     return pts;
 }
 
-int runAccuracy(const AccuracyArgs& a) {
-    if (!a.plot.empty() && !haveGnuplot()) {
-        std::fprintf(stderr, "error: --plot needs gnuplot, which is not installed (Debian package gnuplot-nox)\n");
-        return 2;
+// The flags as the configurations' context: resolutions, references, sizes.
+AccuracyContext accuracyContext(const AccuracyArgs& a, json& refs) {
+    AccuracyContext ctx;
+    ctx.tiny = a.tiny;
+    if (a.tiny)
+        ctx.res = {1};
+    else if (!a.res.empty())
+        ctx.res = a.res;
+    else
+        for (int r = 1; r <= a.maxRes; ++r) ctx.res.push_back(r);
+    std::sort(ctx.res.begin(), ctx.res.end());
+    ctx.res.erase(std::unique(ctx.res.begin(), ctx.res.end()), ctx.res.end());
+    ctx.maxRes = ctx.res.back();
+    ctx.implicitMaxRes = a.implicitMaxRes;
+    ctx.cgMaxRes = a.cgMaxRes;
+    ctx.quiet = a.json;
+    ctx.references = &refs;
+    if (a.tiny) {
+        ctx.bar.staticTime = 0.2;
+        ctx.bar.frequencyTime = 0.5;
     }
-    std::vector<BenchPoint> pts;
-    std::vector<ImplicitProjection> proj;
-    std::vector<PairedComparison> paired;
-    json refs = json::object();
-    if (!a.from.empty()) {
-        pts = readPointsCsv(a.from);
-    } else {
-        // Backward Euler's factorisation (Eigen's simplicial LDL^T) runs on one core whatever
-        // this says; the explicit force stage on all of these.
-        setThreads(a.threads);
-        AccuracyContext ctx;
-        ctx.tiny = a.tiny;
-        if (a.tiny)
-            ctx.res = {1};
-        else if (!a.res.empty())
-            ctx.res = a.res;
-        else
-            for (int r = 1; r <= a.maxRes; ++r) ctx.res.push_back(r);
-        std::sort(ctx.res.begin(), ctx.res.end());
-        ctx.res.erase(std::unique(ctx.res.begin(), ctx.res.end()), ctx.res.end());
-        ctx.maxRes = ctx.res.back();
-        ctx.implicitMaxRes = a.implicitMaxRes;
-        ctx.cgMaxRes = a.cgMaxRes;
-        ctx.quiet = a.json;
-        ctx.references = &refs;
-        if (a.tiny) {
-            ctx.bar.staticTime = 0.2;
-            ctx.bar.frequencyTime = 0.5;
-        }
-        // Converged references: Richardson extrapolation of the two finest reference meshes
-        // (linear tets converge as h^2); the coarser pair shows how well converged they are.
-        std::vector<int> levels = a.tiny                ? std::vector<int>{2, 4}
-                                  : a.refLevels.empty() ? std::vector<int>{2, 4, 8}
-                                                        : a.refLevels;
-        std::sort(levels.begin(), levels.end());
-        levels.erase(std::unique(levels.begin(), levels.end()), levels.end());
-        if (levels.size() < 2) throw InputError("--ref-levels", 0, "needs at least two different levels");
-        const BarReferences br = barReferences(
-            levels, [&](int r) { return cantileverModel(ctx.bar, r, ElementModel::Corotational, BoxSplit::Mirrored); });
-        ctx.tipReference = br.tip;
-        ctx.frequencyReference = br.frequency;
-        // Euler-Bernoulli with Timoshenko's shear term (kappa = 5/6) and the first bending frequency.
-        const auto& bar = ctx.bar;
-        const double E = bar.material.E, G = E / (2 * (1 + bar.material.nu)), A = bar.h * bar.h, I = A * A / 12;
-        const double q = bar.material.rho * 9.81 * A, L = bar.L;
-        const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
-        const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
-        auto order = [](double p) { return std::isfinite(p) ? json(p) : json(nullptr); };
-        refs["cantilever_static"] = {{"reference", ctx.tipReference},
-                                     {"levels", levels},
-                                     {"values", br.tips},
-                                     {"observed_order", order(br.tipOrder)},
-                                     {"beam_theory", beamTip},
-                                     {"reference_over_beam", ctx.tipReference / beamTip}};
-        refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference},
-                                        {"levels", levels},
-                                        {"values", br.freqs},
-                                        {"observed_order", order(br.frequencyOrder)},
-                                        {"beam_theory", beamFreq},
-                                        {"reference_over_beam", ctx.frequencyReference / beamFreq}};
-        if (!a.json)
-            std::fprintf(stderr,
-                         "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
-                         ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
-        if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj, paired);
-        for (auto& [name, fn] : registry().configs) {
-            if (!selected(a, name)) continue;
-            auto more = fn(ctx);
-            pts.insert(pts.end(), more.begin(), more.end());
-        }
-    }
-    markPareto(pts);
+    // Converged references: Richardson extrapolation of the two finest reference meshes
+    // (linear tets converge as h^2); the coarser pair shows how well converged they are.
+    std::vector<int> levels = a.tiny                ? std::vector<int>{2, 4}
+                              : a.refLevels.empty() ? std::vector<int>{2, 4, 8}
+                                                    : a.refLevels;
+    std::sort(levels.begin(), levels.end());
+    levels.erase(std::unique(levels.begin(), levels.end()), levels.end());
+    if (levels.size() < 2) throw InputError("--ref-levels", 0, "needs at least two different levels");
+    const BarReferences br = barReferences(
+        levels, [&](int r) { return cantileverModel(ctx.bar, r, ElementModel::Corotational, BoxSplit::Mirrored); });
+    ctx.tipReference = br.tip;
+    ctx.frequencyReference = br.frequency;
+    // Euler-Bernoulli with Timoshenko's shear term (kappa = 5/6) and the first bending frequency.
+    const auto& bar = ctx.bar;
+    const double E = bar.material.E, G = E / (2 * (1 + bar.material.nu)), A = bar.h * bar.h, I = A * A / 12;
+    const double q = bar.material.rho * 9.81 * A, L = bar.L;
+    const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
+    const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
+    auto order = [](double p) { return std::isfinite(p) ? json(p) : json(nullptr); };
+    refs["cantilever_static"] = {{"reference", ctx.tipReference},
+                                 {"levels", levels},
+                                 {"values", br.tips},
+                                 {"observed_order", order(br.tipOrder)},
+                                 {"beam_theory", beamTip},
+                                 {"reference_over_beam", ctx.tipReference / beamTip}};
+    refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference},
+                                    {"levels", levels},
+                                    {"values", br.freqs},
+                                    {"observed_order", order(br.frequencyOrder)},
+                                    {"beam_theory", beamFreq},
+                                    {"reference_over_beam", ctx.frequencyReference / beamFreq}};
+    if (!a.json)
+        std::fprintf(stderr,
+                     "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
+                     ctx.tipReference, beamTip, ctx.frequencyReference, beamFreq);
+    return ctx;
+}
 
-    json j;
-    j["points"] = json::array();
+// The measured points: the built-in cantilever runs and every selected registered configuration.
+std::vector<BenchPoint> measureAccuracy(const AccuracyArgs& a, json& refs, std::vector<ImplicitProjection>& proj,
+                                        std::vector<PairedComparison>& paired) {
+    // Backward Euler's factorisation (Eigen's simplicial LDL^T) runs on one core whatever
+    // this says; the explicit force stage on all of these.
+    setThreads(a.threads);
+    const AccuracyContext ctx = accuracyContext(a, refs);
+    std::vector<BenchPoint> pts;
+    if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj, paired);
+    for (auto& [name, fn] : registry().configs) {
+        if (!selected(a, name)) continue;
+        auto more = fn(ctx);
+        pts.insert(pts.end(), more.begin(), more.end());
+    }
+    return pts;
+}
+
+// The points as JSON.
+json pointsJson(const std::vector<BenchPoint>& pts) {
+    json points = json::array();
     for (const auto& p : pts) {
         json q = {{"problem", p.problem},
                   {"config", p.config},
@@ -590,11 +589,16 @@ int runAccuracy(const AccuracyArgs& a) {
         if (std::isfinite(p.frequencyError)) q["frequency_error"] = p.frequencyError;
         if (std::isfinite(p.dampingRatio)) q["damping_ratio"] = p.dampingRatio;
         if (std::isfinite(p.predictedError)) q["predicted_error"] = p.predictedError;
-        j["points"].push_back(q);
+        points.push_back(q);
     }
-    j["summary"] = json::object();
+    return points;
+}
+
+// Per problem: the cost of 1% error explicit and implicit, and at the finest error both reach.
+json summaryJson(const std::vector<BenchPoint>& pts) {
+    json summary = json::object();
     for (const auto& p : pts) {
-        if (j["summary"].contains(p.problem)) continue;
+        if (summary.contains(p.problem)) continue;
         const double ex = costAtError(pts, p.problem, 0.01, true), im = costAtError(pts, p.problem, 0.01, false);
         // When 1% is out of reach: the finest error both kinds reach, and their costs there.
         double minEx = INFINITY, minIm = INFINITY;
@@ -603,93 +607,93 @@ int runAccuracy(const AccuracyArgs& a) {
                 (q.explicitScheme ? minEx : minIm) = std::min(q.explicitScheme ? minEx : minIm, q.error);
         const double common = std::max(minEx, minIm);
         const double exC = costAtError(pts, p.problem, common, true), imC = costAtError(pts, p.problem, common, false);
-        j["summary"][p.problem] = {{"best_explicit_cost_at_1pct", jsonNumber(ex)},
-                                   {"implicit_cost_at_1pct", jsonNumber(im)},
-                                   {"speedup_at_1pct", ex > 0 && im > 0 ? json(im / ex) : json(nullptr)},
-                                   {"best_explicit_error", jsonNumber(minEx)},
-                                   {"best_implicit_error", jsonNumber(minIm)},
-                                   {"common_error", jsonNumber(common)},
-                                   {"explicit_cost_at_common_error", jsonNumber(exC)},
-                                   {"implicit_cost_at_common_error", jsonNumber(imC)}};
+        summary[p.problem] = {{"best_explicit_cost_at_1pct", jsonNumber(ex)},
+                              {"implicit_cost_at_1pct", jsonNumber(im)},
+                              {"speedup_at_1pct", ex > 0 && im > 0 ? json(im / ex) : json(nullptr)},
+                              {"best_explicit_error", jsonNumber(minEx)},
+                              {"best_implicit_error", jsonNumber(minIm)},
+                              {"common_error", jsonNumber(common)},
+                              {"explicit_cost_at_common_error", jsonNumber(exC)},
+                              {"implicit_cost_at_common_error", jsonNumber(imC)}};
     }
-    // The implicit reference where it is too dear to run: measured step, projected steps.
-    if (!proj.empty()) {
-        j["implicit_projection"] = json::array();
-        const ImplicitProjection* best = nullptr;
-        for (const auto& pr : proj) {
-            j["implicit_projection"].push_back({{"res", pr.res},
-                                                {"tets", pr.tets},
-                                                {"mesh_frequency", pr.meshFrequency},
-                                                {"mesh_error", pr.meshError},
-                                                {"dt_at_1pct", jsonNumber(pr.dt > 0 ? pr.dt : -1)},
-                                                {"step_seconds", pr.stepSeconds()},
-                                                {"solver", pr.solver()},
-                                                {"step_seconds_direct", pr.directSeconds},
-                                                {"step_seconds_cg", pr.cgSeconds},
-                                                {"cg_iterations", pr.cgIterations},
-                                                {"steps_timed", pr.steps},
-                                                {"cost_at_1pct", jsonNumber(std::isfinite(pr.cost) ? pr.cost : -1)}});
-            if (std::isfinite(pr.cost) && (!best || pr.cost < best->cost)) best = &pr;
-        }
-        if (j["summary"].contains("cantilever_frequency")) {
-            auto& s = j["summary"]["cantilever_frequency"];
-            const double ex = costAtError(pts, "cantilever_frequency", 0.01, true);
-            s["implicit_cost_at_1pct_projected"] = best ? json(best->cost) : json(nullptr);
-            s["implicit_projected_res"] = best ? json(best->res) : json(nullptr);
-            s["speedup_at_1pct_projected"] = best && ex > 0 ? json(best->cost / ex) : json(nullptr);
-        }
+    return summary;
+}
+
+// The implicit reference where it is too dear to run: measured step, projected steps.
+void addImplicitProjection(const std::vector<ImplicitProjection>& proj, const std::vector<BenchPoint>& pts, json& j) {
+    j["implicit_projection"] = json::array();
+    const ImplicitProjection* best = nullptr;
+    for (const auto& pr : proj) {
+        j["implicit_projection"].push_back({{"res", pr.res},
+                                            {"tets", pr.tets},
+                                            {"mesh_frequency", pr.meshFrequency},
+                                            {"mesh_error", pr.meshError},
+                                            {"dt_at_1pct", jsonNumber(pr.dt > 0 ? pr.dt : -1)},
+                                            {"step_seconds", pr.stepSeconds()},
+                                            {"solver", pr.solver()},
+                                            {"step_seconds_direct", pr.directSeconds},
+                                            {"step_seconds_cg", pr.cgSeconds},
+                                            {"cg_iterations", pr.cgIterations},
+                                            {"steps_timed", pr.steps},
+                                            {"cost_at_1pct", jsonNumber(std::isfinite(pr.cost) ? pr.cost : -1)}});
+        if (std::isfinite(pr.cost) && (!best || pr.cost < best->cost)) best = &pr;
     }
-    // Explicit runs that took turns with an implicit one: their cost ratio at equal machine
-    // conditions. The summary's: the cheapest implicit point at 1% and its cheapest explicit one.
-    if (!paired.empty()) {
-        j["paired"] = json::array();
-        const PairedComparison* best = nullptr;
-        const PairedComparison::Explicit* bestEx = nullptr;
-        for (const auto& c : paired) {
-            json runs = json::array();
-            for (const auto& e : c.runs)
-                runs.push_back({{"config", e.point.config},
-                                {"error", jsonNumber(e.point.error)},
-                                {"cost", e.point.wallPerSimSecond},
-                                {"ratio", e.ratio},
-                                {"ratio_first_half", e.firstHalf},
-                                {"ratio_second_half", e.secondHalf},
-                                {"slice_ratio_min", e.sliceMin},
-                                {"slice_ratio_max", e.sliceMax}});
-            j["paired"].push_back({{"problem", c.implicitPoint.problem},
-                                   {"implicit", c.implicitPoint.config},
-                                   {"implicit_error", jsonNumber(c.implicitPoint.error)},
-                                   {"implicit_cost", c.implicitPoint.wallPerSimSecond},
-                                   {"slices", c.slices},
-                                   {"explicit", runs}});
-            if (!(c.implicitPoint.error <= 0.01) ||
-                (best && best->implicitPoint.wallPerSimSecond <= c.implicitPoint.wallPerSimSecond))
-                continue;
-            const PairedComparison::Explicit* cheapest = nullptr;
-            for (const auto& e : c.runs)
-                if (e.point.error <= 0.01 && (!cheapest || e.point.wallPerSimSecond < cheapest->point.wallPerSimSecond))
-                    cheapest = &e;
-            if (cheapest) {
-                best = &c;
-                bestEx = cheapest;
-            }
-        }
-        const std::string problem = paired.front().implicitPoint.problem;
-        if (j["summary"].contains(problem)) {
-            auto& s = j["summary"][problem];
-            s["speedup_at_1pct_paired"] = bestEx ? json(bestEx->ratio) : json(nullptr);
-            s["paired_explicit"] = bestEx ? json(bestEx->point.config) : json(nullptr);
-            s["paired_implicit"] = best ? json(best->implicitPoint.config) : json(nullptr);
+    if (j["summary"].contains("cantilever_frequency")) {
+        auto& s = j["summary"]["cantilever_frequency"];
+        const double ex = costAtError(pts, "cantilever_frequency", 0.01, true);
+        s["implicit_cost_at_1pct_projected"] = best ? json(best->cost) : json(nullptr);
+        s["implicit_projected_res"] = best ? json(best->res) : json(nullptr);
+        s["speedup_at_1pct_projected"] = best && ex > 0 ? json(best->cost / ex) : json(nullptr);
+    }
+}
+
+// Explicit runs that took turns with an implicit one: their cost ratio at equal machine
+// conditions. The summary's: the cheapest implicit point at 1% and its cheapest explicit one.
+void addPaired(const std::vector<PairedComparison>& paired, json& j) {
+    j["paired"] = json::array();
+    const PairedComparison* best = nullptr;
+    const PairedComparison::Explicit* bestEx = nullptr;
+    for (const auto& c : paired) {
+        json runs = json::array();
+        for (const auto& e : c.runs)
+            runs.push_back({{"config", e.point.config},
+                            {"error", jsonNumber(e.point.error)},
+                            {"cost", e.point.wallPerSimSecond},
+                            {"ratio", e.ratio},
+                            {"ratio_first_half", e.firstHalf},
+                            {"ratio_second_half", e.secondHalf},
+                            {"slice_ratio_min", e.sliceMin},
+                            {"slice_ratio_max", e.sliceMax}});
+        j["paired"].push_back({{"problem", c.implicitPoint.problem},
+                               {"implicit", c.implicitPoint.config},
+                               {"implicit_error", jsonNumber(c.implicitPoint.error)},
+                               {"implicit_cost", c.implicitPoint.wallPerSimSecond},
+                               {"slices", c.slices},
+                               {"explicit", runs}});
+        if (!(c.implicitPoint.error <= 0.01) ||
+            (best && best->implicitPoint.wallPerSimSecond <= c.implicitPoint.wallPerSimSecond))
+            continue;
+        const PairedComparison::Explicit* cheapest = nullptr;
+        for (const auto& e : c.runs)
+            if (e.point.error <= 0.01 && (!cheapest || e.point.wallPerSimSecond < cheapest->point.wallPerSimSecond))
+                cheapest = &e;
+        if (cheapest) {
+            best = &c;
+            bestEx = cheapest;
         }
     }
-    if (!refs.empty()) j["references"] = refs;
-    if (a.from.empty()) j["threads"] = threads();
-    if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
-    if (!a.plot.empty()) plotPoints(pts, a.plot);
-    if (a.json) {
-        std::cout << jsonText(j);
-        return 0;
+    const std::string problem = paired.front().implicitPoint.problem;
+    if (j["summary"].contains(problem)) {
+        auto& s = j["summary"][problem];
+        s["speedup_at_1pct_paired"] = bestEx ? json(bestEx->ratio) : json(nullptr);
+        s["paired_explicit"] = bestEx ? json(bestEx->point.config) : json(nullptr);
+        s["paired_implicit"] = best ? json(best->implicitPoint.config) : json(nullptr);
     }
+}
+
+// The text report: the points, the projection, the paired runs and the summary.
+void printAccuracy(const std::vector<BenchPoint>& pts, const std::vector<ImplicitProjection>& proj,
+                   const std::vector<PairedComparison>& paired, const json& summary) {
     std::printf("%-26s %-42s %12s %14s %12s %6s %11s %11s %11s\n", "problem", "config", "error", "wall/sim [s/s]",
                 "dt [s]", "pareto", "freq err", "damping", "predicted");
     auto opt = [](double v) {
@@ -734,7 +738,7 @@ int runAccuracy(const AccuracyArgs& a) {
         }
     }
     std::printf("\ncost at 1%% error (wall s per simulated s; - = not reached):\n");
-    for (auto& [problem, s] : j["summary"].items()) {
+    for (auto& [problem, s] : summary.items()) {
         auto show = [](const json& v) { return v.is_null() ? std::string("-") : std::to_string(v.get<double>()); };
         std::printf(
             "  %-22s explicit %s  implicit %s;  at the finest error both reach (%s): explicit %s  implicit %s\n",
@@ -746,6 +750,33 @@ int runAccuracy(const AccuracyArgs& a) {
                         s["paired_explicit"].get<std::string>().c_str(), s["speedup_at_1pct_paired"].get<double>(),
                         s["paired_implicit"].get<std::string>().c_str());
     }
+}
+
+int runAccuracy(const AccuracyArgs& a) {
+    if (!a.plot.empty() && !haveGnuplot()) {
+        std::fprintf(stderr, "error: --plot needs gnuplot, which is not installed (Debian package gnuplot-nox)\n");
+        return 2;
+    }
+    std::vector<ImplicitProjection> proj;
+    std::vector<PairedComparison> paired;
+    json refs = json::object();
+    std::vector<BenchPoint> pts = a.from.empty() ? measureAccuracy(a, refs, proj, paired) : readPointsCsv(a.from);
+    markPareto(pts);
+
+    json j;
+    j["points"] = pointsJson(pts);
+    j["summary"] = summaryJson(pts);
+    if (!proj.empty()) addImplicitProjection(proj, pts, j);
+    if (!paired.empty()) addPaired(paired, j);
+    if (!refs.empty()) j["references"] = refs;
+    if (a.from.empty()) j["threads"] = threads();
+    if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
+    if (!a.plot.empty()) plotPoints(pts, a.plot);
+    if (a.json) {
+        std::cout << jsonText(j);
+        return 0;
+    }
+    printAccuracy(pts, proj, paired, j["summary"]);
     return 0;
 }
 
