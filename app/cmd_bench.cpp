@@ -538,19 +538,14 @@ AccuracyContext accuracyContext(const AccuracyArgs& a, json& refs) {
     const double q = bar.material.rho * 9.81 * A, L = bar.L;
     const double beamTip = -(q * std::pow(L, 4) / (8 * E * I) + q * L * L / (2 * (5.0 / 6.0) * G * A));
     const double beamFreq = 1.8751 * 1.8751 / (2 * M_PI * L * L) * std::sqrt(E * I / (bar.material.rho * A));
-    auto order = [](double p) { return std::isfinite(p) ? json(p) : json(nullptr); };
-    refs["cantilever_static"] = {{"reference", ctx.tipReference},
-                                 {"levels", levels},
-                                 {"values", br.tips},
-                                 {"observed_order", order(br.tipOrder)},
-                                 {"beam_theory", beamTip},
-                                 {"reference_over_beam", ctx.tipReference / beamTip}};
-    refs["cantilever_frequency"] = {{"reference", ctx.frequencyReference},
-                                    {"levels", levels},
-                                    {"values", br.freqs},
-                                    {"observed_order", order(br.frequencyOrder)},
-                                    {"beam_theory", beamFreq},
-                                    {"reference_over_beam", ctx.frequencyReference / beamFreq}};
+    // a reference, the values converging to it and beam theory's value beside it
+    auto entry = [&](double reference, const auto& values, double order, double beam) {
+        return json{{"reference", reference}, {"levels", levels},
+                    {"values", values},       {"observed_order", std::isfinite(order) ? json(order) : json(nullptr)},
+                    {"beam_theory", beam},    {"reference_over_beam", reference / beam}};
+    };
+    refs["cantilever_static"] = entry(ctx.tipReference, br.tips, br.tipOrder, beamTip);
+    refs["cantilever_frequency"] = entry(ctx.frequencyReference, br.freqs, br.frequencyOrder, beamFreq);
     if (!a.json)
         std::fprintf(stderr,
                      "references: tip %.6g m (beam theory %.6g m), frequency %.6g Hz (Euler-Bernoulli %.6g Hz)\n",
