@@ -102,6 +102,8 @@ struct CutEngine::SplitCache {
     std::vector<std::pair<int, Poly>> parts;
     std::vector<char> holdsVertex;      // parent holds a surface vertex inside it (nParents)
     bool outside = false;               // a vertex lies outside every element (a visual surface)
+    std::vector<char> pastVertex;       // each vertex lies outside its element (nv)
+    double reach = 0;                   // farthest a vertex lies outside its element [m]
     std::vector<double> cornerWinding;  // winding number at each original node, NaN until needed
     // Points (N = 4) and segments (N = 8) in a parent, by their weights' bits.
     template <size_t N>
@@ -150,11 +152,19 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
     c->tinyArea = 1e-14 * diag * diag;  // [m^2] parts below it are slivers of round-off
     if (nv > 0) c->tree = buildWindingTree(rs);
     c->holdsVertex.assign(static_cast<size_t>(nParents), 0);
+    c->pastVertex.assign(static_cast<size_t>(nv), 0);
     for (int v = 0; v < nv; ++v) {
-        if (original.weights.col(v).minCoeff() >= 0)
-            c->holdsVertex[static_cast<size_t>(original.element[static_cast<size_t>(v)])] = 1;
-        else
-            c->outside = c->outside || original.weights.col(v).minCoeff() < -1e-9;
+        const Eigen::Vector4d w = original.weights.col(v);
+        const int p = original.element[static_cast<size_t>(v)];
+        if (w.minCoeff() >= 0) {
+            c->holdsVertex[static_cast<size_t>(p)] = 1;
+        } else if (w.minCoeff() < -1e-9) {
+            c->outside = true;
+            c->pastVertex[static_cast<size_t>(v)] = 1;
+            // at most its distance to the element's point at the clamped weights
+            const Eigen::Vector4d in = w.cwiseMax(0.0) / w.cwiseMax(0.0).sum();
+            c->reach = std::max(c->reach, (rs.V.col(v) - restOf(m, p, in)).norm());
+        }
     }
     c->cornerWinding.assign(static_cast<size_t>(m.X.cols()), std::nan(""));
     // Each triangle is clipped to each parent it crosses (flood fill over face neighbours from its
@@ -199,6 +209,152 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
         c->partStart.push_back(static_cast<int>(c->parts.size()));
     }
     return *c;
+}
+
+void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
+                                  const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
+                                  const std::function<void(int, int, int)>& addTriangle) const {
+    // Past the boundary no partition by parents is continuous (neighbours' extrapolations agree
+    // only on their shared face's plane), so the triangle stays whole but for the cuts: split by
+    // one plane per cut, taken from a cut parent near it, each cell drawn linear between corners
+    // that ride elements on its side, as an uncut visual triangle rides its corners' elements.
+    auto inP = [&](int p, const Eigen::Vector3d& y) {
+        return barycentric(y, m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)), m.X.col(tets0_(2, p)),
+                           m.X.col(tets0_(3, p)));
+    };
+    std::array<int, 3> corner{}, parent{};
+    std::array<Eigen::Vector3d, 3> y;
+    for (size_t i = 0; i < 3; ++i) {
+        corner[i] = original.triangles(static_cast<int>(i), t);
+        parent[i] = original.element[static_cast<size_t>(corner[i])];
+        y[i] = cache.rest.V.col(corner[i]);
+    }
+    struct Plane {
+        int cut, parent;
+        Eigen::Vector4d s;                         // signed distance at the parent's corners [m]
+        std::vector<std::pair<int, double>> node;  // ... at the corners of the cut parents near [m]
+    };
+    std::vector<Plane> planes;
+    auto planesOf = [&](int q) {
+        if (!virt_.count(q)) return;
+        for (int g : virtualsOf(q))
+            for (const Halfspace& h : virt_.at(g).hs) {
+                auto pl = std::find_if(planes.begin(), planes.end(), [&](const Plane& x) { return x.cut == h.cut; });
+                if (pl == planes.end()) pl = planes.insert(planes.end(), {h.cut, q, h.s, {}});
+                for (int a = 0; a < 4; ++a) pl->node.emplace_back(tets0_(a, q), h.s[a]);
+            }
+    };
+    for (int q : parent) planesOf(q);
+    for (int k = cache.partStart[static_cast<size_t>(t)]; k < cache.partStart[static_cast<size_t>(t) + 1]; ++k)
+        planesOf(cache.parts[static_cast<size_t>(k)].first);
+    for (int q : parent)
+        for (int a = 0; a < 4; ++a) {
+            const int o = tets0_(a, q);
+            for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i)
+                planesOf(ring_[static_cast<size_t>(i)]);
+        }
+    auto level = [&](const Plane& pl, const Eigen::Vector3d& x) { return pl.s.dot(inP(pl.parent, x)); };
+    auto sideOf = [&](const Eigen::Vector3d& x) {
+        std::uint32_t sig = 0;
+        for (size_t c = 0; c < planes.size() && c < 32; ++c) sig |= std::uint32_t(level(planes[c], x) >= 0) << c;
+        return sig;
+    };
+    // The rest centre of element g of parent q: its piece's, or the parent's when uncut.
+    auto centre = [&](int q, int g) {
+        const auto gv = virt_.find(g);
+        if (gv == virt_.end() || gv->second.piece.xi.empty()) return restOf(m, q, Eigen::Vector4d::Constant(0.25));
+        Eigen::Vector4d w = Eigen::Vector4d::Zero();
+        for (const auto& xi : gv->second.piece.xi) w += weightsOf(xi);
+        return restOf(m, q, w / static_cast<double>(gv->second.piece.xi.size()));
+    };
+    // Sides of element g of parent q: its own halfspace of each cut, else the sign its corners
+    // have where a cut parent near gives them (the cut was made in the deformed shape: its rest
+    // level set bends, so a plane far from where it was taken may put an element on the wrong
+    // side), else its centre's.
+    auto sidesOf = [&](int q, int g) {
+        std::uint32_t sig = sideOf(centre(q, g));
+        const auto gv = virt_.find(g);
+        for (size_t c = 0; c < planes.size() && c < 32; ++c) {
+            int known = 0;
+            if (gv != virt_.end())
+                for (const Halfspace& h : gv->second.hs)
+                    if (h.cut == planes[c].cut) known = h.positive ? 1 : -1;
+            for (int a = 0; a < 4 && known == 0; ++a)
+                for (const auto& [n, d] : planes[c].node)
+                    if (n == tets0_(a, q) && d != 0) known = d > 0 ? 1 : -1;
+            if (known != 0) sig = (sig & ~(std::uint32_t(1) << c)) | (std::uint32_t(known > 0) << c);
+        }
+        return sig;
+    };
+    // An element on side sig: of p, else of a parent sharing the most corners with p; {-1, -1}
+    // when none is.
+    auto rideOnSide = [&](int p, std::uint32_t sig) {
+        for (int g : virtualsOf(p))
+            if (sidesOf(p, g) == sig) return std::pair{g, p};
+        std::pair<int, int> best{-1, -1};
+        int bestShared = -1;
+        for (int a = 0; a < 4; ++a) {
+            const int o = tets0_(a, p);
+            for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i) {
+                const int q = ring_[static_cast<size_t>(i)];
+                int shared = 0;
+                for (int b = 0; b < 4; ++b)
+                    for (int c = 0; c < 4; ++c) shared += tets0_(b, q) == tets0_(c, p);
+                if (q == p || shared <= bestShared) continue;
+                for (int g : virtualsOf(q))
+                    if (sidesOf(q, g) == sig) {
+                        best = {g, q};
+                        bestShared = shared;
+                        break;
+                    }
+            }
+        }
+        return best;
+    };
+    // Cells of the triangle (rest positions in the first three entries) split by each plane.
+    std::vector<Poly> cells{
+        {{y[0].x(), y[0].y(), y[0].z(), 0}, {y[1].x(), y[1].y(), y[1].z(), 0}, {y[2].x(), y[2].y(), y[2].z(), 0}}},
+        next;
+    for (const Plane& pl : planes) {
+        next.clear();
+        for (const Poly& c : cells)
+            for (double sign : {1.0, -1.0}) {
+                Poly part = clipBy(c, [&](const Eigen::Vector4d& w) { return sign * level(pl, w.head<3>()); });
+                if (!part.empty()) next.push_back(std::move(part));
+            }
+        std::swap(cells, next);
+    }
+    std::vector<int> ids;
+    for (const Poly& c : cells) {
+        Eigen::Vector3d mid = Eigen::Vector3d::Zero();
+        for (const auto& w : c) mid += w.head<3>();
+        const std::uint32_t sig = sideOf(mid / static_cast<double>(c.size()));
+        // the triangle's corners to ride from: those in the cell first, then the nearest
+        std::array<size_t, 3> order{0, 1, 2};
+        std::array<bool, 3> in{};
+        for (size_t i = 0; i < 3; ++i)
+            in[i] = std::any_of(c.begin(), c.end(), [&](const Eigen::Vector4d& w) { return w.head<3>() == y[i]; });
+        ids.clear();
+        for (const auto& w : c) {
+            std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+                if (in[a] != in[b]) return in[a];
+                return (y[a] - w.head<3>()).squaredNorm() < (y[b] - w.head<3>()).squaredNorm();
+            });
+            std::pair<int, int> ride{-1, -1};
+            for (size_t k = 0; k < 3 && ride.first < 0; ++k) ride = rideOnSide(parent[order[k]], sig);
+            if (ride.first < 0) {  // nothing on its side near: the nearest corner's element on the fewest wrong sides
+                const int p = parent[order[0]];
+                int fewest = 1 << 30;
+                for (int g : virtualsOf(p))
+                    if (const int wrong = std::popcount(sidesOf(p, g) ^ sig); wrong < fewest)
+                        fewest = wrong, ride = {g, p};
+            }
+            ids.push_back(addVertex(ride.first, inP(ride.second, w.head<3>())));
+        }
+        for (size_t k = 1; k + 1 < ids.size(); ++k)
+            if (ids[0] != ids[k] && ids[k] != ids[k + 1] && ids[0] != ids[k + 1])
+                addTriangle(ids[0], ids[k], ids[k + 1]);
+    }
 }
 
 EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
@@ -311,8 +467,26 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
     };
 
-    // 1. The original triangles. One whose parents are all uncut stays as it is; any other is
-    // split by the cuts of each parent it crosses.
+    // Parents sharing a corner with a cut parent: a triangle past the boundary near them may be
+    // crossed by a cut beyond the parents it lies over.
+    std::vector<char> near(static_cast<size_t>(nParents), 0);
+    if (cache.outside)
+        for (const auto& kv : virt_) {
+            if (kv.first >= nParents) continue;
+            for (int a = 0; a < 4; ++a) {
+                const int o = tets0_(a, kv.first);
+                for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i)
+                    near[static_cast<size_t>(ring_[static_cast<size_t>(i)])] = 1;
+            }
+        }
+    auto nearCut = [&](const std::array<int, 3>& v) {
+        return std::any_of(v.begin(), v.end(),
+                           [&](int i) { return near[static_cast<size_t>(original.element[static_cast<size_t>(i)])]; });
+    };
+
+    // 1. The original triangles. One whose parents are all uncut stays as it is; one past the
+    // boundary is split by the cuts near it (splitPastBoundary); any other is split by the cuts of
+    // each parent it crosses.
     for (int t = 0; t < original.faces(); ++t) {
         std::array<int, 3> v{};
         bool touchesCut = false;
@@ -322,6 +496,17 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         }
         const int b = cache.partStart[static_cast<size_t>(t)], e = cache.partStart[static_cast<size_t>(t) + 1];
         for (int k = b; k < e && !touchesCut; ++k) touchesCut = isCut(cache.parts[static_cast<size_t>(k)].first);
+        const bool past = cache.pastVertex[static_cast<size_t>(v[0])] || cache.pastVertex[static_cast<size_t>(v[1])] ||
+                          cache.pastVertex[static_cast<size_t>(v[2])];
+        if (past && (touchesCut || nearCut(v))) {
+            splitPastBoundary(
+                m, cache, original, t, [&](int g, const Eigen::Vector4d& w) { return vertex(0, g, w, false); },
+                [&](int a, int b2, int c2) {
+                    tris.emplace_back(a, b2, c2);
+                    cutId.push_back(-1);
+                });
+            continue;
+        }
         if (!touchesCut) {
             tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
             cutId.push_back(-1);
@@ -412,15 +597,24 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         const Eigen::Vector3d u = nrm.unitOrthogonal(), v = nrm.cross(u);
         double size = 0;
         for (int a = 0; a < 4; ++a) size = std::max(size, (m.X.col(tets0_(a, p)) - c).norm());
-        const double half = 2 * (1 + 4 * kPast) * size;
+        // past each boundary face: kPast, or farther to reach the farthest surface vertex (in
+        // weights: distance over the element's height above that face)
+        Eigen::Vector4d past = Eigen::Vector4d::Zero();
+        for (int a = 0; a < 4; ++a) {
+            if (adj_(a, p) >= 0) continue;
+            const Eigen::Vector3d y1 = m.X.col(tets0_((a + 1) % 4, p)), y2 = m.X.col(tets0_((a + 2) % 4, p)),
+                                  y3 = m.X.col(tets0_((a + 3) % 4, p));
+            const Eigen::Vector3d nf = (y2 - y1).cross(y3 - y1);
+            const double height = std::abs(nf.dot(m.X.col(tets0_(a, p)) - y1)) / nf.norm();
+            past[a] = std::max(kPast, 1.25 * cache.reach / height);
+        }
+        const double half = 2 * (1 + 4 * past.maxCoeff()) * size;
         Poly sq;
         for (const auto& [du, dv] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}})  // counter-clockwise about nrm
             sq.push_back(barycentric(c + half * (du * u + dv * v), m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)),
                                      m.X.col(tets0_(2, p)), m.X.col(tets0_(3, p))));
-        for (int a = 0; a < 4 && !sq.empty(); ++a) {
-            const double past = adj_(a, p) < 0 ? kPast : 0.0;
-            sq = clipBy(sq, [a, past](const Eigen::Vector4d& w) { return w[a] + past; });
-        }
+        for (int a = 0; a < 4 && !sq.empty(); ++a)
+            sq = clipBy(sq, [a, pa = past[a]](const Eigen::Vector4d& w) { return w[a] + pa; });
         for (const Halfspace& h : ve.hs) {
             if (h.cut == cut || sq.empty()) continue;
             sq = clipBy(sq, [&h](const Eigen::Vector4d& w) { return h.positive ? w.dot(h.s) : -w.dot(h.s); });

@@ -24,6 +24,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <string>
@@ -143,11 +144,13 @@ public:
     // The same for an object given by its surface (mesh intersection, thesis ch. 6): `original` is
     // that surface as embedded in the uncut model (elements are parents). Each of its triangles is
     // split by the parents it crosses and by their cuts, each part riding the virtual element whose
-    // side it is on; the cut faces are kept only inside the original surface (winding number of the
-    // rest surface, sampled on capLevels subdivision levels of each cap triangle of an element the
-    // surface crosses, each sub-triangle clipped between the surface's crossings of its edges,
-    // found by bisection). Lattice faces
-    // are never drawn: the embedded surface replaces them. Defined in cut/embedded_cut.cpp.
+    // side it is on; a triangle with a corner past the tet boundary (a visual surface) is split by
+    // the cuts near it only, its cells' corners riding elements on their side. The cut faces are
+    // kept only inside the original surface (winding number of the rest surface, sampled on
+    // capLevels subdivision levels of each cap triangle of an element the surface crosses, each
+    // sub-triangle clipped between the surface's crossings of its edges, found by bisection); at
+    // the boundary they reach past it as far as the surface does. Lattice faces are never drawn:
+    // the embedded surface replaces them. Defined in cut/embedded_cut.cpp.
     EmbeddedSurface surface(const Model& m, const EmbeddedSurface& original, int capLevels = 3) const;
 
     int cuts() const { return nextCut_; }
@@ -248,12 +251,18 @@ private:
     // p, or -1; its parent in carrierParent. For surface cells on a side p dropped.
     int carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes, const Eigen::Vector4d& at,
                       int& carrierParent) const;
+    // Triangle t of a surface with corners past the tet boundary (a visual one), split by the cuts
+    // near it; each cell corner rides an element on the cell's side. addVertex(element, weights in
+    // its parent) gives a vertex index, addTriangle(a, b, c) draws.
+    struct SplitCache;
+    void splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
+                           const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
+                           const std::function<void(int, int, int)>& addTriangle) const;
 
     // What surface(m, original) keeps of an original surface between calls: its rest positions,
     // winding tree, triangle parts per parent and the winding numbers sampled so far. All of the
     // uncut rest configuration, so never stale; a copy of the engine starts without them. Keyed
     // by the original's address: it must stay the same object while the engine serves it.
-    struct SplitCache;
     struct SplitSlot {
         std::vector<std::shared_ptr<SplitCache>> caches;  // one per original surface (touched, drawn)
         SplitSlot() = default;

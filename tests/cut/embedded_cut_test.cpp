@@ -74,6 +74,27 @@ Areas areasOf(const EmbeddedSurface& es, const Model& m) {
     return a;
 }
 
+// Cuts m by the plane x = c (at rest) and returns how many elements it split.
+int cutAtX(CutEngine& eng, Model& m, double c) {
+    State s = makeState(m);
+    CutSurface cs;
+    cs.point = Eigen::Vector3d(c, 0, 0);
+    cs.normal = Eigen::Vector3d::UnitX();
+    return eng.cut(m, s, cs).split;
+}
+
+// Node positions with each side of the plane x = c moved along x by d away from it: an original
+// node by its own side, a copy by the far side it stands for.
+Eigen::Matrix3Xd sidesMovedApart(const Model& m, const CutEngine& eng, double c, double d) {
+    Eigen::Matrix3Xd x = m.X;
+    for (int n = 0; n < m.nodes(); ++n) {
+        const int o = eng.originalNode(n);
+        const double side = m.X(0, o) > c ? 1.0 : -1.0;
+        x(0, n) += (n == o ? side : -side) * d;
+    }
+    return x;
+}
+
 TEST(EmbeddedCut, BoxSurfaceSplitAndCapsInsideTheBox) {
     CutBox b;
     cutBox(b);
@@ -134,15 +155,93 @@ TEST(EmbeddedCut, VisualSurfacePastTheTetBoundaryGetsWholeCutFaces) {
     const VisualEmbedding vis =
         embedVisual(boxSurface(Eigen::Vector3d::Constant(-0.02), Eigen::Vector3d(1.02, 0.77, 0.52)), m.tets, m.X);
     ASSERT_EQ(vis.outside, 8);
-    State s = makeState(m);
     CutEngine eng;
-    CutSurface c;
-    c.point = Eigen::Vector3d(kC, 0, 0);
-    c.normal = Eigen::Vector3d::UnitX();
-    ASSERT_GT(eng.cut(m, s, c).split, 0);
+    ASSERT_GT(cutAtX(eng, m, kC), 0);
     const Areas a = areasOf(eng.surface(m, vis.surface, 2), m);
     EXPECT_NEAR(a.capPlus, 0.79 * 0.54, 0.01 * 0.79 * 0.54);
     EXPECT_NEAR(a.capMinus, 0.79 * 0.54, 0.01 * 0.79 * 0.54);
+}
+
+TEST(EmbeddedCut, VisualSurfaceFarPastAFineTetBoundaryIsCoveredOnceOnItsSides) {
+    // A tet box [0,1]x[0,0.75]x[0,0.5] of 0.125 m cells drawn with a visual box 0.1 m larger on
+    // every side, 196 triangles (a coarser box mesh's boundary): its vertices lie past the boundary
+    // tets by up to 1.4 of their height. Cut at x = 0.5625, mid-cell. The drawn outer surface must
+    // cover the visual box once (2 (1.2 0.95 + 1.2 0.7 + 0.95 0.7) = 5.29 m^2), every triangle must
+    // move with its side when the sides move apart, and each side's cut face must cover the visual
+    // box's section (0.95 x 0.7 = 0.665 m^2).
+    constexpr double c = 0.5625, d = 0.05;
+    const TetMesh mesh = boxMesh(1.0, 0.75, 0.5, 8, 6, 4);
+    Model m = buildModel(mesh, Material{});
+    const TetMesh outer = boxMesh(1.2, 0.95, 0.7, 6, 5, 4);
+    const EmbeddedSurface ob = boundarySurface(outer.tets, outer.X);
+    SurfaceMesh box;
+    embeddedPositions(ob, outer.tets, outer.X, box.V);
+    box.V.array() -= 0.1;
+    box.F = ob.triangles;
+    const VisualEmbedding vis = embedVisual(box, m.tets, m.X);
+    ASSERT_EQ(vis.outside, box.V.cols());
+    CutEngine eng;
+    ASSERT_GT(cutAtX(eng, m, c), 0);
+    const EmbeddedSurface es = eng.surface(m, vis.surface, 3);
+    const Eigen::Matrix3Xd x = sidesMovedApart(m, eng, c, d);
+    Eigen::Matrix3Xd rest, moved;
+    embeddedPositions(es, m.tets, m.X, rest);
+    embeddedPositions(es, m.tets, x, moved);
+    double outerArea = 0;
+    std::array<double, 2> cap{};
+    for (int f = 0; f < es.faces(); ++f) {
+        const Eigen::Vector3d y0 = rest.col(es.triangles(0, f)), y1 = rest.col(es.triangles(1, f)),
+                              y2 = rest.col(es.triangles(2, f));
+        const Eigen::Vector3d n = 0.5 * (y1 - y0).cross(y2 - y0);
+        if (es.cutFace(f))
+            cap[n.x() > 0] += n.norm();
+        else
+            outerArea += n.norm();
+        const bool left = es.cutFace(f) ? n.x() > 0 : (y0 + y1 + y2).x() / 3 < c;
+        for (int i = 0; i < 3; ++i) {
+            const int v = es.triangles(i, f);
+            ASSERT_NEAR(moved(0, v) - rest(0, v), left ? -d : d, 1e-9) << "triangle " << f;
+        }
+    }
+    EXPECT_NEAR(outerArea, 5.29, 1e-9);
+    // Each side's cut faces cover the section without a hole: every point of a 24 x 18 grid over
+    // it, 1 mm inside its rim, lies in a cut face facing that side; but for the section's corners
+    // past an edge of the tet box, which only an element with boundary faces on both sides would
+    // reach. They may overlap past the boundary (neighbours' extensions meet there), never reach
+    // out of the visual box.
+    int holes = 0;
+    for (int i = 0; i <= 24; ++i)
+        for (int j = 0; j <= 18; ++j) {
+            const Eigen::Vector2d q(-0.099 + 0.948 * i / 24, -0.099 + 0.698 * j / 18);
+            if ((q.x() < 0 || q.x() > 0.75) && (q.y() < 0 || q.y() > 0.5)) continue;
+            std::array<bool, 2> covered{};
+            for (int f = 0; f < es.faces(); ++f) {
+                if (!es.cutFace(f)) continue;
+                std::array<Eigen::Vector2d, 3> t;
+                for (int k = 0; k < 3; ++k) t[k] = rest.col(es.triangles(k, f)).tail<2>();
+                auto edge = [&](int a, int b) {
+                    const Eigen::Vector2d e = t[b] - t[a], r = q - t[a];
+                    return e.x() * r.y() - e.y() * r.x();
+                };
+                const double e0 = edge(0, 1), e1 = edge(1, 2), e2 = edge(2, 0);
+                if ((e0 >= -1e-12 && e1 >= -1e-12 && e2 >= -1e-12) || (e0 <= 1e-12 && e1 <= 1e-12 && e2 <= 1e-12))
+                    covered[(rest.col(es.triangles(1, f)) - rest.col(es.triangles(0, f)))
+                                .cross(rest.col(es.triangles(2, f)) - rest.col(es.triangles(0, f)))
+                                .x() > 0] = true;
+            }
+            holes += !covered[0] + !covered[1];
+        }
+    EXPECT_EQ(holes, 0);
+    EXPECT_GE(cap[0], 0.665 * 0.99);
+    EXPECT_GE(cap[1], 0.665 * 0.99);
+    for (int f = 0; f < es.faces(); ++f)
+        if (es.cutFace(f))
+            for (int k = 0; k < 3; ++k)
+                for (int a = 1; a < 3; ++a) {
+                    const double y = rest(a, es.triangles(k, f));
+                    ASSERT_GE(y, -0.1 - 0.02) << "cut face " << f;
+                    ASSERT_LE(y, (a == 1 ? 0.85 : 0.6) + 0.02) << "cut face " << f;
+                }
 }
 
 TEST(EmbeddedCut, EveryTriangleRidesTheElementOfItsSide) {
@@ -153,12 +252,7 @@ TEST(EmbeddedCut, EveryTriangleRidesTheElementOfItsSide) {
     const Model& m = b.mi.model;
     const EmbeddedSurface es = b.eng.surface(m, b.mi.surface);
     const double d = 0.05;
-    Eigen::Matrix3Xd x = m.X;
-    for (int n = 0; n < m.nodes(); ++n) {
-        const int o = b.eng.originalNode(n);
-        const double side = m.X(0, o) > kC ? 1.0 : -1.0;
-        x(0, n) += (n == o ? side : -side) * d;  // a copy stands for its node on the far side
-    }
+    const Eigen::Matrix3Xd x = sidesMovedApart(m, b.eng, kC, d);
     Eigen::Matrix3Xd rest, moved;
     embeddedPositions(es, m.tets, m.X, rest);
     embeddedPositions(es, m.tets, x, moved);
