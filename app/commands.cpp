@@ -1,5 +1,4 @@
 #include "commands.hpp"
-#include "bench.hpp"
 #include "cmd_render.hpp"
 
 #include <CLI/CLI.hpp>
@@ -40,7 +39,6 @@ void registerCommands(CLI::App& app) {
     addRenderCommand(app);
     addViewCommand(app);
     addCheckCommand(app);
-    addBenchCommand(app);
 }
 
 }  // namespace cutsim::app

@@ -1,4 +1,6 @@
-// The cutsim command: subcommands register themselves in commands.hpp.
+// The cutsim command: its subcommands register themselves in commands.hpp, the benchmarks'
+// `cutsim bench` in bench/command.hpp.
+#include "bench/command.hpp"
 #include "commands.hpp"
 #include "util/memory.hpp"
 
@@ -13,6 +15,7 @@ int main(int argc, char** argv) {
     CLI::App app{"cutsim: explicit FEM soft-tissue cutting simulator"};
     app.require_subcommand(1);
     cutsim::app::registerCommands(app);
+    cutsim::bench::addBenchCommand(app);
     try {
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

@@ -8,5 +8,5 @@ mode=(-i)
 cf=$(command -v clang-format-14 || command -v clang-format || true)
 [ -n "$cf" ] || { echo "error: clang-format not found (apt-get install clang-format)" >&2; exit 2; }
 dirs=()
-for d in app physics render tests python examples; do [ -d "$d" ] && dirs+=("$d"); done
+for d in app bench physics render tests python examples; do [ -d "$d" ] && dirs+=("$d"); done
 find "${dirs[@]}" \( -name '*.cpp' -o -name '*.hpp' \) -print0 | sort -z | xargs -0 "$cf" "${mode[@]}"

@@ -1,16 +1,26 @@
 # Every C++ source is named in a CMakeLists.txt (the source lists are written out, not globbed):
-# a file added to physics/, render/, app/ or tests/ without its line there fails here.
+# a file added to physics/, render/, app/, bench/ or tests/ without its line there fails here.
 # cmake -DSOURCE=... -P tests/sources.cmake
 file(READ ${SOURCE}/CMakeLists.txt top)
 file(READ ${SOURCE}/tests/CMakeLists.txt tests)
 file(READ ${SOURCE}/tests/fuzz/CMakeLists.txt fuzz)
+file(READ ${SOURCE}/bench/CMakeLists.txt bench)
 file(GLOB_RECURSE files RELATIVE ${SOURCE} ${SOURCE}/physics/*.cpp ${SOURCE}/render/*.cpp ${SOURCE}/app/*.cpp)
 file(GLOB_RECURSE test_files RELATIVE ${SOURCE}/tests ${SOURCE}/tests/*.cpp)
+file(GLOB_RECURSE bench_files RELATIVE ${SOURCE}/bench ${SOURCE}/bench/*.cpp)
 set(missing "")
 foreach(f ${files})
   string(FIND "${top}" "${f}" at)
   if(at EQUAL -1)
     list(APPEND missing "${f} (CMakeLists.txt)")
+  endif()
+endforeach()
+foreach(f ${bench_files})
+  # the whole name ("step.cpp" is also the end of "cutstep.cpp")
+  string(REPLACE "." "\\." name "${f}")
+  string(REGEX MATCH "[ \t\n(]${name}[ \t\n)]" at "${bench}")
+  if(NOT at)
+    list(APPEND missing "bench/${f} (bench/CMakeLists.txt)")
   endif()
 endforeach()
 foreach(f ${test_files})

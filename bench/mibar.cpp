@@ -18,8 +18,8 @@
 // lambda_max; with them fixed the kept part is a shorter bar with a clamped layer, and a
 // sub-assembly can exceed the whole lattice's lambda_max (a plain shorter free bar already does, by
 // the free-end effect). The command prints the check for all three.
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 
 #include "cut/baselines.hpp"
 #include "embed/mi.hpp"
@@ -37,7 +37,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 namespace {
 
 using nlohmann::json;
@@ -267,8 +267,8 @@ void addMiBarBench() {
                     "mass); mi rows add added_mass_fraction [-], dt_exact_unscaled [s] (no mass added), "
                     "dt_exact_outside_fixed [s] and nodes_outside_fixed (free nodes): the outside corners "
                     "of interface tets fixed, the thesis's rule");
-        c->callback([a] { setExitCode(runMiBar(*a)); });
+        c->callback([a] { app::setExitCode(runMiBar(*a)); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

@@ -1,7 +1,7 @@
 // `cutsim bench step` (tet-steps per second with the share of each stage) and `cutsim bench cost`
 // (what each optional part of a scene costs).
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "sim/scene.hpp"
 #include "bench/random_cuts.hpp"
@@ -30,7 +30,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -207,7 +207,7 @@ void addStepCostBench() {
             ->check(CLI::PositiveNumber)
             ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: one small box");
-        c->callback([a] { setExitCode(benchGuarded([&] { return runStep(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runStep(*a); })); });
     });
     addBenchSubcommand([](CLI::App& bench) {
         auto a = std::make_shared<CostArgs>();
@@ -218,8 +218,8 @@ void addStepCostBench() {
         c->add_option("--threads", a->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
         c->add_flag("--json", a->json,
                     "Print {scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
-        c->callback([a] { setExitCode(benchGuarded([&] { return runCost(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runCost(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

@@ -3,8 +3,8 @@
 // The object is a soft slab (10 x 10 x 2 cm, E 30 kPa) fixed at its bottom, pressed 2 mm at the
 // middle of its top by a 1 cm sphere; contact.spacing sets the number of points (1 m: the
 // surface's vertices only).
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
 #include "util/json_text.hpp"
@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace {
 
@@ -213,8 +213,8 @@ void addContactBench() {
         c->add_option("--threads", a->threads, "Worker threads per run")
             ->check(CLI::Range(1, 1024))
             ->capture_default_str();
-        c->callback([a] { setExitCode(benchGuarded([&] { return runContact(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runContact(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

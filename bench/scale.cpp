@@ -1,8 +1,8 @@
 // `cutsim bench scale`: how each stage's cost per step grows with the mesh, on TetGen livers
 // (`cutsim tetra` of the shipped surface) and MI lattices of the same surface, for four scenarios
 // (sag, probe, scripted plane cuts, blade stroke), 1 and 2 threads, with memory per element.
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
 #include "sim/tetra.hpp"
@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -351,8 +351,8 @@ void addScaleBench() {
         c->add_flag("--tiny", a->tiny, "Test size: the coarsest meshes, sag and cuts");
         c->add_option("--one", a->one, "Run one scene and print its JSON line (what the runs above start)")->group("");
         c->add_option("--threads", a->threads, "Threads of --one")->group("")->check(CLI::Range(1, 1024));
-        c->callback([a] { setExitCode(benchGuarded([&] { return runScale(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runScale(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

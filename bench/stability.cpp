@@ -1,7 +1,7 @@
 // `cutsim bench stability`: the largest stable fraction of the exact step per integrator and scheme,
 // after XFEM cuts per lumping, over random cut sequences, and the energy drift of a long run.
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "sim/scene.hpp"
 #include "bench/random_cuts.hpp"
@@ -30,7 +30,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -369,8 +369,8 @@ void addStabilityBench() {
             ->check(CLI::Range(1, 1000000))
             ->capture_default_str();
         c->add_flag("--tiny", a->tiny, "Test size: a single tet and the notched 20x2x2 cantilever, short runs");
-        c->callback([a] { setExitCode(benchGuarded([&] { return runStability(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runStability(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

@@ -1,7 +1,8 @@
-// `cutsim bench`: accuracy against cost, stability sweeps, step throughput and per-scene cost.
-// Other files extend it by one call each: addAccuracyConfig() adds configurations to
-// `bench accuracy` (e.g. MI background meshes, lumping after cuts), addBenchSubcommand() adds a
-// whole subcommand. Both are listed in registerBenchExtensions() in cmd_bench.cpp.
+// What the files of `cutsim bench` share: accuracy against cost, stability sweeps, step throughput
+// and per-scene cost. Other files extend it by one call each: addAccuracyConfig() adds
+// configurations to `bench accuracy` (e.g. MI background meshes, lumping after cuts),
+// addBenchSubcommand() adds a whole subcommand. Both are listed in registerBenchExtensions() in
+// accuracy.cpp; the program adds the command with addBenchCommand() (bench/command.hpp).
 #pragma once
 
 #include "fem/integrate.hpp"
@@ -21,7 +22,7 @@ namespace CLI {
 class App;
 }
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 // One configuration's result on one reference problem.
 struct BenchPoint {
@@ -60,7 +61,7 @@ struct Cantilever {
 Model cantileverModel(const Cantilever& c, int nyz, ElementModel em = ElementModel::Corotational,
                       BoxSplit split = BoxSplit::Kuhn);
 // The SOFA liver as the demo and liver_cuts scenes set it up (inches to m, E 30 kPa, fixed behind
-// z = -0.028 m, gravity -y), refined `levels` times, with mass damping (cmd_bench_cuts.cpp).
+// z = -0.028 m, gravity -y), refined `levels` times, with mass damping (cuts.cpp).
 Model liverModel(const TetMesh& inches, int levels, double damping);
 // Static equilibrium under gravity by backward Euler at a long step; *steps gets its steps.
 Eigen::Matrix3Xd liverEquilibrium(const Model& m0, int* steps);
@@ -174,7 +175,7 @@ void addAccuracyConfig(const std::string& name, AccuracyConfig fn);
 void addBenchSubcommand(std::function<void(CLI::App& bench)> setup);
 
 // Models after XFEM cuts for the stability sweep: the notched cantilever 20x2x2 and the liver
-// after the thesis's four planes (sec. 5.2), one per lumping option (cmd_bench_cuts.cpp).
+// after the thesis's four planes (sec. 5.2), one per lumping option (cuts.cpp).
 struct AfterCutModel {
     std::string mesh;     // e.g. "cantilever 20x2x2, notch"
     std::string lumping;  // row_sum | weighted_diagonal | enrichment
@@ -184,20 +185,20 @@ struct AfterCutModel {
 };
 std::vector<AfterCutModel> afterCutModels(bool tiny);
 
-// Accuracy configurations of cmd_bench_cuts.cpp: MI background meshes, the notched cantilever
+// Accuracy configurations of cuts.cpp: MI background meshes, the notched cantilever
 // (XFEM with each lumping option against the same geometry meshed conformingly), the liver sag.
 void addCutAccuracyConfigs();
 
-// `bench mi-bar` (cmd_bench_mibar.cpp): Table 6.1, MI against subdivision and remeshing.
+// `bench mi-bar` (mibar.cpp): Table 6.1, MI against subdivision and remeshing.
 void addMiBarBench();
-void addStabilityBench();  // cmd_bench_stability.cpp
-void addStepCostBench();   // cmd_bench_step.cpp
-void addContactBench();    // cmd_bench_contact.cpp
-void addHapticBench();     // cmd_bench_haptic.cpp
-void addCaptureBench();    // cmd_bench_capture.cpp
-void addImproveBench();    // cmd_bench_improve.cpp
-void addCutStepBench();    // cmd_bench_cutstep.cpp
-void addScaleBench();      // cmd_bench_scale.cpp
+void addStabilityBench();  // stability.cpp
+void addStepCostBench();   // step.cpp
+void addContactBench();    // contact.cpp
+void addHapticBench();     // haptic.cpp
+void addCaptureBench();    // capture.cpp
+void addImproveBench();    // improve.cpp
+void addCutStepBench();    // cutstep.cpp
+void addScaleBench();      // scale.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);
@@ -211,7 +212,4 @@ void runGnuplot(const std::string& dir, const std::string& terminal, const std::
 // A measured value for JSON: null when it is not a finite non-negative number (a run that gave none).
 nlohmann::json jsonNumber(double v);
 
-// Registers the `bench` command with its built-in and registered subcommands.
-void addBenchCommand(CLI::App& app);
-
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

@@ -1,6 +1,6 @@
 // The reference problems of `cutsim bench accuracy`: the cantilever (meshes, static and frequency
 // runs, runs that take turns) and its converged references by Richardson extrapolation.
-#include "bench.hpp"
+#include "bench/bench.hpp"
 
 #include "bench/oscillation.hpp"
 #include "timestep/modes.hpp"
@@ -14,7 +14,7 @@
 #include <stdexcept>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 namespace {
 
 // A run has diverged once a node moves faster than anything a bending bar or a sagging organ
@@ -244,4 +244,4 @@ BarReferences barReferences(const std::vector<int>& levels, const std::function<
     return r;
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

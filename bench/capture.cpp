@@ -4,9 +4,9 @@
 // snapshot of the frame's state, drawing with the HUD, reading the frame back, the hand-off to the
 // PNG and video writers, their drain at the end), the physics stages, and how much of the two the
 // pipeline hid: wall time against their sum and against the larger of them.
-#include "bench.hpp"
-#include "commands.hpp"
-#include "run.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
+#include "app/run.hpp"
 
 #include "sim/scene.hpp"
 #include "util/stopwatch.hpp"
@@ -25,7 +25,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 namespace {
 
 using nlohmann::json;
@@ -71,14 +71,14 @@ int runCapture(const CaptureArgs& a) {
         const SceneDef sc = loadScene(file, sets);
         if (!sc.capture.enabled) throw InputError(file + ": capture is off; nothing to measure");
         for (int r = 0; r < a.runs; ++r) {
-            RunOptions ro;
+            app::RunOptions ro;
             ro.out = (tmp / "out").string();
             ro.quiet = true;
             ro.threads = a.threads;
             ro.pipelined = !a.serial;
             const double load = loadAverage();
             const double cpu0 = cpuSeconds(RUSAGE_SELF), child0 = cpuSeconds(RUSAGE_CHILDREN);
-            const int code = runScene(sc, ro);
+            const int code = app::runScene(sc, ro);
             const double cpu = cpuSeconds(RUSAGE_SELF) - cpu0, child = cpuSeconds(RUSAGE_CHILDREN) - child0;
             std::ifstream in(fs::path(ro.out) / "report.json");
             const json rep = json::parse(in);
@@ -135,8 +135,8 @@ void addCaptureBench() {
         c->add_option("--runs", a->runs, "Runs of each scene")->check(CLI::Range(1, 1000))->capture_default_str();
         c->add_option("--threads", a->threads, "Physics threads (0: chosen by measuring)")->check(CLI::Range(0, 1024));
         c->add_option("--keep", a->keep, "Keep the last run's output folder (frames, video, report.json) here");
-        c->callback([a] { setExitCode(benchGuarded([&] { return runCapture(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runCapture(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

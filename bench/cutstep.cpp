@@ -2,8 +2,8 @@
 // method (thesis Tables 5.5 and 5.6) on the SOFA liver and a bar. Methods are entries of methods():
 // a name and a factory of a run that keeps its own mesh or model and applies one cut at a time.
 // No fixed nodes: the step is that of the free object, so a clamp does not hide a cut's modes.
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 #include "cut/conforming.hpp"
 #include "cut/xfem.hpp"
 #include "fem/forces.hpp"
@@ -31,7 +31,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -365,8 +365,8 @@ void addCutStepBench() {
             "subdivision+improve: R1R problems per cut, ranking included (default: NearPlaneOptions::budgeted)");
         c->add_option("--free-nodes", a->freeNodes,
                       "subdivision+improve: nodes of the worst critical elements set free (default: budgeted)");
-        c->callback([a] { setExitCode(benchGuarded([&] { return runCutStep(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runCutStep(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

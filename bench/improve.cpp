@@ -1,8 +1,8 @@
 // `cutsim bench improve`: the mesh improver against TetGen's and Gmsh's optimisers and CGAL's
 // mesher on the same meshes (thesis Table 5.1), the step gained against time, and what the improvement does to the
 // physics (the liver's sag, a bar's first frequency).
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 
 #include "cut/remesh.hpp"
 #include "fem/integrate.hpp"
@@ -30,7 +30,7 @@
 #include <memory>
 #include <random>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 namespace {
 
 using json = nlohmann::json;
@@ -350,8 +350,8 @@ void addImproveBench() {
         c->add_flag("--tiny", a->tiny, "Test size: the liver only, short runs");
         c->add_option("--seconds", a->seconds, "Longest run of the gain-against-time table [s]")->capture_default_str();
         c->add_option("--plot", a->plot, "Draw the gain against time to this PNG (needs gnuplot)");
-        c->callback([a] { setExitCode(benchGuarded([&] { return runImproveBench(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runImproveBench(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

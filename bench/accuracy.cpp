@@ -1,8 +1,9 @@
 // `cutsim bench`: accuracy against cost on reference problems with known answers, stability
 // sweeps of the step size, step throughput with its stages, and what each subsystem of a scene
 // costs. Results are described in BENCHMARKS.md.
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "bench/command.hpp"
+#include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "timestep/modes.hpp"
 #include "util/atomic_file.hpp"
@@ -37,7 +38,7 @@
 #include <tuple>
 #include <unistd.h>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -776,16 +777,16 @@ int runAccuracy(const AccuracyArgs& a) {
 }
 
 void registerBenchExtensions() {
-    addStabilityBench();      // cmd_bench_stability.cpp: dt sweeps, random cuts, energy drift
-    addStepCostBench();       // cmd_bench_step.cpp: step throughput, per-scene cost
-    addMiBarBench();          // cmd_bench_mibar.cpp: Table 6.1
-    addContactBench();        // cmd_bench_contact.cpp: contact cost and penetration
-    addHapticBench();         // cmd_bench_haptic.cpp: a 20k-tet liver and a probe at a haptic rate
-    addCaptureBench();        // cmd_bench_capture.cpp: capture frames per second
-    addImproveBench();        // cmd_bench_improve.cpp: mesh improvement against TetGen and Gmsh
-    addCutStepBench();        // cmd_bench_cutstep.cpp: Tables 5.5 and 5.6, the step through cuts
-    addScaleBench();          // cmd_bench_scale.cpp: how cost grows with the mesh
-    addCutAccuracyConfigs();  // cmd_bench_cuts.cpp: MI, lumping after cuts, the liver
+    addStabilityBench();      // stability.cpp: dt sweeps, random cuts, energy drift
+    addStepCostBench();       // step.cpp: step throughput, per-scene cost
+    addMiBarBench();          // mibar.cpp: Table 6.1
+    addContactBench();        // contact.cpp: contact cost and penetration
+    addHapticBench();         // haptic.cpp: a 20k-tet liver and a probe at a haptic rate
+    addCaptureBench();        // capture.cpp: capture frames per second
+    addImproveBench();        // improve.cpp: mesh improvement against TetGen and Gmsh
+    addCutStepBench();        // cutstep.cpp: Tables 5.5 and 5.6, the step through cuts
+    addScaleBench();          // scale.cpp: how cost grows with the mesh
+    addCutAccuracyConfigs();  // cuts.cpp: MI, lumping after cuts, the liver
 }
 
 }  // namespace
@@ -862,9 +863,9 @@ void addBenchCommand(CLI::App& app) {
         c->add_option("--only", a->only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
             ->delimiter(',')
             ->check(CLI::IsMember({"cantilever", "mi", "notch-lumping", "liver"}));
-        c->callback([a] { setExitCode(benchGuarded([&] { return runAccuracy(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runAccuracy(*a); })); });
     }
     for (auto& setup : registry().subcommands) setup(*bench);
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

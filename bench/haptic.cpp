@@ -5,8 +5,8 @@
 // projection contact, symplectic Euler at 0.9 of the exact step. Reported: steps per wall second, the contact stage's
 // share of the loop, and the simulated seconds per wall second (a haptic loop steps at the stable step, so real time
 // needs 1 / dt steps a second).
-#include "bench.hpp"
-#include "commands.hpp"
+#include "bench/bench.hpp"
+#include "app/commands.hpp"
 #include "cut/remesh.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
@@ -26,7 +26,7 @@
 #include <utility>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 namespace {
 
@@ -188,8 +188,8 @@ void addHapticBench() {
             ->capture_default_str();
         c->add_option("--threads", a->threads, "Worker thread counts, one run each")->capture_default_str();
         c->add_option("--mesh", a->mesh, "The liver (inches)")->check(CLI::ExistingFile)->capture_default_str();
-        c->callback([a] { setExitCode(benchGuarded([&] { return runHaptic(*a); })); });
+        c->callback([a] { app::setExitCode(benchGuarded([&] { return runHaptic(*a); })); });
     });
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench

@@ -7,7 +7,7 @@
 //     improvement, with the hybrid), against the same notch meshed conformingly and converged;
 //   - the SOFA liver sagging under gravity against a converged backward-Euler equilibrium on a mesh
 //     refined twice (each tet into 8).
-#include "bench.hpp"
+#include "bench/bench.hpp"
 #include "util/stopwatch.hpp"
 
 #include "bench/random_cuts.hpp"
@@ -34,7 +34,7 @@
 #include <string>
 #include <vector>
 
-namespace cutsim::app {
+namespace cutsim::bench {
 
 using nlohmann::json;
 
@@ -671,4 +671,4 @@ void addCutAccuracyConfigs() {
     addAccuracyConfig("liver", liverPoints);
 }
 
-}  // namespace cutsim::app
+}  // namespace cutsim::bench
