@@ -45,7 +45,7 @@ struct StepArgs {
 };
 
 // The benchmark's box: n^3 cubes (6 n^3 tets), clamped at x = 0, rotated and bent start so the
-// polar decomposition does real work (as tests/bench/step_bench.cpp).
+// polar decomposition does real work (as bench/micro/step_bench.cpp).
 Model stepModel(int n) {
     Model m = buildModel(boxMesh(0.01 * n, 0.01 * n, 0.01 * n, n, n, n), Material{});
     std::vector<int> fixedNodes;

@@ -24,10 +24,10 @@ cmake --build "$B" --target cutsim cutsim_bench cutsim_bullet_bench -j"$(nproc)"
 
 # step throughput, and beside Bullet's deformable-body solver (one thread, taking turns)
 "$B/cutsim" bench step --seconds 2 > "$D/step.txt"
-{ "$B/tests/cutsim_bullet_bench" --seconds 1 --rounds 5
+{ "$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 5
   echo
   echo "# --unrotated: started at the rest shape"
-  "$B/tests/cutsim_bullet_bench" --seconds 1 --rounds 3 --unrotated; } > "$D/bullet_step.txt"
+  "$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 3 --unrotated; } > "$D/bullet_step.txt"
 gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plot.gp
 
 # stable steps: Table 4.3 (liver and armadillo), stability sweeps and random cuts
@@ -55,7 +55,7 @@ cmake --build "$B" --target cutsim_py -j"$(nproc)"
 PYTHONPATH="$B/python" /usr/bin/python3 scripts/bench_python.py --cutsim "$B/cutsim" --rounds 21 > "$D/python_step.txt"
 
 # cut latency, time-step estimators, contact (Google Benchmark)
-"$B/tests/cutsim_bench" --benchmark_filter='Cut|Timestep|Contact' --benchmark_repetitions=5 \
+"$B/bench/cutsim_bench" --benchmark_filter='Cut|Timestep|Contact' --benchmark_repetitions=5 \
   --benchmark_report_aggregates_only=true > "$D/cutsim_bench.txt"
 
 if [ "$accuracy" = 1 ]; then

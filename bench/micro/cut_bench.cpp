@@ -13,7 +13,7 @@
 // outside the timed region; only the cut and the update are timed (manual wall time; the counter
 // thread_cpu_us is the same span in CPU time of the thread). Medians of 5. The analyzer's update
 // runs its loops in parallel above 256 items: OMP_NUM_THREADS=1 measures it serially.
-// Run: build/tests/cutsim_bench --benchmark_filter=Cut
+// Run: build/bench/cutsim_bench --benchmark_filter=Cut
 // No main here: cutsim_bench's main lives in another file of this folder.
 #include "bench/random_cuts.hpp"
 #include "cut/xfem.hpp"

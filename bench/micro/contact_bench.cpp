@@ -1,6 +1,6 @@
 // Tool contact on the SOFA liver (596 tets, scaled to meters) with one spherical probe (radius
 // 1 cm) pressed 3 mm into its top, as in assets/scenes/probe.json:
-//   build/tests/cutsim_bench --benchmark_filter=Contact
+//   build/bench/cutsim_bench --benchmark_filter=Contact
 // - BM_ContactQuery: the collision cost of one step (point refit, broad phase, GJK/EPA, forces).
 // - BM_ContactStep: a whole explicit step with contact; steps_per_s is the achievable step rate.
 // - BM_ContactStiffnessLimit: the stable penalty stiffness of the liver's mass-scaled points

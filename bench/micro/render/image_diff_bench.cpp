@@ -1,6 +1,6 @@
 // Cost of `cutsim check`'s frame comparison on a 1280x720 frame: the renderdiff rule over every
 // pixel (a passing frame: no diff image; a failing one: with it), and decoding a golden PNG.
-//   build/tests/cutsim_render_bench
+//   build/bench/cutsim_render_bench
 #include "image_diff.hpp"
 #include "png_writer.hpp"
 

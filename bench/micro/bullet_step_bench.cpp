@@ -14,7 +14,7 @@
 // distance between their nodes is printed. Then the configurations take turns in windows of
 // --seconds, --rounds times; the table gives the median of each over its windows and the median
 // of the per-round ratios, and the shares of Bullet's step from its own profile zones.
-//   build/tests/cutsim_bullet_bench [--seconds S] [--rounds R] [--unrotated] [--tiny] [--json]
+//   build/bench/cutsim_bullet_bench [--seconds S] [--rounds R] [--unrotated] [--tiny] [--json]
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"
@@ -58,7 +58,7 @@ double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock:
 constexpr double kDt = 1e-6;  // [s], as `cutsim bench step`
 const Eigen::Vector3d kGravity(0, 0, -9.81);
 
-// The box of `cutsim bench step` (app/cmd_bench.cpp stepModel).
+// The box of `cutsim bench step` (bench/step.cpp stepModel).
 Model boxModel(int n, bool gravity = true) {
     Model m = buildModel(boxMesh(0.01 * n, 0.01 * n, 0.01 * n, n, n, n), Material{});
     std::vector<int> fixedNodes;

@@ -1,5 +1,5 @@
 // Explicit corotational step throughput in tet-steps per second.
-//   build/tests/cutsim_bench --benchmark_filter=BM_Step
+//   build/bench/cutsim_bench --benchmark_filter=BM_Step
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"
