@@ -6,6 +6,9 @@ set(CUTSIM_LAYERS util mesh fem timestep embed improve cut contact sim snapshot)
 set(CUTSIM_RENDER_READS snapshot/snapshot.hpp)
 # Headers of the GL stack, which physics/ never includes (a build without render has none of them).
 set(CUTSIM_GL_HEADERS "^(GL|GLES[0-9]*|EGL|KHR|GLFW|glad|epoxy|backends)/|imgui")
+# bench/ (`cutsim bench`, the benchmark programs) sits above physics/, render/ and app/: none of
+# them includes it but this one file, which adds `cutsim bench` to the program, with this one header.
+set(CUTSIM_BENCH_ENTRY app/main.cpp bench/command.hpp)
 
 set(wrong "")
 
@@ -65,8 +68,22 @@ foreach(f ${files})
   endforeach()
 endforeach()
 
+list(GET CUTSIM_BENCH_ENTRY 0 entry_file)
+list(GET CUTSIM_BENCH_ENTRY 1 entry_header)
+file(GLOB_RECURSE files RELATIVE ${SOURCE} ${SOURCE}/render/*.hpp ${SOURCE}/render/*.cpp ${SOURCE}/app/*.hpp
+     ${SOURCE}/app/*.cpp ${SOURCE}/python/*.cpp)
+foreach(f ${files})
+  includes_of(${SOURCE}/${f} names)
+  foreach(name ${names})
+    string(SUBSTRING "${name}" 1 -1 header)
+    if(header MATCHES "^bench/" AND NOT (f STREQUAL entry_file AND header STREQUAL entry_header))
+      list(APPEND wrong "${f} includes ${header}: only ${entry_file} includes bench/, and only ${entry_header}")
+    endif()
+  endforeach()
+endforeach()
+
 if(wrong)
   list(JOIN wrong "\n  " text)
   list(JOIN CUTSIM_LAYERS " < " order)
-  message(FATAL_ERROR "includes against the layer order ${order}:\n  ${text}")
+  message(FATAL_ERROR "includes against the layer order ${order} (bench/ above physics/, render/ and app/):\n  ${text}")
 endif()
