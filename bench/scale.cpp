@@ -142,20 +142,17 @@ double fitExponent(const std::vector<double>& x, const std::vector<double>& y) {
     return (n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
-int runScale(const ScaleArgs& a) {
-    if (!a.one.empty()) return runOne(a);
-    // the SOFA liver surface (shipped as assets/meshes/sofa_liver.obj)
-    const std::string surface = std::string(CUTSIM_DATA_DIR) + "/surface/sofa_liver.obj";
-    if (!fs::exists(surface)) throw InputError(surface, 0, "the liver surface is missing");
-    const double scale = 0.0254;
-    // Target edge lengths of the TetGen livers and lattice cells of the MI livers, up to about 1M
-    // elements (a factor of 3-4 apart).
-    struct MeshDef {
-        std::string kind;
-        double size = 0;
-        int cells = 0;
-        double estimate = 0;  // elements, about
-    };
+// A liver of the scale runs: a TetGen mesh of target edge length `size` or an MI lattice of `cells`.
+struct MeshDef {
+    std::string kind;  // tetgen | mi
+    double size = 0;
+    int cells = 0;
+    double estimate = 0;  // elements, about
+};
+
+// Target edge lengths of the TetGen livers and lattice cells of the MI livers, up to about 1M
+// elements (a factor of 3-4 apart), those up to --max-elements.
+std::vector<MeshDef> scaleMeshes(const ScaleArgs& a) {
     std::vector<MeshDef> meshes;
     // (TetGen keeps the surface's 274 triangles: its coarsest liver has about 8k tets)
     const std::vector<std::pair<double, double>> tetra = {{0.03, 8e3},  {0.01, 2e4},  {0.005, 8e4},
@@ -166,89 +163,73 @@ int runScale(const ScaleArgs& a) {
         if (n <= a.maxElements && (!a.tiny || n < 1e4)) meshes.push_back({"tetgen", h, 0, n});
     for (const auto& [c, n] : lattice)
         if (n <= a.maxElements && (!a.tiny || n < 2e3)) meshes.push_back({"mi", 0, c, n});
-    const std::vector<std::string> scenarios =
-        a.tiny ? std::vector<std::string>{"sag", "cuts"} : std::vector<std::string>{"sag", "probe", "cuts", "blade"};
+    return meshes;
+}
 
-    const fs::path work = fs::temp_directory_path() / ("cutsim-bench-scale-" + std::to_string(::getpid()));
-    fs::create_directories(work);
-    const std::string self = fs::read_symlink("/proc/self/exe").string();
-    json runs = json::array();
-    if (!a.json)
-        std::printf("%-7s %8s %-6s %7s %10s %10s %10s %10s %10s %10s %10s %8s %s\n", "mesh", "elements", "scene",
-                    "threads", "step [ms]", "forces", "integrate", "contact", "cut", "timestep", "setup [s]", "B/elem",
-                    "status");
-    for (const MeshDef& m : meshes) {
-        json object;
-        if (m.kind == "tetgen") {
-            // built once and cached (object.tetra's cache), so the runs below read it
-            TetraOptions to;
-            to.size = m.size;
-            to.material = Material{30000, 0.3, 1000};
-            bool cached = false;
-            TetraReport rep;
-            std::string file;
-            Stopwatch sw;
-            tetraCached(surface, scale, to, cached, rep, file);
-            if (!a.json)
-                std::fprintf(stderr, "tetra --size %g: %s in %.1f s\n", m.size, cached ? "cached" : "built",
-                             sw.seconds());
-            object = {{"tetra", {{"surface", surface}, {"size", m.size}}}, {"scale", scale}};
-        } else {
-            object = {{"surface", {{"path", surface}, {"cells", m.cells}}}, {"scale", scale}};
-        }
-        for (const std::string& sname : scenarios) {
-            const fs::path scene = work / (sname + ".json");
-            std::ofstream(scene) << scenario(sname, object).dump(1);
-            for (int threads : {1, 2}) {
-                const std::string cmd = "'" + self + "' bench scale --one '" + scene.string() + "' --threads " +
-                                        std::to_string(threads) + " --steps " + std::to_string(a.steps) + " 2>'" +
-                                        (work / "err.txt").string() + "'";
-                FILE* p = ::popen(cmd.c_str(), "r");
-                if (!p) throw std::runtime_error("cannot start " + self);
-                std::string out;
-                char buf[4096];
-                while (std::fgets(buf, sizeof buf, p)) out += buf;
-                const int rc = ::pclose(p);
-                json r;
-                try {
-                    r = json::parse(out);
-                } catch (const json::exception&) {
-                    std::ifstream e(work / "err.txt");
-                    std::string err((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
-                    r = {{"status", "failed"}, {"error", err}};
-                }
-                r["mesh"] = m.kind;
-                r["scene"] = sname;
-                r["threads"] = threads;
-                if (m.kind == "tetgen")
-                    r["size"] = m.size;
-                else
-                    r["cells"] = m.cells;
-                (void)rc;
-                runs.push_back(r);
-                if (!a.json) {
-                    if (!r.contains("stages")) {
-                        std::printf("%-7s %8s %-6s %7d failed: %s\n", m.kind.c_str(), "?", sname.c_str(), threads,
-                                    r.value("error", std::string()).c_str());
-                        continue;
-                    }
-                    const json& st = r["stages"];
-                    std::printf("%-7s %8d %-6s %7d %10.4f %10.4f %10.4f %10.4f %10.4f %10.4f %10.2f %8.0f %s\n",
-                                m.kind.c_str(), r["elements"].get<int>(), sname.c_str(), threads,
-                                1e3 * r["seconds_per_step"].get<double>(), 1e3 * st["forces"].get<double>(),
-                                1e3 * st["integrate"].get<double>(), 1e3 * st["contact"].get<double>(),
-                                1e3 * st["cut"].get<double>(), 1e3 * st["timestep"].get<double>(),
-                                r["setup_seconds"].get<double>(), r["bytes_per_element"].get<double>(),
-                                r["status"].get<std::string>().c_str());
-                    std::fflush(stdout);
-                }
-            }
-        }
+// The scene's `object` for a mesh of the liver surface. A TetGen liver is built once here and
+// cached (object.tetra's cache), so the runs read it.
+json meshObject(const MeshDef& m, const std::string& surface, double scale, bool quiet) {
+    if (m.kind != "tetgen") return {{"surface", {{"path", surface}, {"cells", m.cells}}}, {"scale", scale}};
+    TetraOptions to;
+    to.size = m.size;
+    to.material = Material{30000, 0.3, 1000};
+    bool cached = false;
+    TetraReport rep;
+    std::string file;
+    Stopwatch sw;
+    tetraCached(surface, scale, to, cached, rep, file);
+    if (!quiet)
+        std::fprintf(stderr, "tetra --size %g: %s in %.1f s\n", m.size, cached ? "cached" : "built", sw.seconds());
+    return {{"tetra", {{"surface", surface}, {"size", m.size}}}, {"scale", scale}};
+}
+
+// One run in a process of its own (`bench scale --one`), so that its peak memory is its own: its
+// JSON line, or {status: failed, error: its stderr}.
+json runInChild(const std::string& self, const fs::path& work, const fs::path& scene, int threads, int steps) {
+    const std::string cmd = "'" + self + "' bench scale --one '" + scene.string() + "' --threads " +
+                            std::to_string(threads) + " --steps " + std::to_string(steps) + " 2>'" +
+                            (work / "err.txt").string() + "'";
+    FILE* p = ::popen(cmd.c_str(), "r");
+    if (!p) throw std::runtime_error("cannot start " + self);
+    std::string out;
+    char buf[4096];
+    while (std::fgets(buf, sizeof buf, p)) out += buf;
+    ::pclose(p);  // a failed run shows in its output
+    try {
+        return json::parse(out);
+    } catch (const json::exception&) {
+        std::ifstream e(work / "err.txt");
+        std::string err((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
+        return {{"status", "failed"}, {"error", err}};
     }
-    fs::remove_all(work);
+}
 
-    // Fitted exponents: stage cost per step ~ elements^p, per mesh kind, scene and thread count,
-    // over the stages that cost something.
+void printScaleHeader() {
+    std::printf("%-7s %8s %-6s %7s %10s %10s %10s %10s %10s %10s %10s %8s %s\n", "mesh", "elements", "scene", "threads",
+                "step [ms]", "forces", "integrate", "contact", "cut", "timestep", "setup [s]", "B/elem", "status");
+}
+
+void printScaleRun(const json& r) {
+    const std::string kind = r["mesh"].get<std::string>(), sname = r["scene"].get<std::string>();
+    const int threads = r["threads"].get<int>();
+    if (!r.contains("stages")) {
+        std::printf("%-7s %8s %-6s %7d failed: %s\n", kind.c_str(), "?", sname.c_str(), threads,
+                    r.value("error", std::string()).c_str());
+        return;
+    }
+    const json& st = r["stages"];
+    std::printf("%-7s %8d %-6s %7d %10.4f %10.4f %10.4f %10.4f %10.4f %10.4f %10.2f %8.0f %s\n", kind.c_str(),
+                r["elements"].get<int>(), sname.c_str(), threads, 1e3 * r["seconds_per_step"].get<double>(),
+                1e3 * st["forces"].get<double>(), 1e3 * st["integrate"].get<double>(),
+                1e3 * st["contact"].get<double>(), 1e3 * st["cut"].get<double>(), 1e3 * st["timestep"].get<double>(),
+                r["setup_seconds"].get<double>(), r["bytes_per_element"].get<double>(),
+                r["status"].get<std::string>().c_str());
+    std::fflush(stdout);
+}
+
+// Fitted exponents: stage cost per step ~ elements^p, per mesh kind, scene and thread count,
+// over the stages that cost something.
+json fitScaleExponents(const json& runs, const std::vector<std::string>& scenarios) {
     json fits = json::array();
     for (const std::string kind : {"tetgen", "mi"})
         for (const std::string& sname : scenarios)
@@ -275,47 +256,91 @@ int runScale(const ScaleArgs& a) {
                 if (!e.empty())
                     fits.push_back({{"mesh", kind}, {"scene", sname}, {"threads", threads}, {"exponents", e}});
             }
-    if (!a.csv.empty()) {
-        std::ostringstream c;
-        c << "mesh,elements,scene,threads,status,steps,seconds_per_step,loads,contact,cut,forces,integrate,checks,"
-             "timestep,setup_seconds,bytes_per_element\n";
-        for (const auto& r : runs) {
-            if (!r.contains("stages")) continue;
-            const json& st = r["stages"];
-            c << r["mesh"].get<std::string>() << ',' << r["elements"] << ',' << r["scene"].get<std::string>() << ','
-              << r["threads"] << ',' << r["status"].get<std::string>() << ',' << r["steps"] << ','
-              << r["seconds_per_step"] << ',' << st["loads"] << ',' << st["contact"] << ',' << st["cut"] << ','
-              << st["forces"] << ',' << st["integrate"] << ',' << st["checks"] << ',' << st["timestep"] << ','
-              << r["setup_seconds"] << ',' << r["bytes_per_element"] << '\n';
+    return fits;
+}
+
+void writeScaleCsv(const json& runs, const std::string& path) {
+    std::ostringstream c;
+    c << "mesh,elements,scene,threads,status,steps,seconds_per_step,loads,contact,cut,forces,integrate,checks,"
+         "timestep,setup_seconds,bytes_per_element\n";
+    for (const auto& r : runs) {
+        if (!r.contains("stages")) continue;
+        const json& st = r["stages"];
+        c << r["mesh"].get<std::string>() << ',' << r["elements"] << ',' << r["scene"].get<std::string>() << ','
+          << r["threads"] << ',' << r["status"].get<std::string>() << ',' << r["steps"] << ',' << r["seconds_per_step"]
+          << ',' << st["loads"] << ',' << st["contact"] << ',' << st["cut"] << ',' << st["forces"] << ','
+          << st["integrate"] << ',' << st["checks"] << ',' << st["timestep"] << ',' << r["setup_seconds"] << ','
+          << r["bytes_per_element"] << '\n';
+    }
+    std::ofstream(path) << c.str();
+}
+
+// Seconds per step against elements on one thread, log-log: a line per scene and mesh kind.
+void plotScale(const json& runs, const std::vector<std::string>& scenarios, const std::string& out) {
+    if (!haveGnuplot()) throw InputError("--plot needs gnuplot (Debian package gnuplot-nox)");
+    const std::string dir = plotDataDir("scale");
+    std::ostringstream g;
+    g << "set logscale xy\nset xlabel 'elements'\nset ylabel 'seconds per step, 1 thread'\nset key top left\nset "
+         "grid\n"
+         "set format y '%.0e'\nplot ";
+    bool first = true;
+    int pt = 5;
+    for (const std::string& sname : scenarios)
+        for (const std::string kind : {"tetgen", "mi"}) {
+            const std::string file = dir + "/" + sname + "_" + kind + ".dat";
+            std::ofstream d(file);
+            int rows = 0;
+            for (const auto& r : runs)
+                if (r["mesh"] == kind && r["scene"] == sname && r["threads"] == 1 && r.contains("stages"))
+                    d << r["elements"] << ' ' << r["seconds_per_step"] << '\n', ++rows;
+            if (rows == 0) continue;
+            g << (first ? "" : ", ") << "'" << file << "' using 1:2 with linespoints pt " << pt++ << " dt "
+              << (kind == "mi" ? 2 : 1) << " title '" << sname << ", " << kind << "'";
+            first = false;
         }
-        std::ofstream(a.csv) << c.str();
-    }
-    if (!a.plot.empty()) {
-        if (!haveGnuplot()) throw InputError("--plot needs gnuplot (Debian package gnuplot-nox)");
-        const std::string dir = plotDataDir("scale");
-        // one data file per scene and mesh kind: elements and seconds per step on one thread
-        std::ostringstream g;
-        g << "set logscale xy\nset xlabel 'elements'\nset ylabel 'seconds per step, 1 thread'\nset key top left\nset "
-             "grid\n"
-             "set format y '%.0e'\nplot ";
-        bool first = true;
-        int pt = 5;
-        for (const std::string& sname : scenarios)
-            for (const std::string kind : {"tetgen", "mi"}) {
-                const std::string file = dir + "/" + sname + "_" + kind + ".dat";
-                std::ofstream d(file);
-                int rows = 0;
-                for (const auto& r : runs)
-                    if (r["mesh"] == kind && r["scene"] == sname && r["threads"] == 1 && r.contains("stages"))
-                        d << r["elements"] << ' ' << r["seconds_per_step"] << '\n', ++rows;
-                if (rows == 0) continue;
-                g << (first ? "" : ", ") << "'" << file << "' using 1:2 with linespoints pt " << pt++ << " dt "
-                  << (kind == "mi" ? 2 : 1) << " title '" << sname << ", " << kind << "'";
-                first = false;
+    g << "\n";
+    runGnuplot(dir, "set terminal pngcairo size 900,600 font ',10' noenhanced", g.str(), out);
+}
+
+int runScale(const ScaleArgs& a) {
+    if (!a.one.empty()) return runOne(a);
+    // the SOFA liver surface (shipped as assets/meshes/sofa_liver.obj)
+    const std::string surface = std::string(CUTSIM_DATA_DIR) + "/surface/sofa_liver.obj";
+    if (!fs::exists(surface)) throw InputError(surface, 0, "the liver surface is missing");
+    const double scale = 0.0254;
+    const std::vector<MeshDef> meshes = scaleMeshes(a);
+    const std::vector<std::string> scenarios =
+        a.tiny ? std::vector<std::string>{"sag", "cuts"} : std::vector<std::string>{"sag", "probe", "cuts", "blade"};
+
+    const fs::path work = fs::temp_directory_path() / ("cutsim-bench-scale-" + std::to_string(::getpid()));
+    fs::create_directories(work);
+    const std::string self = fs::read_symlink("/proc/self/exe").string();
+    json runs = json::array();
+    if (!a.json) printScaleHeader();
+    for (const MeshDef& m : meshes) {
+        const json object = meshObject(m, surface, scale, a.json);
+        for (const std::string& sname : scenarios) {
+            const fs::path scene = work / (sname + ".json");
+            std::ofstream(scene) << scenario(sname, object).dump(1);
+            for (int threads : {1, 2}) {
+                json r = runInChild(self, work, scene, threads, a.steps);
+                r["mesh"] = m.kind;
+                r["scene"] = sname;
+                r["threads"] = threads;
+                if (m.kind == "tetgen")
+                    r["size"] = m.size;
+                else
+                    r["cells"] = m.cells;
+                runs.push_back(r);
+                if (!a.json) printScaleRun(r);
             }
-        g << "\n";
-        runGnuplot(dir, "set terminal pngcairo size 900,600 font ',10' noenhanced", g.str(), a.plot);
+        }
     }
+    fs::remove_all(work);
+
+    const json fits = fitScaleExponents(runs, scenarios);
+    if (!a.csv.empty()) writeScaleCsv(runs, a.csv);
+    if (!a.plot.empty()) plotScale(runs, scenarios, a.plot);
     if (a.json) {
         std::cout << jsonText({{"steps", a.steps}, {"runs", runs}, {"exponents", fits}});
         return 0;
