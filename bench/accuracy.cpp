@@ -310,57 +310,204 @@ std::pair<double, int> backwardEulerStepSeconds(const Model& m0, double dt, int 
     return w[w.size() / 2];
 }
 
-std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool quiet,
-                                              std::vector<ImplicitProjection>& proj,
-                                              std::vector<PairedComparison>& paired) {
-    std::vector<BenchPoint> pts;
-    auto log = [&](const BenchPoint& p) {
-        pts.push_back(p);
-        if (!quiet)
+// The built-in cantilever configurations of `bench accuracy`, in the order they run: explicit runs on
+// conforming meshes, per-element damping beyond the limit, the implicit reference (backward Euler
+// run in full, or its step timed and its cost at 1% projected). Each point is logged on stderr as it
+// comes (unless quiet).
+class CantileverRuns {
+public:
+    CantileverRuns(const AccuracyContext& ctx, bool quiet, std::vector<ImplicitProjection>& proj,
+                   std::vector<PairedComparison>& paired)
+        : ctx_(ctx), quiet_(quiet), proj_(proj), paired_(paired), wRef_(2 * M_PI * ctx.frequencyReference),
+          finest_(ctx.res.back()) {
+        for (int r : ctx_.res) fMesh_.push_back(firstBendingFrequency(bar(r)));
+    }
+
+    std::vector<BenchPoint> run() {
+        explicitRuns();
+        dampedRuns();
+        implicitRuns();
+        return pts_;
+    }
+
+private:
+    void log(const BenchPoint& p) {
+        pts_.push_back(p);
+        if (!quiet_)
             std::fprintf(stderr, "  %-22s %-40s error %.3e  cost %.4g s/s\n", p.problem.c_str(), p.config.c_str(),
                          p.error, p.wallPerSimSecond);
-    };
-    const double wRef = 2 * M_PI * ctx.frequencyReference;
+    }
+
     // A frequency point's predicted error: the integrator's mode formula on the mesh's own mode.
-    auto predicted = [&](BenchPoint p, const StepOptions& opt, double fMesh) {
+    BenchPoint predicted(BenchPoint p, const StepOptions& opt, double fMesh) const {
         if (p.problem == "cantilever_frequency" && fMesh > 0)
-            p.predictedError = modeError(integratorMode(opt.integrator, 2 * M_PI * fMesh, opt.dt), wRef);
+            p.predictedError = modeError(integratorMode(opt.integrator, 2 * M_PI * fMesh, opt.dt), wRef_);
         return p;
-    };
+    }
+
     // The bench's bar is the mirrored split: the Kuhn split's skew bending axes make a z load
     // excite two modes of different frequency, and the tip's motion beat.
-    auto bar = [&](int r, BoxSplit split = BoxSplit::Mirrored) {
-        return cantileverModel(ctx.bar, r, ElementModel::Corotational, split);
-    };
-    std::vector<double> fMesh;
-    for (int r : ctx.res) fMesh.push_back(firstBendingFrequency(bar(r)));
-    char name[160];
+    Model bar(int r, BoxSplit split = BoxSplit::Mirrored) const {
+        return cantileverModel(ctx_.bar, r, ElementModel::Corotational, split);
+    }
+
     // Config of an explicit run: variant "", "kuhn " or "single " (the turns below repeat these names).
-    auto explicitName = [&](const char* variant, int r, double f) {
+    static std::string explicitName(const char* variant, int r, double f) {
+        char name[160];
         std::snprintf(name, sizeof name, "explicit %s%dx%dx%d f=%g", variant, 10 * r, r, r, f);
-        return std::string(name);
-    };
-    const int finest = ctx.res.back();
-    double dtFinest = 0;  // exact limit of the finest mirrored bar, set by the conforming runs
+        return name;
+    }
+
+    // Conforming meshes at 0.9 of their exact limit, plain symplectic Euler; the Kuhn split beside
+    // the mirrored one on the coarse meshes.
+    void explicitRuns() {
+        for (size_t i = 0; i < ctx_.res.size(); ++i) {
+            const int r = ctx_.res[i];
+            for (BoxSplit split : {BoxSplit::Mirrored, BoxSplit::Kuhn}) {
+                const bool kuhn = split == BoxSplit::Kuhn;
+                if (kuhn && r > 4) continue;
+                const Model m = bar(r, split);
+                const double dtExact = exactCriticalDt(m).dt;
+                if (!kuhn && r == finest_) dtFinest_ = dtExact;
+                // The finest mesh also at 0.98 and 0.999 of its limit: the limit is exact (Lanczos),
+                // and plain schemes are stable to 0.999 of it (bench stability). That sweep is unloaded;
+                // here the bar hangs under gravity, whose stress could lift the top eigenvalue past the
+                // unloaded limit (a run that diverges shows as such).
+                std::vector<double> fractions = {0.9};
+                if (!kuhn && r == finest_) fractions.insert(fractions.end(), {0.98, 0.999});
+                for (double f : fractions) {
+                    const StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
+                    const std::string cfg = explicitName(kuhn ? "kuhn " : "", r, f);
+                    log(runStaticPoint(ctx_, m, opt, cfg));
+                    log(kuhn ? runFrequencyPoint(ctx_, m, opt, cfg)
+                             : predicted(runFrequencyPoint(ctx_, m, opt, cfg), opt, fMesh_[i]));
+                }
+                // and with the element forces in single precision (integrator.precision), at 0.999
+                if (!kuhn && r == finest_) {
+                    Model ms = m;
+                    ms.precision = ForcePrecision::Single;
+                    const StepOptions opt{Integrator::SymplecticEuler, 0.999 * dtExact};
+                    const std::string cfg = explicitName("single ", r, 0.999);
+                    log(runStaticPoint(ctx_, ms, opt, cfg));
+                    log(predicted(runFrequencyPoint(ctx_, ms, opt, cfg), opt, fMesh_[i]));
+                }
+            }
+        }
+    }
+
+    // Per-element damping beyond the limit (thesis eq. 3.16) on the finest mesh up to N = 8.
+    void dampedRuns() {
+        int r = ctx_.res.front();
+        for (int q : ctx_.res)
+            if (q <= 8) r = q;
+        const Model m = bar(r);
+        const double dtExact = exactCriticalDt(m).dt;
+        const Eigen::VectorXd r1r = estimateElements(m).r1r;
+        for (double f : {1.5, 2.0}) {
+            const Eigen::VectorXd alpha = elementAlpha(0.95 * r1r, f * dtExact);  // margin: see bench stability
+            StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
+            opt.alphaElem = &alpha;
+            char name[160];
+            std::snprintf(name, sizeof name, "explicit alpha_e_0.95 %dx%dx%d f=%.1f", 10 * r, r, r, f);
+            log(runStaticPoint(ctx_, m, opt, name));
+            log(runFrequencyPoint(ctx_, m, opt, name));
+        }
+    }
+
+    // The implicit reference: backward Euler at several steps, run in full on the meshes where a
+    // simulated second is affordable; on every mesh, its step timed and its cost at 1% projected.
+    void implicitRuns() {
+        const std::vector<double> dts =
+            ctx_.tiny ? std::vector<double>{0.01, 0.003} : std::vector<double>{0.1, 0.03, 0.01, 0.003};
+        for (size_t i = 0; i < ctx_.res.size(); ++i) {
+            const int r = ctx_.res[i];
+            const Model m = bar(r);
+            const double meshError = std::abs(fMesh_[i] - ctx_.frequencyReference) / ctx_.frequencyReference;
+            if ((r >= 2 || ctx_.tiny) && r <= ctx_.implicitMaxRes) fullImplicitRuns(m, r, dts, fMesh_[i], meshError);
+            const ImplicitProjection pr = projection(m, r, fMesh_[i], meshError);
+            proj_.push_back(pr);
+            if (r > ctx_.implicitMaxRes && r <= ctx_.cgMaxRes && pr.dt > 0) checkProjection(m, r, pr.dt, fMesh_[i]);
+        }
+    }
+
+    // Backward Euler run in full at each of dts, and near the mesh's floor: the dt whose predicted
+    // error is 1.2 x the mesh's own (at least 1%), so the front has a measured point where the time
+    // error is small. Then CG where it can pay: the smallest step, where dt^2 K is smallest against M.
+    void fullImplicitRuns(const Model& m, int r, const std::vector<double>& dts, double fMesh, double meshError) {
+        std::vector<double> steps = dts;
+        const double dtNear = backwardEulerDtForError(2 * M_PI * fMesh, wRef_, std::max(0.01, 1.2 * meshError));
+        if (dtNear > 0 && dtNear < 0.9 * steps.back()) steps.push_back(dtNear);
+        for (double dt : steps) {
+            const StepOptions opt{Integrator::BackwardEuler, dt};
+            char name[160];
+            std::snprintf(name, sizeof name, "backward_euler %dx%dx%d dt=%.3g", 10 * r, r, r, dt);
+            log(runStaticPoint(ctx_, m, opt, name));
+            log(predicted(runFrequencyPoint(ctx_, m, opt, name), opt, fMesh));
+        }
+        cgFrequencyPoint(m, r, steps.back(), fMesh);
+    }
+
+    // Backward Euler's step timed on the mesh, with either solver, and its cost at 1% projected.
+    ImplicitProjection projection(const Model& m, int r, double fMesh, double meshError) const {
+        ImplicitProjection pr;
+        pr.res = r;
+        pr.tets = m.elements();
+        pr.meshFrequency = fMesh;
+        pr.meshError = meshError;
+        pr.dt = backwardEulerDtForError(2 * M_PI * fMesh, wRef_, 0.01);
+        pr.steps = ctx_.tiny ? 3 : 5;
+        const double dtTimed = pr.dt > 0 ? pr.dt : 1e-3;
+        pr.directSeconds = backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::Direct).first;
+        std::tie(pr.cgSeconds, pr.cgIterations) =
+            backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::ConjugateGradient);
+        if (pr.dt > 0) pr.cost = pr.stepSeconds() / pr.dt;
+        if (!quiet_)
+            std::fprintf(stderr,
+                         "  backward Euler %dx%dx%d: mesh frequency error %.4f, a step %.4g s (LDL^T) / %.4g s (CG, %d "
+                         "iterations), "
+                         "dt for 1%%: %.4g s, projected %.4g s/s\n",
+                         10 * r, r, r, pr.meshError, pr.directSeconds, pr.cgSeconds, pr.cgIterations, pr.dt, pr.cost);
+        return pr;
+    }
+
+    // The projection checked where a full run is affordable: backward Euler with CG (the cheaper
+    // solve at this dt) at the dt the mode formula gives for 1%.
+    void checkProjection(const Model& m, int r, double dt, double fMesh) {
+        const BenchPoint p = cgFrequencyPoint(m, r, dt, fMesh);
+        // Measured above 1% (the formula's error is a prediction): once more at the dt that
+        // brings it to 1%. The error squared is the frequency error's square plus the damping
+        // ratio's (modeError); the frequency part barely moves with dt and backward Euler's
+        // damping ratio is linear in dt (w dt / 2 for small w dt), so dt scales with the
+        // damping ratio, aimed at a total of 0.998% so that the fit's scatter stays below 1%.
+        const double freq = std::abs(p.frequencyError), aim = 0.00998;
+        if (std::isfinite(p.error) && p.error > 0.01 && freq < aim && p.dampingRatio > 0)
+            cgFrequencyPoint(m, r, dt * std::sqrt(aim * aim - freq * freq) / p.dampingRatio, fMesh);
+    }
+
     // Backward Euler solved by CG at dt, its first mode measured (frequency problem only). On the
     // finest mesh the explicit runs at 0.999 of its limit, in double and single precision, take
-    // turns with it: their cost ratio at equal machine conditions. Their points are those of the
-    // conforming runs above, bitwise (the same steps), and are not logged twice.
-    auto cgFrequencyPoint = [&](const Model& m, int r, double dt, double f) {
+    // turns with it (pairedCgPoint).
+    BenchPoint cgFrequencyPoint(const Model& m, int r, double dt, double f) {
         const StepOptions cg = backwardEulerOptions(dt, ImplicitSolver::ConjugateGradient);
+        char name[160];
         std::snprintf(name, sizeof name, "backward_euler cg %dx%dx%d dt=%.3g", 10 * r, r, r, dt);
-        if (r != finest || !(dtFinest > 0)) {
-            const BenchPoint p = predicted(runFrequencyPoint(ctx, m, cg, name), cg, f);
-            log(p);
-            return p;
-        }
+        if (r == finest_ && dtFinest_ > 0) return pairedCgPoint(m, r, cg, name, f);
+        const BenchPoint p = predicted(runFrequencyPoint(ctx_, m, cg, name), cg, f);
+        log(p);
+        return p;
+    }
+
+    // The CG run and the explicit ones taking turns: their cost ratio at equal machine conditions.
+    // The explicit points are those of the conforming runs, bitwise (the same steps), and are not
+    // logged twice.
+    BenchPoint pairedCgPoint(const Model& m, int r, const StepOptions& cg, const std::string& name, double f) {
         std::vector<FrequencyRun> runs;
-        runs.emplace_back(ctx, m, cg, name);
-        const StepOptions ex{Integrator::SymplecticEuler, 0.999 * dtFinest};
-        runs.emplace_back(ctx, m, ex, explicitName("", r, 0.999));
+        runs.emplace_back(ctx_, m, cg, name);
+        const StepOptions ex{Integrator::SymplecticEuler, 0.999 * dtFinest_};
+        runs.emplace_back(ctx_, m, ex, explicitName("", r, 0.999));
         Model ms = m;
         ms.precision = ForcePrecision::Single;
-        runs.emplace_back(ctx, ms, ex, explicitName("single ", r, 0.999));
+        runs.emplace_back(ctx_, ms, ex, explicitName("single ", r, 0.999));
         const PairedRuns turns = runPaired(runs, kPairedSlices);
         const BenchPoint p = predicted(turns.points[0], cg, f);
         log(p);
@@ -380,7 +527,7 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
                 e.sliceMin = std::min(e.sliceMin, q);
                 e.sliceMax = std::max(e.sliceMax, q);
             }
-            if (!quiet)
+            if (!quiet_)
                 std::fprintf(
                     stderr,
                     "    taking turns with it: %-34s error %.3e  cost %.4g s/s  ratio %.3g (halves %.3g, %.3g)\n",
@@ -388,117 +535,20 @@ std::vector<BenchPoint> builtinAccuracyPoints(const AccuracyContext& ctx, bool q
                     e.secondHalf);
             c.runs.push_back(e);
         }
-        paired.push_back(c);
+        paired_.push_back(c);
         return p;
-    };
-    // Conforming meshes at 0.9 of their exact limit, plain symplectic Euler; the Kuhn split beside
-    // the mirrored one on the coarse meshes.
-    for (size_t i = 0; i < ctx.res.size(); ++i) {
-        const int r = ctx.res[i];
-        for (BoxSplit split : {BoxSplit::Mirrored, BoxSplit::Kuhn}) {
-            const bool kuhn = split == BoxSplit::Kuhn;
-            if (kuhn && r > 4) continue;
-            const Model m = bar(r, split);
-            const double dtExact = exactCriticalDt(m).dt;
-            if (!kuhn && r == finest) dtFinest = dtExact;
-            // The finest mesh also at 0.98 and 0.999 of its limit: the limit is exact (Lanczos),
-            // and plain schemes are stable to 0.999 of it (bench stability). That sweep is unloaded;
-            // here the bar hangs under gravity, whose stress could lift the top eigenvalue past the
-            // unloaded limit (a run that diverges shows as such).
-            std::vector<double> fractions = {0.9};
-            if (!kuhn && r == finest) fractions.insert(fractions.end(), {0.98, 0.999});
-            for (double f : fractions) {
-                const StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
-                const std::string cfg = explicitName(kuhn ? "kuhn " : "", r, f);
-                log(runStaticPoint(ctx, m, opt, cfg));
-                log(kuhn ? runFrequencyPoint(ctx, m, opt, cfg)
-                         : predicted(runFrequencyPoint(ctx, m, opt, cfg), opt, fMesh[i]));
-            }
-            // and with the element forces in single precision (integrator.precision), at 0.999
-            if (!kuhn && r == finest) {
-                Model ms = m;
-                ms.precision = ForcePrecision::Single;
-                const StepOptions opt{Integrator::SymplecticEuler, 0.999 * dtExact};
-                const std::string cfg = explicitName("single ", r, 0.999);
-                log(runStaticPoint(ctx, ms, opt, cfg));
-                log(predicted(runFrequencyPoint(ctx, ms, opt, cfg), opt, fMesh[i]));
-            }
-        }
     }
-    // Per-element damping beyond the limit (thesis eq. 3.16) on the finest mesh up to N = 8.
-    {
-        int r = ctx.res.front();
-        for (int q : ctx.res)
-            if (q <= 8) r = q;
-        const Model m = bar(r);
-        const double dtExact = exactCriticalDt(m).dt;
-        const Eigen::VectorXd r1r = estimateElements(m).r1r;
-        for (double f : {1.5, 2.0}) {
-            const Eigen::VectorXd alpha = elementAlpha(0.95 * r1r, f * dtExact);  // margin: see bench stability
-            StepOptions opt{Integrator::SymplecticEuler, f * dtExact};
-            opt.alphaElem = &alpha;
-            std::snprintf(name, sizeof name, "explicit alpha_e_0.95 %dx%dx%d f=%.1f", 10 * r, r, r, f);
-            log(runStaticPoint(ctx, m, opt, name));
-            log(runFrequencyPoint(ctx, m, opt, name));
-        }
-    }
-    // The implicit reference: backward Euler at several steps, run in full on the meshes where a
-    // simulated second is affordable; on every mesh, its step timed and its cost at 1% projected.
-    std::vector<double> dts = ctx.tiny ? std::vector<double>{0.01, 0.003} : std::vector<double>{0.1, 0.03, 0.01, 0.003};
-    for (size_t i = 0; i < ctx.res.size(); ++i) {
-        const int r = ctx.res[i];
-        const Model m = bar(r);
-        const double meshError = std::abs(fMesh[i] - ctx.frequencyReference) / ctx.frequencyReference;
-        if ((r >= 2 || ctx.tiny) && r <= ctx.implicitMaxRes) {
-            // and near the mesh's floor: the dt whose predicted error is 1.2 x the mesh's own (at
-            // least 1%), so the front has a measured point where the time error is small
-            std::vector<double> steps = dts;
-            const double dtNear = backwardEulerDtForError(2 * M_PI * fMesh[i], wRef, std::max(0.01, 1.2 * meshError));
-            if (dtNear > 0 && dtNear < 0.9 * steps.back()) steps.push_back(dtNear);
-            for (double dt : steps) {
-                const StepOptions opt{Integrator::BackwardEuler, dt};
-                std::snprintf(name, sizeof name, "backward_euler %dx%dx%d dt=%.3g", 10 * r, r, r, dt);
-                log(runStaticPoint(ctx, m, opt, name));
-                log(predicted(runFrequencyPoint(ctx, m, opt, name), opt, fMesh[i]));
-            }
-            // CG where it can pay: the smallest step, where dt^2 K is smallest against M
-            cgFrequencyPoint(m, r, steps.back(), fMesh[i]);
-        }
-        ImplicitProjection pr;
-        pr.res = r;
-        pr.tets = m.elements();
-        pr.meshFrequency = fMesh[i];
-        pr.meshError = meshError;
-        pr.dt = backwardEulerDtForError(2 * M_PI * fMesh[i], wRef, 0.01);
-        pr.steps = ctx.tiny ? 3 : 5;
-        const double dtTimed = pr.dt > 0 ? pr.dt : 1e-3;
-        pr.directSeconds = backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::Direct).first;
-        std::tie(pr.cgSeconds, pr.cgIterations) =
-            backwardEulerStepSeconds(m, dtTimed, pr.steps, ImplicitSolver::ConjugateGradient);
-        if (pr.dt > 0) pr.cost = pr.stepSeconds() / pr.dt;
-        if (!quiet)
-            std::fprintf(stderr,
-                         "  backward Euler %dx%dx%d: mesh frequency error %.4f, a step %.4g s (LDL^T) / %.4g s (CG, %d "
-                         "iterations), "
-                         "dt for 1%%: %.4g s, projected %.4g s/s\n",
-                         10 * r, r, r, pr.meshError, pr.directSeconds, pr.cgSeconds, pr.cgIterations, pr.dt, pr.cost);
-        proj.push_back(pr);
-        // The projection checked where a full run is affordable: backward Euler with CG (the
-        // cheaper solve at this dt) at the dt the mode formula gives for 1%
-        if (r > ctx.implicitMaxRes && r <= ctx.cgMaxRes && pr.dt > 0) {
-            const BenchPoint p = cgFrequencyPoint(m, r, pr.dt, fMesh[i]);
-            // Measured above 1% (the formula's error is a prediction): once more at the dt that
-            // brings it to 1%. The error squared is the frequency error's square plus the damping
-            // ratio's (modeError); the frequency part barely moves with dt and backward Euler's
-            // damping ratio is linear in dt (w dt / 2 for small w dt), so dt scales with the
-            // damping ratio, aimed at a total of 0.998% so that the fit's scatter stays below 1%.
-            const double freq = std::abs(p.frequencyError), aim = 0.00998;
-            if (std::isfinite(p.error) && p.error > 0.01 && freq < aim && p.dampingRatio > 0)
-                cgFrequencyPoint(m, r, pr.dt * std::sqrt(aim * aim - freq * freq) / p.dampingRatio, fMesh[i]);
-        }
-    }
-    return pts;
-}
+
+    const AccuracyContext& ctx_;
+    bool quiet_;
+    std::vector<ImplicitProjection>& proj_;
+    std::vector<PairedComparison>& paired_;
+    std::vector<BenchPoint> pts_;
+    double wRef_;                // the reference's first bending frequency [rad/s]
+    std::vector<double> fMesh_;  // first bending frequency of each mesh of ctx_.res [Hz]
+    int finest_;                 // the finest N
+    double dtFinest_ = 0;        // exact limit of the finest mirrored bar, set by the explicit runs [s]
+};
 
 // The flags as the configurations' context: resolutions, references, sizes.
 AccuracyContext accuracyContext(const AccuracyArgs& a, json& refs) {
@@ -562,7 +612,7 @@ std::vector<BenchPoint> measureAccuracy(const AccuracyArgs& a, json& refs, std::
     setThreads(a.threads);
     const AccuracyContext ctx = accuracyContext(a, refs);
     std::vector<BenchPoint> pts;
-    if (selected(a, "cantilever")) pts = builtinAccuracyPoints(ctx, a.json, proj, paired);
+    if (selected(a, "cantilever")) pts = CantileverRuns(ctx, a.json, proj, paired).run();
     for (auto& [name, fn] : registry().configs) {
         if (!selected(a, name)) continue;
         auto more = fn(ctx);
