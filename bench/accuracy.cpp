@@ -1,8 +1,7 @@
-// `cutsim bench`: accuracy against cost on reference problems with known answers, stability
-// sweeps of the step size, step throughput with its stages, and what each subsystem of a scene
-// costs. Results are described in BENCHMARKS.md.
+// `cutsim bench accuracy`: error against cost on reference problems with known answers, the
+// Pareto front of each, and the cost at 1% error explicit against implicit. Results are described
+// in BENCHMARKS.md.
 #include "bench/bench.hpp"
-#include "bench/command.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "timestep/modes.hpp"
@@ -27,7 +26,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -36,7 +34,6 @@
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
-#include <unistd.h>
 
 namespace cutsim::bench {
 
@@ -48,56 +45,15 @@ namespace {
 
 double secondsSince(WallClock::time_point t) { return std::chrono::duration<double>(WallClock::now() - t).count(); }
 
-struct Registry {
-    std::vector<std::pair<std::string, AccuracyConfig>> configs;
-    std::vector<std::function<void(CLI::App&)>> subcommands;
-};
-Registry& registry() {
-    static Registry r;
-    return r;
+// The configurations other files add (addAccuracyConfig), by group name.
+std::vector<std::pair<std::string, AccuracyConfig>>& configs() {
+    static std::vector<std::pair<std::string, AccuracyConfig>> c;
+    return c;
 }
 
 }  // namespace
 
-// ---- registry and Pareto front ----
-bool haveGnuplot() {
-    const char* path = std::getenv("PATH");
-    if (!path) return false;
-    std::stringstream ss(path);
-    std::string dir;
-    while (std::getline(ss, dir, ':'))
-        if (!dir.empty() && ::access((fs::path(dir) / "gnuplot").c_str(), X_OK) == 0) return true;
-    return false;
-}
-
-std::string plotDataDir(const std::string& tag) {
-    const fs::path dir = fs::temp_directory_path() / ("cutsim_" + tag + "_" + std::to_string(::getpid()));
-    fs::create_directories(dir);
-    return dir.string();
-}
-
-void runGnuplot(const std::string& dir, const std::string& terminal, const std::string& body, const std::string& out) {
-    const fs::path d(dir);
-    const std::string file = (d / "plot.gp").string();
-    std::ofstream(file) << terminal << "\nset output '" << out << ".tmp.png'\n" << body;
-    const int rc = std::system(("gnuplot '" + file + "' 2>'" + (d / "err.txt").string() + "'").c_str());
-    std::string err;
-    {
-        std::ifstream e(d / "err.txt");
-        std::getline(e, err, '\0');
-    }
-    fs::remove_all(d);
-    if (rc != 0 || !fs::exists(out + ".tmp.png")) {
-        fs::remove(out + ".tmp.png");
-        throw std::runtime_error("gnuplot failed to draw " + out + ": " + err);
-    }
-    fs::rename(out + ".tmp.png", out);
-}
-
-void addAccuracyConfig(const std::string& name, AccuracyConfig fn) {
-    registry().configs.emplace_back(name, std::move(fn));
-}
-void addBenchSubcommand(std::function<void(CLI::App&)> setup) { registry().subcommands.push_back(std::move(setup)); }
+void addAccuracyConfig(const std::string& name, AccuracyConfig fn) { configs().emplace_back(name, std::move(fn)); }
 
 void markPareto(std::vector<BenchPoint>& pts) {
     for (auto& p : pts) {
@@ -613,7 +569,7 @@ std::vector<BenchPoint> measureAccuracy(const AccuracyArgs& a, json& refs, std::
     const AccuracyContext ctx = accuracyContext(a, refs);
     std::vector<BenchPoint> pts;
     if (selected(a, "cantilever")) pts = CantileverRuns(ctx, a.json, proj, paired).run();
-    for (auto& [name, fn] : registry().configs) {
+    for (auto& [name, fn] : configs()) {
         if (!selected(a, name)) continue;
         auto more = fn(ctx);
         pts.insert(pts.end(), more.begin(), more.end());
@@ -826,47 +782,15 @@ int runAccuracy(const AccuracyArgs& a) {
     return 0;
 }
 
-void registerBenchExtensions() {
-    addStabilityBench();      // stability.cpp: dt sweeps, random cuts, energy drift
-    addStepCostBench();       // step.cpp: step throughput, per-scene cost
-    addMiBarBench();          // mibar.cpp: Table 6.1
-    addContactBench();        // contact.cpp: contact cost and penetration
-    addHapticBench();         // haptic.cpp: a 20k-tet liver and a probe at a haptic rate
-    addCaptureBench();        // capture.cpp: capture frames per second
-    addImproveBench();        // improve.cpp: mesh improvement against TetGen and Gmsh
-    addCutStepBench();        // cutstep.cpp: Tables 5.5 and 5.6, the step through cuts
-    addScaleBench();          // scale.cpp: how cost grows with the mesh
-    addCutAccuracyConfigs();  // cuts.cpp: MI, lumping after cuts, the liver
-}
-
 }  // namespace
 
-nlohmann::json jsonNumber(double v) { return std::isfinite(v) && v >= 0 ? nlohmann::json(v) : nlohmann::json(nullptr); }
-
-int benchGuarded(const std::function<int()>& f) {
-    try {
-        return f();
-    } catch (const InputError& e) {
-        std::fprintf(stderr, "error: %s\n", e.what());
-        return 2;
-    } catch (const std::exception& e) {
-        std::fprintf(stderr, "error: %s\n", e.what());
-        return 1;
-    }
-}
-
-void addBenchCommand(CLI::App& app) {
-    registerBenchExtensions();
-    CLI::App* bench =
-        app.add_subcommand("bench", "Benchmarks: accuracy against cost, stability, step throughput, scene cost");
-    bench->require_subcommand(1);
-
-    {
+void addAccuracyBench() {
+    addBenchSubcommand([](CLI::App& bench) {
         auto a = std::make_shared<AccuracyArgs>();
-        auto* c = bench->add_subcommand("accuracy",
-                                        "Error against wall time per simulated second: the cantilever (static tip "
-                                        "deflection, first bending frequency) on conforming and MI meshes, the notched "
-                                        "cantilever per XFEM lumping option, the liver sagging under gravity");
+        auto* c = bench.add_subcommand("accuracy",
+                                       "Error against wall time per simulated second: the cantilever (static tip "
+                                       "deflection, first bending frequency) on conforming and MI meshes, the notched "
+                                       "cantilever per XFEM lumping option, the liver sagging under gravity");
         c->add_flag("--json", a->json,
                     "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
                     "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, "
@@ -914,8 +838,7 @@ void addBenchCommand(CLI::App& app) {
             ->delimiter(',')
             ->check(CLI::IsMember({"cantilever", "mi", "notch-lumping", "liver"}));
         c->callback([a] { app::setExitCode(benchGuarded([&] { return runAccuracy(*a); })); });
-    }
-    for (auto& setup : registry().subcommands) setup(*bench);
+    });
 }
 
 }  // namespace cutsim::bench

@@ -191,6 +191,7 @@ void addCutAccuracyConfigs();
 
 // `bench mi-bar` (mibar.cpp): Table 6.1, MI against subdivision and remeshing.
 void addMiBarBench();
+void addAccuracyBench();   // accuracy.cpp
 void addStabilityBench();  // stability.cpp
 void addStepCostBench();   // step.cpp
 void addContactBench();    // contact.cpp
