@@ -5,6 +5,7 @@
 #include "sim/simulation.hpp"
 #include "sim/scene.hpp"
 #include "bench/random_cuts.hpp"
+#include "bench/step_box.hpp"
 #include "fem/forces.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
@@ -44,18 +45,6 @@ struct StepArgs {
     double seconds = 1.0;  // measuring time per configuration [s]
 };
 
-// The benchmark's box: n^3 cubes (6 n^3 tets), clamped at x = 0, rotated and bent start so the
-// polar decomposition does real work (as bench/micro/step_bench.cpp).
-Model stepModel(int n) {
-    Model m = buildModel(boxMesh(0.01 * n, 0.01 * n, 0.01 * n, n, n, n), Material{});
-    std::vector<int> fixedNodes;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
-    fixNodes(m, fixedNodes);
-    m.gravity << 0, 0, -9.81;
-    return m;
-}
-
 int runStep(const StepArgs& a) {
     const std::vector<int> sizes = a.tiny ? std::vector<int>{3} : std::vector<int>{6, 12, 26, 55};
     const std::vector<int> threadCounts = {1, 2};
@@ -65,7 +54,7 @@ int runStep(const StepArgs& a) {
         std::printf("%9s %7s %9s %8s %14s %12s %12s %12s\n", "tets", "threads", "precision", "steps", "tet-steps/s",
                     "element %", "nodes %", "integrate %");
     for (int n : sizes) {
-        Model m = stepModel(n);
+        Model m = stepBox(n);
         for (int th : threadCounts)
             for (ForcePrecision precision : {ForcePrecision::Double, ForcePrecision::Single}) {
                 setThreads(th);

@@ -15,6 +15,7 @@
 // --seconds, --rounds times; the table gives the median of each over its windows and the median
 // of the per-round ratios, and the shares of Bullet's step from its own profile zones.
 //   build/bench/cutsim_bullet_bench [--seconds S] [--rounds R] [--unrotated] [--tiny] [--json]
+#include "bench/step_box.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"
@@ -56,16 +57,11 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 constexpr double kDt = 1e-6;  // [s], as `cutsim bench step`
-const Eigen::Vector3d kGravity(0, 0, -9.81);
 
-// The box of `cutsim bench step` (bench/step.cpp stepModel).
+// The box of `cutsim bench step`, with or without its gravity.
 Model boxModel(int n, bool gravity = true) {
-    Model m = buildModel(boxMesh(0.01 * n, 0.01 * n, 0.01 * n, n, n, n), Material{});
-    std::vector<int> fixedNodes;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
-    fixNodes(m, fixedNodes);
-    if (gravity) m.gravity = kGravity;
+    Model m = stepBox(n);
+    if (!gravity) m.gravity.setZero();
     return m;
 }
 

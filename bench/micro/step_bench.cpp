@@ -1,5 +1,6 @@
 // Explicit corotational step throughput in tet-steps per second.
 //   build/bench/cutsim_bench --benchmark_filter=BM_Step
+#include "bench/step_box.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
 #include "mesh/generate.hpp"
@@ -16,12 +17,7 @@ namespace {
 void BM_StepCorotational(benchmark::State& st) {
     const int n = static_cast<int>(st.range(0));
     setThreads(static_cast<int>(st.range(1)));
-    Model m = buildModel(boxMesh(0.01 * n, 0.01 * n, 0.01 * n, n, n, n), Material{});
-    std::vector<int> fixedNodes;
-    for (int i = 0; i < m.nodes(); ++i)
-        if (m.X(0, i) < 1e-9) fixedNodes.push_back(i);
-    fixNodes(m, fixedNodes);
-    m.gravity << 0, 0, -9.81;
+    Model m = stepBox(n);
     State s = makeState(m);
     // start from a rotated, bent state so the rotation extraction does real work
     const Eigen::Matrix3d R = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY()).toRotationMatrix();
