@@ -18,7 +18,7 @@
 // trees only when a piece moved enough since the last query for a new point to reach it: in between
 // the piece tests the points it kept within a band of the collider (resting contact costs its points).
 // Points are interpolated only when their triangle is a candidate.
-// This was the cheapest of the representations measured (tests/bench/contact_bench.cpp): a
+// This was the cheapest of the representations measured (bench/micro/contact_bench.cpp): a
 // collision object per point or a refitted btBvhTriangleMeshShape cost far more per step.
 //
 // Two contact models act through the same points (contact.model in a scene):
