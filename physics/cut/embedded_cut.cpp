@@ -48,6 +48,25 @@ Poly clipBy(const Poly& p, F&& f) {
     return clipPoly(p, v);
 }
 
+// A label per element, equal for elements joined through shared nodes (the model's pieces).
+std::vector<int> pieceLabels(const Model& m) {
+    std::vector<int> root(static_cast<size_t>(m.nodes()));
+    for (size_t i = 0; i < root.size(); ++i) root[i] = static_cast<int>(i);
+    auto find = [&](int a) {
+        while (root[static_cast<size_t>(a)] != a)
+            a = root[static_cast<size_t>(a)] = root[static_cast<size_t>(root[static_cast<size_t>(a)])];
+        return a;
+    };
+    for (int e = 0; e < m.elements(); ++e)
+        for (int k = 1; k < 4; ++k) {
+            const int a = find(m.tets(0, e)), b = find(m.tets(k, e));
+            if (a != b) root[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
+        }
+    std::vector<int> label(static_cast<size_t>(m.elements()));
+    for (int e = 0; e < m.elements(); ++e) label[static_cast<size_t>(e)] = find(m.tets(0, e));
+    return label;
+}
+
 }  // namespace
 
 int CutEngine::carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes,
@@ -212,6 +231,7 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
 }
 
 void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
+                                  const std::vector<int>& piece,
                                   const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
                                   const std::function<void(int, int, int)>& addTriangle) const {
     // Past the boundary no partition by parents is continuous (neighbours' extrapolations agree
@@ -325,6 +345,7 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
         std::swap(cells, next);
     }
     std::vector<int> ids;
+    std::vector<std::pair<int, int>> rides;  // (element, parent) of each cell corner
     for (const Poly& c : cells) {
         Eigen::Vector3d mid = Eigen::Vector3d::Zero();
         for (const auto& w : c) mid += w.head<3>();
@@ -334,7 +355,8 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
         std::array<bool, 3> in{};
         for (size_t i = 0; i < 3; ++i)
             in[i] = std::any_of(c.begin(), c.end(), [&](const Eigen::Vector4d& w) { return w.head<3>() == y[i]; });
-        ids.clear();
+        rides.clear();
+        int anchor = -1;  // a ride of one of the triangle's corners in the cell, else the first
         for (const auto& w : c) {
             std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
                 if (in[a] != in[b]) return in[a];
@@ -349,7 +371,20 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
                     if (const int wrong = std::popcount(sidesOf(p, g) ^ sig); wrong < fewest)
                         fewest = wrong, ride = {g, p};
             }
-            ids.push_back(addVertex(ride.first, inP(ride.second, w.head<3>())));
+            if (anchor < 0 &&
+                std::any_of(y.begin(), y.end(), [&](const Eigen::Vector3d& yi) { return w.head<3>() == yi; }))
+                anchor = static_cast<int>(rides.size());
+            rides.push_back(ride);
+        }
+        if (anchor < 0) anchor = 0;
+        // One piece per cell: a corner riding an element the cuts have parted from the anchor's
+        // would stretch the cell across the opening as a spike; it rides the anchor's instead.
+        const int home = piece[static_cast<size_t>(rides[static_cast<size_t>(anchor)].first)];
+        ids.clear();
+        for (size_t k = 0; k < c.size(); ++k) {
+            auto ride = rides[k];
+            if (piece[static_cast<size_t>(ride.first)] != home) ride = rides[static_cast<size_t>(anchor)];
+            ids.push_back(addVertex(ride.first, inP(ride.second, c[k].head<3>())));
         }
         for (size_t k = 1; k + 1 < ids.size(); ++k)
             if (ids[0] != ids[k] && ids[k] != ids[k + 1] && ids[0] != ids[k + 1])
@@ -479,6 +514,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                     near[static_cast<size_t>(ring_[static_cast<size_t>(i)])] = 1;
             }
         }
+    std::vector<int> piece;  // connected piece of each element, when a triangle past the boundary needs it
     auto nearCut = [&](const std::array<int, 3>& v) {
         return std::any_of(v.begin(), v.end(),
                            [&](int i) { return near[static_cast<size_t>(original.element[static_cast<size_t>(i)])]; });
@@ -499,8 +535,9 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         const bool past = cache.pastVertex[static_cast<size_t>(v[0])] || cache.pastVertex[static_cast<size_t>(v[1])] ||
                           cache.pastVertex[static_cast<size_t>(v[2])];
         if (past && (touchesCut || nearCut(v))) {
+            if (piece.empty()) piece = pieceLabels(m);
             splitPastBoundary(
-                m, cache, original, t, [&](int g, const Eigen::Vector4d& w) { return vertex(0, g, w, false); },
+                m, cache, original, t, piece, [&](int g, const Eigen::Vector4d& w) { return vertex(0, g, w, false); },
                 [&](int a, int b2, int c2) {
                     tris.emplace_back(a, b2, c2);
                     cutId.push_back(-1);

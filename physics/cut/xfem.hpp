@@ -252,10 +252,12 @@ private:
     int carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes, const Eigen::Vector4d& at,
                       int& carrierParent) const;
     // Triangle t of a surface with corners past the tet boundary (a visual one), split by the cuts
-    // near it; each cell corner rides an element on the cell's side. addVertex(element, weights in
+    // near it; each cell corner rides an element on the cell's side and in one piece (piece: a
+    // label per element, equal within a connected piece). addVertex(element, weights in
     // its parent) gives a vertex index, addTriangle(a, b, c) draws.
     struct SplitCache;
     void splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
+                           const std::vector<int>& piece,
                            const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
                            const std::function<void(int, int, int)>& addTriangle) const;
 
