@@ -8,7 +8,6 @@
 #include "sim/tetra.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
-#include "util/cpu_load.hpp"
 #include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
@@ -111,76 +110,6 @@ void checkStepBudget(const SceneDef& sc, double dt, int elements) {
                              kOneCoreTetSteps) +
                          "; raise integrator.max_steps to run it");
 }
-
-// ---- threads ----
-
-// Chooses between all cores and one by measuring: on a machine whose other cores are busy, a
-// parallel step waits at every barrier for a descheduled thread and can be several times slower
-// than a serial one (BENCHMARKS.md, step). The two counts take turns in chunks of steps (a step's
-// cost drifts as the body deforms, so back-to-back windows would be biased) until each has run
-// kMinSteps steps and kWindowSeconds have passed, or sooner when one is over kClearLoss times
-// slower per step; all cores must win by kMargin (one thread is the choice that cannot collapse).
-// The winner is then held until the time the measurement lost (the loser's steps at the
-// difference per step) is at most kCost of the time held, and at least kHoldFactor times the
-// measured steps: the turns cost at most about kCost against always running the better count.
-// Results do not depend on the count (the force stage is bitwise the same on any number of threads).
-struct Simulation::ThreadTuner {
-    static constexpr double kWindowSeconds = 0.03, kMargin = 0.9, kClearLoss = 2, kCost = 0.04;
-    static constexpr long kChunk = 16, kMinSteps = 64, kHoldFactor = 30;
-    static constexpr int kSettle = 2;  // steps after a switch that are not timed (threads waking up)
-    int cores = 2;
-    int many = 2;  // the cores the other processes leave free
-    int current = 1;
-    bool measuring = true;
-    long inChunk = 0, hold = 0, held = 0;
-    int settle = 0;
-    long steps[2] = {0, 0};  // timed steps on one thread [0] and on `many` [1]
-    double seconds[2] = {0, 0};
-    OtherProcessesLoad others;
-
-    explicit ThreadTuner(int n) : cores(n), many(n) { setThreads(1); }
-    void use(int n) {
-        if (n != current) settle = kSettle;
-        current = n;
-        setThreads(n);
-    }
-    void after(double stepSeconds) {
-        if (!measuring) {
-            if (++held < hold) return;
-            held = 0;
-            // A core the other processes kept more than half busy over the hold is not ours: a
-            // parallel step waits for its descheduled thread. With no second core free, one
-            // thread is held again without measuring (each turn on both cores cost a busy
-            // machine about twice a step).
-            const double load = others.sample();
-            many = load > 0.5 ? std::max(1, cores - static_cast<int>(std::ceil(load - 0.5))) : cores;
-            if (many == 1) return use(1);
-            measuring = true, inChunk = 0, steps[0] = steps[1] = 0, seconds[0] = seconds[1] = 0;
-            return;
-        }
-        if (settle > 0) {
-            --settle;
-            return;
-        }
-        const int k = current == 1 ? 0 : 1;
-        ++steps[k];
-        seconds[k] += stepSeconds;
-        if (++inChunk < kChunk) return;
-        inChunk = 0;
-        if (steps[0] == 0 || steps[1] == 0) return use(current == 1 ? many : 1);
-        const double per[2] = {seconds[0] / double(steps[0]), seconds[1] / double(steps[1])};
-        const bool clear = per[1] > kClearLoss * per[0] || per[0] > kClearLoss * per[1];
-        if (!clear && !(steps[0] >= kMinSteps && steps[1] >= kMinSteps && seconds[0] + seconds[1] >= kWindowSeconds))
-            return use(current == 1 ? many : 1);
-        const int win = per[1] < kMargin * per[0] ? 1 : 0;
-        use(win == 1 ? many : 1);
-        measuring = false;
-        held = 0;
-        others.sample();  // the hold's load is counted from here
-        const double lost = double(steps[1 - win] + kSettle) * std::max(0.0, per[1 - win] - per[win]);
-        hold = std::max(kHoldFactor * (steps[0] + steps[1]), static_cast<long>(lost / (kCost * per[win])));
-    }
-};
 
 // ---- construction ----
 

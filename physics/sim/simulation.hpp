@@ -23,6 +23,7 @@
 #include "sim/record.hpp"
 #include "sim/scene.hpp"
 #include "sim/step_policy.hpp"
+#include "sim/thread_tuner.hpp"
 #include "timestep/analyzer.hpp"
 #include "timestep/cut_response.hpp"
 
@@ -284,7 +285,6 @@ private:
     RunStatus status_ = RunStatus::Running;
     std::string message_;
     RunRecord rec_;
-    struct ThreadTuner;
     std::unique_ptr<ThreadTuner> tuner_;
 };
 
