@@ -14,7 +14,7 @@ namespace cutsim {
 using json = nlohmann::json;
 
 bool Simulation::applyDueCuts() {
-    while (nextCut_ < sc_.cutting.cuts.size() && sc_.cutting.cuts[nextCut_].time <= state_.time + 1e-12) {
+    while (nextCut_ < sc_.cutting.cuts.size() && take_.cutTime(sc_, nextCut_) <= state_.time + 1e-12) {
         const CutDef& cd = sc_.cutting.cuts[nextCut_++];
         beforeTopologyChange();
         const CutResult r = cutter_->cut(model_, state_, cutSurfaceOf(cd));
@@ -35,18 +35,19 @@ CutResult Simulation::cut(const CutSurface& surface, const std::string& key) {
 
 bool Simulation::cutNextScripted() {
     if (nextCut_ >= sc_.cutting.cuts.size() || status_ != RunStatus::Running) return false;
-    CutDef& cd = sc_.cutting.cuts[nextCut_++];
-    cd.time = std::min(cd.time, state_.time);  // when it was made, for a recording
+    const size_t k = nextCut_++;
+    take_.cuts.push_back({k, std::min(take_.cutTime(sc_, k), state_.time)});  // when it was made, for the take
+    const CutDef& cd = sc_.cutting.cuts[k];
     cut(cutSurfaceOf(cd), cd.path);
     return true;
 }
 
 int Simulation::dueNextScripted() {
-    auto& cuts = sc_.cutting.cuts;
+    const size_t n = sc_.cutting.cuts.size();
     size_t k = nextCut_;  // cuts due by now already wait for the next step
-    while (k < cuts.size() && cuts[k].time <= state_.time + 1e-12) ++k;
-    if (k >= cuts.size() || status_ != RunStatus::Running) return -1;
-    cuts[k].time = state_.time;
+    while (k < n && take_.cutTime(sc_, k) <= state_.time + 1e-12) ++k;
+    if (k >= n || status_ != RunStatus::Running) return -1;
+    take_.cuts.push_back({k, state_.time});
     return static_cast<int>(k);
 }
 

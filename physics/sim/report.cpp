@@ -152,17 +152,17 @@ json Simulation::report(const json& extra) const {
     report["wall_time"] = rec_.wallSetup + rec_.wallLoop;
     report["threads"] = threads();
     report["threads_auto"] = tuner_ != nullptr;
-    report["integrator"] = integratorName(sc.integrator);
+    report["integrator"] = integratorName(integrator_);
     report["force_precision"] = sc.precision == ForcePrecision::Single ? "single" : "double";
-    if (sc.integrator == Integrator::BackwardEuler)
+    if (integrator_ == Integrator::BackwardEuler)
         report["implicit"] = {{"solver", implicitSolverName(sc.implicitSolver)},
                               {"cg_iterations_mean", st.steps ? double(rec_.solverIterations) / double(st.steps) : 0.0},
                               {"cg_iterations_max", rec_.solverIterationsMax}};
     report["dt"] = choice_.dt;
-    report["dt_policy"] = {{"mode", sc.dt.fixed ? "fixed" : "fraction"},
-                           {"of", limitOfName(sc.dt.of)},
-                           {"fraction", sc.dt.fraction},
-                           {"on_limit", onLimitName(sc.dt.onLimit)}};
+    report["dt_policy"] = {{"mode", policy_.fixed ? "fixed" : "fraction"},
+                           {"of", limitOfName(policy_.of)},
+                           {"fraction", policy_.fraction},
+                           {"on_limit", onLimitName(policy_.onLimit)}};
     report["dt_limit_action"] = limitActionName(choice_.action);
     report["dt_initial"] = {
         {"exact", initial_.exact}, {"certified", initial_.certified}, {"estimate", initial_.estimate}};

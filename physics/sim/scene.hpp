@@ -208,10 +208,10 @@ struct SceneDef {
 
     nlohmann::json source;  // the scene as read, after --set overrides
 
-    // The step options of this scene's integrator at step h; alphaElem (per-element damping, may
-    // be empty) must outlive their use.
-    StepOptions stepOptions(double h, const Eigen::VectorXd& alphaElem) const {
-        StepOptions so{integrator, h};
+    // The step options of this scene with scheme `integ` (its own, or a driver's) at step h;
+    // alphaElem (per-element damping, may be empty) must outlive their use.
+    StepOptions stepOptions(Integrator integ, double h, const Eigen::VectorXd& alphaElem) const {
+        StepOptions so{integ, h};
         so.minStretch = minStretch;
         so.solver = implicitSolver;
         if (alphaElem.size()) so.alphaElem = &alphaElem;

@@ -113,7 +113,8 @@ void checkStepBudget(const SceneDef& sc, double dt, int elements) {
 
 // ---- construction ----
 
-Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(opt) {
+Simulation::Simulation(const SceneDef& scene, Options opt)
+    : sc_(scene), opt_(opt), integrator_(scene.integrator), policy_(scene.dt) {
     Stopwatch setup;
     if (opt_.threads > 0) setThreads(opt_.threads);
     buildObject();
@@ -149,7 +150,7 @@ Simulation::Simulation(const SceneDef& scene, Options opt) : sc_(scene), opt_(op
     initial_ = limits_;
     {
         CutResponseOptions ro;
-        const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
+        const bool explicitScheme = integrator_ != Integrator::BackwardEuler;
         if (!sc_.hybrid && explicitScheme) ro.dtFloor = sc_.cutting.stepFloor * initial_.exact;
         ro.floorHybrid = sc_.cutting.floorHybrid;
         ro.hybrid = sc_.hybrid;
@@ -433,13 +434,13 @@ void Simulation::improveOnLoad(TetMesh& mesh) {
 // per-element damping and critical elements. Before the first step a refused step is bad input;
 // after a cut it stops the run (exit 4) and the step stays as it was.
 void Simulation::chooseAndApply(bool initial) {
-    const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
-    const StepChoice c = chooseStep(sc_.dt, limits_, explicitScheme);
+    const bool explicitScheme = integrator_ != Integrator::BackwardEuler;
+    const StepChoice c = chooseStep(policy_, limits_, explicitScheme);
     if (c.action == LimitAction::Refused) {
         if (initial)
             throw InputError(sc_.file + ": integrator.dt: " +
                              fmt("step %.6g s is above the exact stable limit %.6g s of %s", c.dt, c.limit,
-                                 integratorName(sc_.integrator)) +
+                                 integratorName(integrator_)) +
                              "; set integrator.dt.on_limit to \"clamp\" or \"damp\" to allow it");
         fail(RunStatus::Refused, fmt("stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
                                      " (integrator.dt.on_limit is \"refuse\")",
@@ -456,7 +457,7 @@ void Simulation::chooseAndApply(bool initial) {
     critical_ = 0;
     const Eigen::VectorXd& r1r = ta_.estimates().r1r;
     for (Eigen::Index e = 0; e < r1r.size(); ++e) critical_ += r1r(e) < sc_.capture.criticalFactor * c.dt;
-    so_ = sc_.stepOptions(c.dt, alphaElem_);
+    so_ = sc_.stepOptions(integrator_, c.dt, alphaElem_);
 }
 
 void Simulation::setupContact() {
@@ -465,7 +466,7 @@ void Simulation::setupContact() {
     // this step stable (contact/contact.hpp stableStiffness).
     if (sc_.tools.empty() && sc_.colliders.empty() && !sc_.pieceContact) return;
     const double dt = choice_.dt;
-    const bool explicitScheme = sc_.integrator != Integrator::BackwardEuler;
+    const bool explicitScheme = integrator_ != Integrator::BackwardEuler;
     const bool penalty = sc_.contactModel == ContactModel::Penalty;
     contact_ = std::make_unique<ContactWorld>(sc_.tools, sc_.colliders);
     contact_->setPieceContact(sc_.pieceContact && !penalty, sc_.pieceFriction);
@@ -744,17 +745,8 @@ void Simulation::sampleEnergy() {
 void Simulation::holdTool(int i, const Eigen::Vector3d& position,
                           const std::optional<Eigen::Quaterniond>& orientation) {
     if (!contact_ || i < 0 || i >= static_cast<int>(contact_->tools().size())) return;
-    ToolDef& t = contact_->tools()[static_cast<size_t>(i)];
-    // The pose now stays what the last step saw; the new one starts one tick of time later. The
-    // keys before now stay, so the tool's keys are the path it took (what a recording writes).
-    const ToolKey now = toolKeyAt(t, state_.time);
-    ToolKey held = now;
-    held.time = std::nextafter(state_.time, std::numeric_limits<double>::infinity());
-    held.pose.position = position;
-    if (orientation) held.pose.orientation = orientation->normalized();
-    std::erase_if(t.keys, [&](const ToolKey& k) { return k.time >= now.time; });
-    t.keys.push_back(now);
-    t.keys.push_back(held);
+    holdToolKeys(contact_->tools()[static_cast<size_t>(i)], state_.time, position, orientation);
+    take_.holds.push_back({i, state_.time, position, orientation});
 }
 
 std::string Simulation::setPolicy(Integrator integrator, const StepPolicy& policy) {
@@ -764,8 +756,8 @@ std::string Simulation::setPolicy(Integrator integrator, const StepPolicy& polic
     if (c.action == LimitAction::Refused)
         return fmt("step %.6g s is above the exact stable limit %.6g s of %s (integrator.dt.on_limit is \"refuse\")",
                    c.dt, c.limit, integratorName(integrator));
-    sc_.integrator = integrator;
-    sc_.dt = policy;
+    integrator_ = integrator;
+    policy_ = policy;
     chooseAndApply(false);
     stepper_.reset();
     return {};

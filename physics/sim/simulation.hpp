@@ -23,6 +23,7 @@
 #include "sim/record.hpp"
 #include "sim/scene.hpp"
 #include "sim/step_policy.hpp"
+#include "sim/take_log.hpp"
 #include "sim/thread_tuner.hpp"
 #include "timestep/analyzer.hpp"
 #include "timestep/cut_response.hpp"
@@ -115,14 +116,14 @@ public:
     int dueNextScripted();
 
     // Interactive control: hold tool i at `position` from just after now on. Its keys become the
-    // pose now (toolKeyAt) and the held pose one tick of time later, so the step that ends now
-    // and the next one see the tool as a recording of these keys replays it.
+    // pose now (toolKeyAt) and the held pose one tick of time later (holdToolKeys), so the step
+    // that ends now and the next one see the tool as the take (takeLog) replays it.
     // With an orientation (local -> world, normalised) the held pose turns too; without, it keeps
     // the orientation the tool has now.
     void holdTool(int i, const Eigen::Vector3d& position,
                   const std::optional<Eigen::Quaterniond>& orientation = std::nullopt);
-    // A new scheme or policy; returns an empty string when accepted, else why it was refused
-    // (nothing changes then).
+    // A new scheme or policy (the scene stays as read); returns an empty string when accepted, else
+    // why it was refused (nothing changes then).
     std::string setPolicy(Integrator integrator, const StepPolicy& policy);
 
     // Called just before anything may change the topology (a scripted cut, a blade sweep, a
@@ -132,7 +133,7 @@ public:
     void setBeforeTopologyChange(std::function<void()> hook) { beforeTopologyChange_ = std::move(hook); }
 
     // ---- what the drivers read ----
-    const SceneDef& scene() const { return sc_; }
+    const SceneDef& scene() const { return sc_; }  // as read: a driver's policy and cuts are not in it
     const Model& model() const { return model_; }
     const State& state() const { return state_; }
     const TimestepAnalyzer& analyzer() const { return ta_; }
@@ -184,6 +185,8 @@ public:
     int topologyVersion() const { return topologyVersion_; }
     size_t scriptedCutsDone() const { return nextCut_; }
     int threads() const;
+    // What drivers did as the run ran (holdTool, cutNextScripted, dueNextScripted), for the take.
+    const TakeLog& takeLog() const { return take_; }
 
     // The report of the run so far (report.json); `extra` is merged in at the top level.
     nlohmann::json report(const nlohmann::json& extra = nlohmann::json::object()) const;
@@ -221,6 +224,8 @@ private:
 
     SceneDef sc_;
     Options opt_;
+    Integrator integrator_;  // the scene's, or a driver's (setPolicy)
+    StepPolicy policy_;
     Model model_;
     State state_;
     Stepper stepper_;
@@ -285,6 +290,7 @@ private:
     RunStatus status_ = RunStatus::Running;
     std::string message_;
     RunRecord rec_;
+    TakeLog take_;
     std::unique_ptr<ThreadTuner> tuner_;
 };
 

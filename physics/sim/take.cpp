@@ -1,6 +1,8 @@
 #include "sim/take.hpp"
 
 #include <filesystem>
+#include <vector>
+#include <limits>
 
 namespace cutsim {
 
@@ -33,6 +35,18 @@ void addCameraKey(std::vector<CameraKey>& keys, const CameraKey& previous, const
         keys.push_back(now);
 }
 
+void holdToolKeys(ToolDef& t, double now, const Eigen::Vector3d& position,
+                  const std::optional<Eigen::Quaterniond>& orientation) {
+    const ToolKey at = toolKeyAt(t, now);
+    ToolKey held = at;
+    held.time = std::nextafter(now, std::numeric_limits<double>::infinity());
+    held.pose.position = position;
+    if (orientation) held.pose.orientation = orientation->normalized();
+    std::erase_if(t.keys, [&](const ToolKey& k) { return k.time >= at.time; });
+    t.keys.push_back(at);
+    t.keys.push_back(held);
+}
+
 json takeScene(const Simulation& sim, const std::string& outFile, const std::vector<CameraKey>* camera) {
     const SceneDef& sc = sim.scene();
     json j = sc.source;
@@ -48,8 +62,11 @@ json takeScene(const Simulation& sim, const std::string& outFile, const std::vec
         if (o.contains("visual") && o["visual"].is_object() && o["visual"].contains("path"))
             o["visual"]["path"] = relocate(o["visual"]["path"].get<std::string>(), sc.dir, outDir);
     }
-    if (sim.contact() && j.contains("tools")) {
-        const auto& tools = sim.contact()->tools();
+    const TakeLog& log = sim.takeLog();
+    if (j.contains("tools")) {
+        std::vector<ToolDef> tools = sc.tools;  // their keys as the holds left them
+        for (const TakeLog::Hold& h : log.holds)
+            holdToolKeys(tools[static_cast<size_t>(h.tool)], h.time, h.position, h.orientation);
         for (size_t i = 0; i < tools.size() && i < j["tools"].size(); ++i) {
             json& t = j["tools"][i];
             if (t.contains("obj") && t["obj"].is_string())
@@ -69,7 +86,7 @@ json takeScene(const Simulation& sim, const std::string& outFile, const std::vec
     const auto& cuts = sc.cutting.cuts;
     if (!cuts.empty() && j.contains("cutting") && j["cutting"].contains("cuts"))
         for (size_t k = 0; k < cuts.size() && k < j["cutting"]["cuts"].size(); ++k)
-            j["cutting"]["cuts"][k]["time"] = cuts[k].time;
+            j["cutting"]["cuts"][k]["time"] = log.cutTime(sc, k);
     if (camera && !camera->empty()) {
         json keys = json::array();
         for (const CameraKey& c : *camera)

@@ -1,6 +1,7 @@
 // A take: a live run (cutsim view) written back as a scene, so `cutsim run` replays it offscreen.
-// The tools' keys are the paths they took (Simulation::holdTool keeps them), the scripted cuts
-// carry the times they were made, and the camera keys are the driver's, when it gives them.
+// The scene with what the driver did applied (Simulation::takeLog): the tools' keys are the paths
+// they took, the scripted cuts carry the times they were made, and the camera keys are the
+// driver's, when it gives them.
 #pragma once
 
 #include "sim/simulation.hpp"
