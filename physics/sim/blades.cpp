@@ -1,5 +1,5 @@
-// The blade stage of Simulation::step (sim/simulation.hpp): blade sweeps through the tissue.
-#include "sim/simulation.hpp"
+// The blade part of a step's cut stage (sim/stages.hpp): blade sweeps through the tissue.
+#include "sim/stages.hpp"
 
 #include <Eigen/Core>
 
@@ -10,6 +10,8 @@
 namespace cutsim {
 
 using json = nlohmann::json;
+
+namespace {
 
 // Blade sweeps of the step [t, t + dt]: each blade's edge moves from where the last step left it
 // (a dragged blade cuts along the path it was dragged) to its pose at t + dt, and CutEngine::sweep
@@ -22,19 +24,20 @@ using json = nlohmann::json;
 // lie inside the blade's thickness, and a closed slot would push them out sideways by up to half
 // of it in one step (a severed lobe sliding off the blade was thrown). A new stroke in the same
 // plane adds its area; the slot closes once the blade leaves the plane.
-void Simulation::syncSlot(int i) {
-    if (!sc_.cutting.bladeSlot) return;
-    if (slots_.size() < sc_.tools.size()) slots_.resize(sc_.tools.size()), slotsBefore_.resize(sc_.tools.size());
-    ContactWorld::Slot& slot = slots_[static_cast<size_t>(i)];
-    const CutSurface* cs = stroke_ == i ? cutter_->strokeSurface() : nullptr;
+void syncSlot(const SimSetup& s, SimData& d, int i) {
+    const SceneDef& sc = s.scene;
+    if (!sc.cutting.bladeSlot) return;
+    if (d.slots.size() < sc.tools.size()) d.slots.resize(sc.tools.size()), d.slotsBefore.resize(sc.tools.size());
+    ContactWorld::Slot& slot = d.slots[static_cast<size_t>(i)];
+    const CutSurface* cs = d.stroke == i ? d.cutter->strokeSurface() : nullptr;
     if (!cs) {  // between strokes: kept (see keepSlots); the next stroke in its plane adds to it
-        slotsBefore_[static_cast<size_t>(i)] = slot;
+        d.slotsBefore[static_cast<size_t>(i)] = slot;
         return;
     }
-    const ContactWorld::Slot& before = slotsBefore_[static_cast<size_t>(i)];
+    const ContactWorld::Slot& before = d.slotsBefore[static_cast<size_t>(i)];
     Eigen::Vector3d u, v;
     planeAxes(cs->normal, u, v);
-    const double halfWidth = 0.55 * sc_.tools[static_cast<size_t>(i)].size.z();
+    const double halfWidth = 0.55 * sc.tools[static_cast<size_t>(i)].size.z();
     const bool samePlane = !before.polygons.empty() && std::abs(before.u.cross(before.v).dot(cs->normal)) > 1 - 1e-9 &&
                            std::abs(cs->normal.dot(cs->point - before.origin)) <= 1e-3 * halfWidth;
     slot.origin = cs->point, slot.u = u, slot.v = v, slot.halfWidth = halfWidth;
@@ -48,130 +51,145 @@ void Simulation::syncSlot(int i) {
             }
             slot.polygons.push_back(std::move(q));
         }
-    contact_->setSlot(i, slot);
+    d.contact->setSlot(i, slot);
 }
 
 // Closes the slot of each blade that is not cutting and has left its slot's plane at time t.
-void Simulation::keepSlots(double t) {
-    for (size_t b = 0; b < bladeTools_.size() && sc_.cutting.bladeSlot; ++b) {
-        const int i = bladeTools_[b];
-        if (stroke_ == i || static_cast<size_t>(i) >= slots_.size() || slots_[static_cast<size_t>(i)].polygons.empty())
-            continue;
-        ContactWorld::Slot& slot = slots_[static_cast<size_t>(i)];
-        const Pose pose = toolPose(contact_->tools()[static_cast<size_t>(i)], t);
+void keepSlots(const SimSetup& s, SimData& d, double t) {
+    for (size_t b = 0; b < s.bladeTools.size() && s.scene.cutting.bladeSlot; ++b) {
+        const int i = s.bladeTools[b];
+        const auto k = static_cast<size_t>(i);
+        if (d.stroke == i || k >= d.slots.size() || d.slots[k].polygons.empty()) continue;
+        ContactWorld::Slot& slot = d.slots[k];
+        const Pose pose = toolPose(d.contact->tools()[k], t);
         const Eigen::Vector3d n = slot.u.cross(slot.v), nb = pose.orientation * Eigen::Vector3d::UnitZ();
         if (std::abs(n.dot(nb)) > 1 - 1e-6 && std::abs(n.dot(pose.position - slot.origin)) <= 0.1 * slot.halfWidth)
             continue;
         slot = {};
-        slotsBefore_[static_cast<size_t>(i)] = {};
-        contact_->setSlot(i, slot);
+        d.slotsBefore[k] = {};
+        d.contact->setSlot(i, slot);
     }
 }
 
-// The open stroke ends: the slot closes, the exact step its blade steps deferred is solved (the
-// step may grow back to its fraction of it) and the stroke's costs go to the report.
-void Simulation::endStroke() {
-    if (stroke_ < 0) return;
-    const int was = stroke_;
-    cutter_->endStroke();
-    if (tough_) tough_->endStroke();
-    stroke_ = -1;
-    syncSlot(was);
-    refreshSurface();
-    const double dtDuring = dt();
-    const StageTimes before = rec_.stages;
-    settleExact();
-    const StrokeLog& L = strokeLog_;
-    if (L.latency.empty()) return;  // the blade met elements but split none
+// report.json's entry for the stroke that ended: its costs by stage and its cut latencies.
+json strokeEntry(const SimData& d, int tool, double dtDuring, const StageTimes& before) {
+    const StrokeLog& L = d.strokeLog;
+    const RunRecord& rec = d.record;
     json stages = json::object();
     for (Stage st : {Stage::Cuts, Stage::Timestep, Stage::Contact, Stage::Forces, Stage::Integrate})
-        stages[stageName(st)] = rec_.stages[st] - L.stages[st];
+        stages[stageName(st)] = rec.stages[st] - L.stages[st];
     std::vector<double> lat = L.latency;
     std::sort(lat.begin(), lat.end());
     auto pct = [&](double q) {
         return lat.empty() ? 0.0 : lat[std::min(lat.size() - 1, static_cast<size_t>(q * double(lat.size())))];
     };
-    rec_.strokes.push_back(
-        {{"tool", was},
-         {"start", L.start},
-         {"end", state_.time},
-         {"steps", state_.steps - L.steps},
-         {"blade_steps", lat.size()},
-         {"stages", stages},
-         {"latency", {{"median", pct(0.5)}, {"p99", pct(0.99)}, {"max", lat.empty() ? 0.0 : lat.back()}}},
-         {"dt_during", dtDuring},
-         {"dt_after", dt()},
-         {"exact_after", std::isnan(limits_.exact) ? json(nullptr) : json(limits_.exact)},
-         {"exact_seconds", rec_.stages[Stage::Timestep] - before[Stage::Timestep]},
-         {"pieces", pieceVolumes(model_).size()}});
+    return {{"tool", tool},
+            {"start", L.start},
+            {"end", d.state.time},
+            {"steps", d.state.steps - L.steps},
+            {"blade_steps", lat.size()},
+            {"stages", stages},
+            {"latency", {{"median", pct(0.5)}, {"p99", pct(0.99)}, {"max", lat.empty() ? 0.0 : lat.back()}}},
+            {"dt_during", dtDuring},
+            {"dt_after", d.choice.dt},
+            {"exact_after", std::isnan(d.limits.exact) ? json(nullptr) : json(d.limits.exact)},
+            {"exact_seconds", rec.stages[Stage::Timestep] - before[Stage::Timestep]},
+            {"pieces", pieceVolumes(d.model).size()}};
 }
 
-bool Simulation::applyBlades() {
-    if (!bladePhase_) return true;
-    const double t0 = state_.time, t1 = state_.time + choice_.dt;
-    keepSlots(t1);
-    if (surfaceStale_ && state_.time >= surfaceTime_ + kSurfaceRefresh) refreshSurface();
-    // A blade whose swept box misses the object's box cannot cut: then no tree is refitted. The
-    // box is widened by three margins, past any fattened element box the tree could hold, so a
-    // blade that would have met one is still queried.
-    const Eigen::Vector3d pad = Eigen::Vector3d::Constant(3 * bladeMargin_);
-    const Eigen::Vector3d objLo = state_.x.rowwise().minCoeff() - pad, objHi = state_.x.rowwise().maxCoeff() + pad;
-    bool anyNear = false;
-    for (size_t b = 0; b < bladeTools_.size() && !anyNear; ++b) {
-        const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
+// Whether any blade's swept box over [t0, t1] (from where its edge was) meets the object's box.
+// The box is widened by three margins, past any fattened element box the tree could hold, so a
+// blade that would have met one is still queried.
+bool bladeNearObject(const SimSetup& s, const SimData& d, double t0, double t1) {
+    const Eigen::Vector3d pad = Eigen::Vector3d::Constant(3 * s.bladeMargin);
+    const Eigen::Vector3d objLo = d.state.x.rowwise().minCoeff() - pad, objHi = d.state.x.rowwise().maxCoeff() + pad;
+    for (size_t b = 0; b < s.bladeTools.size(); ++b) {
+        const ToolDef& tool = d.contact->tools()[static_cast<size_t>(s.bladeTools[b])];
         Eigen::Vector3d lo, hi;
         sweptAabb(tool, t0, t1, lo, hi);
-        const BladeEdge& from = lastEdge_[b];
+        const BladeEdge& from = d.lastEdge[b];
         if (!(from.a == from.b))
             for (const Eigen::Vector3d& p : {from.a, from.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-        anyNear = (lo.array() <= objHi.array()).all() && (hi.array() >= objLo.array()).all();
+        if ((lo.array() <= objHi.array()).all() && (hi.array() >= objLo.array()).all()) return true;
     }
-    if (!anyNear) {
-        for (size_t b = 0; b < bladeTools_.size(); ++b) {
-            const ToolDef& tool = contact_->tools()[static_cast<size_t>(bladeTools_[b])];
-            bladeEdge(tool, t1, lastEdge_[b].a, lastEdge_[b].b);  // where the next step starts from
-        }
-        endStroke();
+    return false;
+}
+
+// Blade b's sweep of the step [t0, t1]; false when a cut stopped the run.
+bool sweepBlade(const SimSetup& s, SimData& d, size_t b, double t0, double t1) {
+    const int i = s.bladeTools[b];
+    const ToolDef& tool = d.contact->tools()[static_cast<size_t>(i)];
+    BladeEdge from = d.lastEdge[b], to;
+    if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
+    bladeEdge(tool, t1, to.a, to.b);
+    d.lastEdge[b] = to;
+    // the elements the edge's swept quad may meet (the engine reaches further through their
+    // face neighbours): the blade's body only presses, so its box would offer many more
+    Eigen::Vector3d lo = from.a, hi = from.a;
+    for (const Eigen::Vector3d& p : {from.b, to.a, to.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    d.bladePhase->query(lo, hi, d.candidates);
+    if (d.candidates.empty()) {
+        if (d.stroke == i) endStroke(s, d);
         return true;
     }
-    bladePhase_->refit(model_.tets, state_.x);
-    for (size_t b = 0; b < bladeTools_.size(); ++b) {
-        const int i = bladeTools_[b];
-        const ToolDef& tool = contact_->tools()[static_cast<size_t>(i)];
-        BladeEdge from = lastEdge_[b], to;
-        if (from.a == from.b) bladeEdge(tool, t0, from.a, from.b);  // first step
-        bladeEdge(tool, t1, to.a, to.b);
-        lastEdge_[b] = to;
-        // the elements the edge's swept quad may meet (the engine reaches further through their
-        // face neighbours): the blade's body only presses, so its box would offer many more
-        Eigen::Vector3d lo = from.a, hi = from.a;
-        for (const Eigen::Vector3d& p : {from.b, to.a, to.b}) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
-        bladePhase_->query(lo, hi, candidates_);
-        if (candidates_.empty()) {
-            if (stroke_ == i) endStroke();
-            continue;
-        }
-        if (stroke_ != i) {
-            endStroke();
-            stroke_ = i;
-            strokeLog_ = {i, state_.time, rec_.stages, state_.steps, {}};
-        }
-        if (tough_ && !toughSweep(tool, t0, from, to)) continue;  // the front holds: nothing to cut
-        beforeTopologyChange();  // a sweep may split elements (r.changed() tells after it)
-        const CutResult r = cutter_->sweep(model_, state_, from, to, &candidates_);
-        if (r.cut >= 0) contact_->ignoreCut(i, r.cut);  // the blade slides in its own cut
-        syncSlot(i);
-        if (!r.changed()) {
-            if (tough_) reseedFront(tool, t0);
-            continue;
-        }
-        bladePhase_->refit(model_.tets, state_.x);  // the new elements, for the next blade
-        if (tough_) reseedFront(tool, t0);
-        ++rec_.bladeCutSteps;
-        respondToCut(r, "tools[" + std::to_string(i) + "]", true);
-        strokeLog_.latency.push_back(rec_.cuts.back()["latency"].get<double>());
-        if (status_ != RunStatus::Running) return false;
+    if (d.stroke != i) {
+        endStroke(s, d);
+        d.stroke = i;
+        d.strokeLog = {i, d.state.time, d.record.stages, d.state.steps, {}};
     }
+    if (d.tough && !toughSweep(d, tool, t0, from, to)) return true;  // the front holds: nothing to cut
+    beforeTopologyChange(d);  // a sweep may split elements (r.changed() tells after it)
+    const CutResult r = d.cutter->sweep(d.model, d.state, from, to, &d.candidates);
+    if (r.cut >= 0) d.contact->ignoreCut(i, r.cut);  // the blade slides in its own cut
+    syncSlot(s, d, i);
+    if (!r.changed()) {
+        if (d.tough) reseedFront(d, tool, t0);
+        return true;
+    }
+    d.bladePhase->refit(d.model.tets, d.state.x);  // the new elements, for the next blade
+    if (d.tough) reseedFront(d, tool, t0);
+    ++d.record.bladeCutSteps;
+    respondToCut(s, d, r, "tools[" + std::to_string(i) + "]", true);
+    d.strokeLog.latency.push_back(d.record.cuts.back()["latency"].get<double>());
+    return d.status == RunStatus::Running;
+}
+
+}  // namespace
+
+// The open stroke ends: the slot closes, the exact step its blade steps deferred is solved (the
+// step may grow back to its fraction of it) and the stroke's costs go to the report.
+void endStroke(const SimSetup& s, SimData& d) {
+    if (d.stroke < 0) return;
+    const int was = d.stroke;
+    d.cutter->endStroke();
+    if (d.tough) d.tough->endStroke();
+    d.stroke = -1;
+    syncSlot(s, d, was);
+    refreshSurface(s, d);
+    const double dtDuring = d.choice.dt;
+    const StageTimes before = d.record.stages;
+    settleExact(s, d);
+    if (d.strokeLog.latency.empty()) return;  // the blade met elements but split none
+    d.record.strokes.push_back(strokeEntry(d, was, dtDuring, before));
+}
+
+bool applyBlades(const SimSetup& s, SimData& d) {
+    if (!d.bladePhase) return true;
+    const double t0 = d.state.time, t1 = d.state.time + d.choice.dt;
+    keepSlots(s, d, t1);
+    if (d.surfaceStale && d.state.time >= d.surfaceTime + kSurfaceRefresh) refreshSurface(s, d);
+    // A blade whose swept box misses the object's box cannot cut: then no tree is refitted.
+    if (!bladeNearObject(s, d, t0, t1)) {
+        for (size_t b = 0; b < s.bladeTools.size(); ++b) {
+            const ToolDef& tool = d.contact->tools()[static_cast<size_t>(s.bladeTools[b])];
+            bladeEdge(tool, t1, d.lastEdge[b].a, d.lastEdge[b].b);  // where the next step starts from
+        }
+        endStroke(s, d);
+        return true;
+    }
+    d.bladePhase->refit(d.model.tets, d.state.x);
+    for (size_t b = 0; b < s.bladeTools.size(); ++b)
+        if (!sweepBlade(s, d, b, t0, t1)) return false;
     return true;
 }
 

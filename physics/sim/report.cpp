@@ -1,7 +1,9 @@
 // The run's record and report.json (sim/record.hpp, Simulation::report), and cutting.compare.
 #include "sim/simulation.hpp"
+#include "sim/stages.hpp"
 
 #include "cut/baselines.hpp"
+#include "fem/forces.hpp"
 #include "util/stopwatch.hpp"
 
 #include <cstdio>
@@ -55,18 +57,21 @@ json compareCutMethods(const SceneDef& sc, const TetMesh& rest) {
 }  // namespace
 
 int Simulation::inputNode(int n) const {
-    const int o = cutter_ ? cutter_->originalNode(n) : n;
-    return inputNode_.empty() ? o : inputNode_[static_cast<size_t>(o)];
+    const SimData& d = *data_;
+    const int o = d.cutter ? d.cutter->originalNode(n) : n;
+    return setup_->inputNode.empty() ? o : setup_->inputNode[static_cast<size_t>(o)];
 }
 
 int Simulation::inputElement(int e) const {
-    const int o = cutter_ ? cutter_->parentOf(e) : e;
-    return inputElement_.empty() ? o : inputElement_[static_cast<size_t>(o)];
+    const SimData& d = *data_;
+    const int o = d.cutter ? d.cutter->parentOf(e) : e;
+    return setup_->inputElement.empty() ? o : setup_->inputElement[static_cast<size_t>(o)];
 }
 
 void Simulation::compareCutMethods() {
-    if (!sc_.cutting.compare.empty() && status_ == RunStatus::Finished)
-        rec_.compare = cutsim::compareCutMethods(sc_, rest_);
+    const SimSetup& s = *setup_;
+    if (!s.scene.cutting.compare.empty() && data_->status == RunStatus::Finished)
+        data_->record.compare = cutsim::compareCutMethods(s.scene, s.rest);
 }
 
 void ToolRecord::add(double t, double dt, const Eigen::Vector3d& f, double depth, int contacts) {
@@ -136,123 +141,164 @@ json StageTimes::toJson() const {
     return j;
 }
 
-json Simulation::report(const json& extra) const {
-    const SceneDef& sc = sc_;
-    const State& st = state_;
-    const bool exactKnown = !std::isnan(limits_.exact);
-    json report;
-    report["scene"] = sc.file;
-    report["name"] = sc.name;
-    report["status"] = status_ == RunStatus::Finished ? std::string("ok")
-                       : message_.empty()             ? std::string(runStatusName(status_))
-                                                      : message_;
-    report["warnings"] = rec_.warnings.toJson();
-    report["steps"] = st.steps;
-    report["sim_time"] = st.time;
-    report["wall_time"] = rec_.wallSetup + rec_.wallLoop;
-    report["threads"] = threads();
-    report["threads_auto"] = tuner_ != nullptr;
-    report["integrator"] = integratorName(integrator_);
-    report["force_precision"] = sc.precision == ForcePrecision::Single ? "single" : "double";
-    if (integrator_ == Integrator::BackwardEuler)
-        report["implicit"] = {{"solver", implicitSolverName(sc.implicitSolver)},
-                              {"cg_iterations_mean", st.steps ? double(rec_.solverIterations) / double(st.steps) : 0.0},
-                              {"cg_iterations_max", rec_.solverIterationsMax}};
-    report["dt"] = choice_.dt;
-    report["dt_policy"] = {{"mode", policy_.fixed ? "fixed" : "fraction"},
-                           {"of", limitOfName(policy_.of)},
-                           {"fraction", policy_.fraction},
-                           {"on_limit", onLimitName(policy_.onLimit)}};
-    report["dt_limit_action"] = limitActionName(choice_.action);
-    report["dt_initial"] = {
-        {"exact", initial_.exact}, {"certified", initial_.certified}, {"estimate", initial_.estimate}};
-    report["critical_elements"] = critical_;
-    report["mesh"] = {{"file", !sc.surface.empty()        ? sc.surface
-                               : !sc.tetraSurface.empty() ? sc.tetraSurface
-                               : sc.mesh.empty()          ? std::string("box")
-                                                          : sc.mesh},
-                      {"nodes", rec_.initial.value("nodes", 0)},
-                      {"elements", rec_.initial.value("elements", 0)},
-                      {"fixed_nodes", rec_.initial.value("fixed_nodes", 0)},
-                      {"nodes_final", model_.nodes()},
-                      {"elements_final", model_.elements()},
-                      {"reordered", reordered()}};
-    if (!embedding_.is_null()) report["embedding"] = embedding_;
-    if (!visualReport_.is_null()) report["visual"] = visualReport_;
-    if (!improvement_.is_null()) report["improve"] = improvement_;
-    if (!tetra_.is_null()) report["tetra"] = tetra_;
-    if (!hybrid_.is_null()) {
-        report["hybrid"] = hybrid_;
-        report["hybrid"]["matched_final"] = model_.matchedList.size();
+namespace {
+
+// report.json "tool": the tools and colliders, their contact settings and the force record.
+json toolReport(const SimSetup& s, const SimData& d) {
+    json names = json::array(), k = json::array(), c = json::array();
+    for (const auto& t : d.contact->tools()) {
+        names.push_back(t.name);
+        k.push_back(t.stiffness);
+        c.push_back(t.damping);
     }
-    report["cuts"] = rec_.cuts;
-    report["strokes"] = rec_.strokes;
-    if (bladePhase_)
-        report["blade"] = {{"tools", bladeTools_},
-                           {"cut_steps", rec_.bladeCutSteps},
-                           {"pending", cutter_->pendingElements()},
-                           {"cut_seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Cuts] / double(st.steps) : 0.0}};
-    if (tough_) report["blade"]["toughness"] = toughnessReport();
-    report["dt_final"] = {{"exact", exactKnown ? json(limits_.exact) : json(nullptr)},
-                          {"certified", limits_.certified}};
-    if (!rec_.compare.is_null()) report["compare"] = rec_.compare;
-    const std::vector<double> pieces = pieceVolumes(model_);
-    report["pieces"] = pieces.size();
-    report["piece_volumes"] = pieces;
-    report["mass"] = {{"initial", rec_.initial.value("mass", 0.0)},
-                      {"final", model_.mass.sum()},
-                      {"step_floor_added", rec_.floorMass}};
-    report["energy"] = rec_.energy;
-    report["inverted"] = {{"steps", rec_.invertedSteps},
-                          {"max_elements", rec_.maxInverted},
-                          {"limited_steps", rec_.limitedSteps},
-                          {"max_limited", rec_.maxLimited}};
-    report["checks"] = {
-        {"max_speed", bounds_.maxSpeed},
-        {"max_displacement", bounds_.maxDisplacement},
-        {"energy_growth", energyChecked_ ? json(bounds_.energyGrowth) : json(nullptr)},
-        {"inverted_elements", bounds_.invertedSteps > 0 ? json(bounds_.invertedElements) : json(nullptr)},
-        {"inverted_steps", bounds_.invertedSteps},
-        {"wave_speed", bounds_.waveSpeed},
-        {"size", bounds_.size},
-        {"speed_seen", rec_.maxSpeed},
-        {"displacement_seen", rec_.maxDisplacement}};
-    report["stages"] = rec_.stages.toJson();
-    if (contact_) {
-        json names = json::array(), k = json::array(), c = json::array();
-        for (const auto& t : contact_->tools()) {
-            names.push_back(t.name);
-            k.push_back(t.stiffness);
-            c.push_back(t.damping);
-        }
-        const ToolRecord& tr = rec_.tool;
-        const ContactSettings& cs = contactSettings_;
-        json colliders = json::array();
-        for (const auto& cd : contact_->colliders()) colliders.push_back(cd.name);
-        report["tool"] = {
-            {"names", names},
-            {"model", sc.contactModel == ContactModel::Projection ? "projection" : "penalty"},
+    const ToolRecord& tr = d.record.tool;
+    const ContactSettings& cs = s.contact;
+    json colliders = json::array();
+    for (const auto& cd : d.contact->colliders()) colliders.push_back(cd.name);
+    const long steps = d.state.steps;
+    return {{"names", names},
+            {"model", s.scene.contactModel == ContactModel::Projection ? "projection" : "penalty"},
             {"colliders", colliders},
             {"max_force", tr.maxForce},
             {"contact_steps", tr.contactSteps},
             {"max_depth", tr.maxDepth},
-            {"final_depth", contact_->last().maxDepth},
+            {"final_depth", d.contact->last().maxDepth},
             {"final_force", {tr.force.x(), tr.force.y(), tr.force.z()}},
             {"stiffness", k},
             {"damping", c},
             {"mass_ref", cs.massRef},
             {"stiffness_limit", std::isfinite(cs.stiffnessLimit) ? json(cs.stiffnessLimit) : json(nullptr)},
             {"stiffness_clamped", cs.clamped},
-            {"contact_points", contact_->points().points()},
-            {"seconds_per_step", st.steps > 0 ? rec_.stages[Stage::Contact] / double(st.steps) : 0.0},
-            {"force_rate", sc.forceRate},
+            {"contact_points", d.contact->points().points()},
+            {"seconds_per_step", steps > 0 ? d.record.stages[Stage::Contact] / double(steps) : 0.0},
+            {"force_rate", s.scene.forceRate},
             {"series", {{"time", tr.time}, {"fx", tr.fx}, {"fy", tr.fy}, {"fz", tr.fz}, {"max", tr.blockMaxima}}}};
+}
+
+// The run's head: status, steps, time, threads, the scheme and the step.
+void addRunHead(json& report, const SimSetup& s, const SimData& d) {
+    const SceneDef& sc = s.scene;
+    const RunRecord& rec = d.record;
+    const long steps = d.state.steps;
+    report["scene"] = sc.file;
+    report["name"] = sc.name;
+    report["status"] = d.status == RunStatus::Finished ? std::string("ok")
+                       : d.message.empty()             ? std::string(runStatusName(d.status))
+                                                       : d.message;
+    report["warnings"] = rec.warnings.toJson();
+    report["steps"] = steps;
+    report["sim_time"] = d.state.time;
+    report["wall_time"] = rec.wallSetup + rec.wallLoop;
+    report["threads"] = runThreads(d);
+    report["threads_auto"] = d.tuner != nullptr;
+    report["integrator"] = integratorName(d.integrator);
+    report["force_precision"] = sc.precision == ForcePrecision::Single ? "single" : "double";
+    if (d.integrator == Integrator::BackwardEuler)
+        report["implicit"] = {{"solver", implicitSolverName(sc.implicitSolver)},
+                              {"cg_iterations_mean", steps ? double(rec.solverIterations) / double(steps) : 0.0},
+                              {"cg_iterations_max", rec.solverIterationsMax}};
+    report["dt"] = d.choice.dt;
+    report["dt_policy"] = {{"mode", d.policy.fixed ? "fixed" : "fraction"},
+                           {"of", limitOfName(d.policy.of)},
+                           {"fraction", d.policy.fraction},
+                           {"on_limit", onLimitName(d.policy.onLimit)}};
+    report["dt_limit_action"] = limitActionName(d.choice.action);
+    report["dt_initial"] = {
+        {"exact", s.initial.exact}, {"certified", s.initial.certified}, {"estimate", s.initial.estimate}};
+    report["critical_elements"] = d.critical;
+}
+
+// The object: its mesh and what the set-up did to it, cuts and strokes, pieces and mass.
+void addObject(json& report, const SimSetup& s, const SimData& d) {
+    const SceneDef& sc = s.scene;
+    const RunRecord& rec = d.record;
+    report["mesh"] = {{"file", !sc.surface.empty()        ? sc.surface
+                               : !sc.tetraSurface.empty() ? sc.tetraSurface
+                               : sc.mesh.empty()          ? std::string("box")
+                                                          : sc.mesh},
+                      {"nodes", rec.initial.value("nodes", 0)},
+                      {"elements", rec.initial.value("elements", 0)},
+                      {"fixed_nodes", rec.initial.value("fixed_nodes", 0)},
+                      {"nodes_final", d.model.nodes()},
+                      {"elements_final", d.model.elements()},
+                      {"reordered", !s.inputNode.empty()}};
+    if (!s.embedding.is_null()) report["embedding"] = s.embedding;
+    if (!s.visualReport.is_null()) report["visual"] = s.visualReport;
+    if (!s.improvement.is_null()) report["improve"] = s.improvement;
+    if (!s.tetra.is_null()) report["tetra"] = s.tetra;
+    if (!s.hybrid.is_null()) {
+        report["hybrid"] = s.hybrid;
+        report["hybrid"]["matched_final"] = d.model.matchedList.size();
     }
+    report["cuts"] = rec.cuts;
+    report["strokes"] = rec.strokes;
+    if (d.bladePhase)
+        report["blade"] = {
+            {"tools", s.bladeTools},
+            {"cut_steps", rec.bladeCutSteps},
+            {"pending", d.cutter->pendingElements()},
+            {"cut_seconds_per_step", d.state.steps > 0 ? rec.stages[Stage::Cuts] / double(d.state.steps) : 0.0}};
+    if (d.tough) report["blade"]["toughness"] = toughnessReport(s, d);
+    const bool exactKnown = !std::isnan(d.limits.exact);
+    report["dt_final"] = {{"exact", exactKnown ? json(d.limits.exact) : json(nullptr)},
+                          {"certified", d.limits.certified}};
+    if (!rec.compare.is_null()) report["compare"] = rec.compare;
+    const std::vector<double> pieces = pieceVolumes(d.model);
+    report["pieces"] = pieces.size();
+    report["piece_volumes"] = pieces;
+    report["mass"] = {{"initial", rec.initial.value("mass", 0.0)},
+                      {"final", d.model.mass.sum()},
+                      {"step_floor_added", rec.floorMass}};
+}
+
+// What the checks saw against their bounds.
+void addChecks(json& report, const SimSetup& s, const SimData& d) {
+    const RunRecord& rec = d.record;
+    const DivergenceBounds& b = s.bounds;
+    report["energy"] = rec.energy;
+    report["inverted"] = {{"steps", rec.invertedSteps},
+                          {"max_elements", rec.maxInverted},
+                          {"limited_steps", rec.limitedSteps},
+                          {"max_limited", rec.maxLimited}};
+    report["checks"] = {{"max_speed", b.maxSpeed},
+                        {"max_displacement", b.maxDisplacement},
+                        {"energy_growth", s.energyChecked ? json(b.energyGrowth) : json(nullptr)},
+                        {"inverted_elements", b.invertedSteps > 0 ? json(b.invertedElements) : json(nullptr)},
+                        {"inverted_steps", b.invertedSteps},
+                        {"wave_speed", b.waveSpeed},
+                        {"size", b.size},
+                        {"speed_seen", rec.maxSpeed},
+                        {"displacement_seen", rec.maxDisplacement}};
+}
+
+}  // namespace
+
+std::uint64_t stateHash(const State& st) {
+    std::uint64_t h = 1469598103934665603ull;
+    auto mix = [&](const Eigen::Matrix3Xd& m) {
+        const auto* p = reinterpret_cast<const unsigned char*>(m.data());
+        for (size_t i = 0; i < static_cast<size_t>(m.size()) * sizeof(double); ++i) h = (h ^ p[i]) * 1099511628211ull;
+    };
+    mix(st.x);
+    mix(st.v);
+    return h;
+}
+
+int runThreads(const SimData& d) { return d.tuner ? d.tuner->current : threads(); }
+
+json runReport(const SimSetup& s, const SimData& d, const json& extra) {
+    json report;
+    addRunHead(report, s, d);
+    addObject(report, s, d);
+    addChecks(report, s, d);
+    report["stages"] = d.record.stages.toJson();
+    if (d.contact) report["tool"] = toolReport(s, d);
     char hash[20];
-    std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(stateHash()));
+    std::snprintf(hash, sizeof hash, "%016llx", static_cast<unsigned long long>(stateHash(d.state)));
     report["state_hash"] = hash;
-    report["steps_per_second"] = rec_.wallLoop > 0 ? double(st.steps) / rec_.wallLoop : 0.0;
-    report["real_time_factor"] = rec_.wallLoop > 0 ? st.time / rec_.wallLoop : 0.0;
+    const double loop = d.record.wallLoop;
+    report["steps_per_second"] = loop > 0 ? double(d.state.steps) / loop : 0.0;
+    report["real_time_factor"] = loop > 0 ? d.state.time / loop : 0.0;
     for (auto& [k, v] : extra.items()) report[k] = v;
     return report;
 }

@@ -1,5 +1,7 @@
 // The simulation loop of a scene, one object for every driver (cutsim run, cutsim view, the
-// benchmarks, the tests, the bindings), so that its behaviour is defined once.
+// benchmarks, the tests, the bindings), so that its behaviour is defined once. It holds what the
+// scene compiled into at load (SimSetup, sim/setup.hpp: never changed after) and what the run
+// changes (SimData, sim/data.hpp), and runs the stages (sim/stages.hpp) over them.
 //
 // Simulation::step() runs the stages of one step in this order, each timed into RunRecord::stages:
 //   1. loads      the scene's applied forces into State::fExt
@@ -14,19 +16,8 @@
 //   6. checks     non-finite values, divergence bounds, inverted elements, energy samples
 #pragma once
 
-#include "mesh/broadphase.hpp"
-#include "contact/contact.hpp"
-#include "cut/toughness.hpp"
-#include "cut/xfem.hpp"
-#include "fem/integrate.hpp"
-#include "mesh/embedding.hpp"
-#include "sim/record.hpp"
-#include "sim/scene.hpp"
-#include "sim/step_policy.hpp"
-#include "sim/take_log.hpp"
-#include "sim/thread_tuner.hpp"
-#include "timestep/analyzer.hpp"
-#include "timestep/cut_response.hpp"
+#include "sim/data.hpp"
+#include "sim/setup.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -34,46 +25,8 @@
 #include <memory>
 #include <optional>
 #include <string>
-#include <vector>
 
 namespace cutsim {
-
-// A blade's steps rebuild the surface and its contact points at most this often (and when its
-// stroke ends); in between each drops the contact points of the elements it split [s, simulated].
-inline constexpr double kSurfaceRefresh = 0.01;
-
-// The status of a run (the cutsim program maps it to its exit code: app/exit_code.hpp).
-enum class RunStatus : std::uint8_t { Running, Finished, Diverged, Refused };
-const char* runStatusName(RunStatus s);  // running | ok | diverged | refused
-
-// Bounds outside which a state is not physics but a blow-up (docs/scene-format.md, "checks").
-// Derived from the scene unless it sets them: see divergenceBounds.
-struct DivergenceBounds {
-    double maxSpeed = 0;         // largest node speed [m/s]
-    double maxDisplacement = 0;  // largest distance of a node from its rest position [m]
-    double energyGrowth = 0;     // largest rise of the total energy when nothing does work [J]; 0: not checked
-    int invertedElements = 0;    // inverted elements that count as a failure ...
-    int invertedSteps = 0;       // ... when seen in this many consecutive steps (0: not checked)
-    double waveSpeed = 0;        // p-wave speed of the material [m/s], for the report
-    double size = 0;             // diagonal of the object's rest bounding box [m], for the report
-};
-// The rule (docs/scene-format.md): with c_p the p-wave speed, L the object's size, T the duration,
-// g gravity, v_tool the fastest tool keyframe motion and a_load the largest acceleration the
-// scene's forces can give the whole object:
-//   speed        <= speed_factor c_p + (g + a_load) T + v_tool        (a node at strain speed_factor)
-//   displacement <= displacement_factor L + (g + a_load) T^2 / 2 + tool travel
-//   energy rise  <= M (g L + c_p^2 1e-4) when no tool or force does work (gravity moving all the
-//                   mass through the object's size, or a strain of 1% everywhere)
-//   inverted     > max(10, 5% of the elements) for 100 steps in a row, without stretch limiting
-DivergenceBounds divergenceBounds(const SceneDef& sc, const Model& model);
-
-// The steps a run implies, refused above SceneDef::maxSteps (exit 2) with the time they would take.
-void checkStepBudget(const SceneDef& sc, double dt, int elements);
-
-struct SimulationOptions {
-    int threads = 0;             // worker threads; 0: chosen by measuring (ThreadTuner)
-    bool renderSurface = false;  // keep Simulation::surface() current after cuts (drivers that draw)
-};
 
 class Simulation {
 public:
@@ -130,49 +83,48 @@ public:
     // driver's cut): after it, the model's and state's arrays and the analyzer's estimates may be
     // reallocated. A driver that lends out their memory (the Python views) takes it back here;
     // the hook may replace those arrays' storage by an equal copy. Empty: none.
-    void setBeforeTopologyChange(std::function<void()> hook) { beforeTopologyChange_ = std::move(hook); }
+    void setBeforeTopologyChange(std::function<void()> hook) { data_->beforeTopologyChange = std::move(hook); }
 
     // ---- what the drivers read ----
-    const SceneDef& scene() const { return sc_; }  // as read: a driver's policy and cuts are not in it
-    const Model& model() const { return model_; }
-    const State& state() const { return state_; }
-    const TimestepAnalyzer& analyzer() const { return ta_; }
-    double dt() const { return choice_.dt; }
-    LimitAction limitAction() const { return choice_.action; }
-    const StepLimits& limits() const { return limits_; }          // current limits (exact NaN: unknown)
-    const StepLimits& initialLimits() const { return initial_; }  // of the uncut object
-    int criticalElements() const { return critical_; }
+    const SimSetup& setup() const { return *setup_; }        // compiled at load
+    const SimData& data() const { return *data_; }           // all the run changes
+    const SceneDef& scene() const { return setup_->scene; }  // as read: a driver's policy and cuts are not in it
+    const Model& model() const { return data_->model; }
+    const State& state() const { return data_->state; }
+    const TimestepAnalyzer& analyzer() const { return data_->analyzer; }
+    double dt() const { return data_->choice.dt; }
+    LimitAction limitAction() const { return data_->choice.action; }
+    const StepLimits& limits() const { return data_->limits; }           // current limits (exact NaN: unknown)
+    const StepLimits& initialLimits() const { return setup_->initial; }  // of the uncut object
+    int criticalElements() const { return data_->critical; }
     // Elements a cut made critical (R1R step under capture.critical_factor x the step before it)
     // that the step floor, the hybrid or the step chosen again answered, with the time of that cut;
     // kept capture.answered_seconds for frames to show.
-    struct Answered {
-        int element;
-        double time;  // [s]
-    };
-    const std::vector<Answered>& answered() const { return answered_; }
-    RunStatus status() const { return status_; }
-    const std::string& message() const { return message_; }  // why the run stopped, or ""
-    bool finished() const;                                   // the scene's duration is reached
-    const RunRecord& record() const { return rec_; }
-    RunRecord& record() { return rec_; }  // drivers add render and encode time
-    const DivergenceBounds& bounds() const { return bounds_; }
+    using Answered = AnsweredElement;
+    const std::vector<Answered>& answered() const { return data_->answered; }
+    RunStatus status() const { return data_->status; }
+    const std::string& message() const { return data_->message; }  // why the run stopped, or ""
+    bool finished() const;                                         // the scene's duration is reached
+    const RunRecord& record() const { return data_->record; }
+    RunRecord& record() { return data_->record; }  // drivers add render and encode time
+    const DivergenceBounds& bounds() const { return setup_->bounds; }
     // The tissue's force on tool i in the last step [N]: its contact reaction, and for the blade
     // whose stroke is open with material.toughness, the crack front's force on its edge.
     Eigen::Vector3d toolForce(int i) const;
     // material.toughness: the front's phase in the last step (idle without toughness)
-    CutPhase cutPhase() const { return tough_ ? tough_->phase() : CutPhase::Idle; }
+    CutPhase cutPhase() const { return data_->tough ? data_->tough->phase() : CutPhase::Idle; }
     // ... over the last `window` seconds: cutting when the front advanced in any of its steps
     CutPhase cutPhaseOver(double window) const {
-        return tough_ ? tough_->phaseOver(state_.time, window) : CutPhase::Idle;
+        return data_->tough ? data_->tough->phaseOver(data_->state.time, window) : CutPhase::Idle;
     }
-    ContactWorld* contact() { return contact_.get(); }
-    const ContactWorld* contact() const { return contact_.get(); }
-    const ContactSettings& contactSettings() const { return contactSettings_; }
-    const CutEngine* cutter() const { return cutter_.get(); }
+    ContactWorld* contact() { return data_->contact.get(); }
+    const ContactWorld* contact() const { return data_->contact.get(); }
+    const ContactSettings& contactSettings() const { return setup_->contact; }
+    const CutEngine* cutter() const { return data_->cutter.get(); }
     // object.reorder: a mesh file's nodes and elements are put in spatial order on load. These give
     // the index in the file of node n and element e (nodes and elements a cut made: of the node or
     // element they were copied from); the identity when the object was not reordered.
-    bool reordered() const { return !inputNode_.empty(); }
+    bool reordered() const { return !setup_->inputNode.empty(); }
     int inputNode(int n) const;
     int inputElement(int e) const;
     // The surface to draw: the MI object's embedded surface, the object.visual surface or the mesh
@@ -182,116 +134,20 @@ public:
     // The visual surface is split when asked for, once for all the cuts since (a blade cuts in
     // many steps between two frames).
     const EmbeddedSurface* surface() const;
-    int topologyVersion() const { return topologyVersion_; }
-    size_t scriptedCutsDone() const { return nextCut_; }
+    int topologyVersion() const { return data_->topologyVersion; }
+    size_t scriptedCutsDone() const { return data_->nextCut; }
     int threads() const;
     // What drivers did as the run ran (holdTool, cutNextScripted, dueNextScripted), for the take.
-    const TakeLog& takeLog() const { return take_; }
+    const TakeLog& takeLog() const { return data_->take; }
 
     // The report of the run so far (report.json); `extra` is merged in at the top level.
     nlohmann::json report(const nlohmann::json& extra = nlohmann::json::object()) const;
 
 private:
-    void buildObject();
-    void improveOnLoad(TetMesh& mesh);
-    TetMesh tetraMesh();
-    void embedVisualSurface(const SurfaceMesh& vis);
-    void chooseAndApply(bool initial);
-    void setupContact();
-    void ensureCutter();
-    bool applyDueCuts();
-    bool applyBlades();
-    void syncSlot(int i);
-    void keepSlots(double t);
-    void refreshSurface();
-    void settleExact();
-    void respondToCut(const CutResult& r, const std::string& key, bool bladeStep);
-    void check();
-    void sampleEnergy();
-    void fail(RunStatus s, const std::string& why);
-    void recordTool(double t);
-    // material.toughness (sim/toughness_stage.cpp): the blade presses the crack front until it pays
-    void setupToughness();
-    bool toughSweep(const ToolDef& tool, double t, BladeEdge& from, BladeEdge& to);
-    void reseedFront(const ToolDef& tool, double t);
-    VirtualNodeTest isVirtualNode() const;
-    void pressFront();
-    Eigen::Vector3d recordFront(double t0, const ContactStep& st);
-    nlohmann::json toughnessReport() const;
-    void beforeTopologyChange() {
-        if (beforeTopologyChange_) beforeTopologyChange_();
-    }
-
-    SceneDef sc_;
-    Options opt_;
-    Integrator integrator_;  // the scene's, or a driver's (setPolicy)
-    StepPolicy policy_;
-    Model model_;
-    State state_;
-    Stepper stepper_;
-    StepOptions so_;
-    TimestepAnalyzer ta_;
-    StepLimits limits_, initial_;
-    StepChoice choice_;
-    Eigen::VectorXd alphaElem_;  // per-element damping (on_limit damp), else empty
-    int critical_ = 0;
-    std::vector<Answered> answered_;
-    std::vector<std::vector<int>> loadNodes_;           // nodes of each scene load (sc.forces order)
-    std::unique_ptr<EmbeddedSurface> embedded_;         // an MI object's surface in the uncut lattice
-    nlohmann::json embedding_;                          // MI set-up for the report (null: a tet mesh object)
-    std::unique_ptr<EmbeddedSurface> visual_;           // object.visual in the uncut mesh, else null
-    nlohmann::json visualReport_;                       // object.visual for the report (null: none)
-    nlohmann::json improvement_;                        // object.improve for the report (null: not asked)
-    std::vector<int> inputNode_, inputElement_;         // object.reorder: file index of each node and element
-    nlohmann::json tetra_;                              // object.tetra for the report (null: not used)
-    nlohmann::json hybrid_;                             // object.element "hybrid" on load, for the report (null: not)
-    double hybridDtSim_ = 0;                            // the hybrid's dt_sim: 0.95 of the FEM object's exact step [s]
-    TetMesh rest_;                                      // the uncut rest mesh, for cutting.compare
-    mutable std::unique_ptr<EmbeddedSurface> surface_;  // drawn surface after cuts (see surface())
-    mutable bool visualStale_ = false;                  // surface_ lags the cuts of visual_
-    mutable bool drawnStale_ = false;                   // surface_ lags blade steps (no visual_)
-    bool surfaceStale_ = false;                         // contact points lag blade steps (refreshSurface)
-    double surfaceTime_ = 0;                            // when the contact points were last rebuilt [s]
-    std::vector<int> dropped_;                          // scratch: nodes whose contact points a blade step drops
-    int topologyVersion_ = 0;
-    std::function<void()> beforeTopologyChange_;
-
-    std::unique_ptr<ContactWorld> contact_;
-    ContactSettings contactSettings_;
-    std::unique_ptr<CutEngine> cutter_;
-    std::unique_ptr<ElementBroadphase> bladePhase_;
-    std::vector<int> bladeTools_;      // scene tools that cut
-    double bladeMargin_ = 0;           // fattening of bladePhase_'s element boxes [m]
-    std::vector<BladeEdge> lastEdge_;  // each blade's edge at the end of the last step
-    std::vector<int> candidates_;
-    int stroke_ = -1;  // blade whose stroke the engine holds, or -1
-    struct StrokeLog {
-        int tool = -1;
-        double start = 0;             // [s]
-        StageTimes stages;            // the run's stage times when the stroke began
-        long steps = 0;               // the run's steps then
-        std::vector<double> latency;  // each blade step's cut latency [s]
-    } strokeLog_;
-    CutResponse response_;
-    std::vector<int> projected_;                   // nodes the last projection moved (repairInverted)
-    std::unique_ptr<BladeToughness> tough_;        // material.toughness > 0 with a blade, else null
-    double toughDamped_ = 0;                       // energy the last step's mass damping took [J]
-    double toughStart_[3] = {0, 0, 0};             // elastic, kinetic, gravity energy at the start [J]
-    std::vector<ContactWorld::Slot> slots_;        // each blade's slot (cutting.blade_slot), by tool index
-    std::vector<ContactWorld::Slot> slotsBefore_;  // ... as its earlier strokes left it
-    size_t nextCut_ = 0;
-    int lastCutId_ = -1;
-
-    DivergenceBounds bounds_;
-    bool energyChecked_ = false;  // no tool or force does work
-    double energyRef_ = 0;        // total energy the growth is measured from [J]
-    int invertedRun_ = 0;         // consecutive steps over bounds_.invertedElements
-    double nextSample_ = 0;       // time of the next energy sample [s]
-    RunStatus status_ = RunStatus::Running;
-    std::string message_;
-    RunRecord rec_;
-    TakeLog take_;
-    std::unique_ptr<ThreadTuner> tuner_;
+    // Heap-held, so that the addresses the contact world and the step options keep stay valid
+    // when a Simulation moves.
+    std::unique_ptr<const SimSetup> setup_;
+    std::unique_ptr<SimData> data_;
 };
 
 }  // namespace cutsim

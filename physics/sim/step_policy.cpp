@@ -1,6 +1,7 @@
 #include "sim/step_policy.hpp"
 
 #include "mesh/mesh.hpp"
+#include "sim/stages.hpp"
 
 #include <cmath>
 
@@ -65,6 +66,35 @@ StepChoice chooseStep(const StepPolicy& p, const StepLimits& lim, bool explicitS
     case OnLimit::Damp: c.action = LimitAction::Damped; break;
     }
     return c;
+}
+
+// ---- a run's step (sim/stages.hpp) ----
+
+void applyStepPolicy(const SimSetup& s, SimData& d, bool initial) {
+    const StepChoice c = chooseStep(d.policy, d.limits, d.integrator != Integrator::BackwardEuler);
+    if (c.action == LimitAction::Refused) {
+        if (initial)
+            throw InputError(s.scene.file + ": integrator.dt: " +
+                             fmt("step %.6g s is above the exact stable limit %.6g s of %s", c.dt, c.limit,
+                                 integratorName(d.integrator)) +
+                             "; set integrator.dt.on_limit to \"clamp\" or \"damp\" to allow it");
+        failRun(d, RunStatus::Refused,
+                fmt("stopped: step %.6g s is above the stable limit %.6g s after the cut at t = %.4g s"
+                    " (integrator.dt.on_limit is \"refuse\")",
+                    c.dt, c.limit, d.state.time));
+        d.choice.action = LimitAction::Refused;
+        return;
+    }
+    d.choice = c;
+    // Per-element damping factor alpha_e = (dt_e / dt)^2 where dt_e < dt (thesis eq. 3.16).
+    if (c.action == LimitAction::Damped)
+        d.alphaElem = elementAlpha(d.analyzer.estimates().r1r, c.dt);
+    else
+        d.alphaElem.resize(0);
+    d.critical = 0;
+    const Eigen::VectorXd& r1r = d.analyzer.estimates().r1r;
+    for (Eigen::Index e = 0; e < r1r.size(); ++e) d.critical += r1r(e) < s.scene.capture.criticalFactor * c.dt;
+    d.stepOptions = s.scene.stepOptions(d.integrator, c.dt, d.alphaElem);
 }
 
 }  // namespace cutsim
