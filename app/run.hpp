@@ -15,7 +15,7 @@ namespace cutsim::app {
 struct RunOptions {
     std::string out;        // output folder
     bool render = true;     // false: no GL context, no frames
-    int threads = 0;        // 0: chosen by measuring (sim/simulation.cpp ThreadTuner)
+    int threads = 0;        // 0: chosen by measuring (sim/thread_tuner.hpp)
     bool quiet = false;     // no progress output
     bool pipelined = true;  // frames drawn while the physics steps on (false: each before the next step)
 };
