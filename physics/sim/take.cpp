@@ -1,8 +1,9 @@
 #include "sim/take.hpp"
 
+#include <cmath>
 #include <filesystem>
-#include <vector>
 #include <limits>
+#include <vector>
 
 namespace cutsim {
 

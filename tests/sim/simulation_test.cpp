@@ -201,6 +201,33 @@ TEST(Take, HeldToolsAndADueCutReplayBitwise) {
     EXPECT_EQ(replay.record().cuts[0]["split"], live.record().cuts[0]["split"]);
 }
 
+// What a driver does is logged, not written into the scene: the scene stays as read, and the take
+// is the scene with the log applied.
+TEST(Take, DriverActionsLeaveTheSceneAsRead) {
+    SimulationOptions o;
+    o.threads = 1;
+    const SceneDef sc = parseScene(probedBar(), "bar.json");
+    Simulation live(sc, o);
+    live.advance(0.005);
+    live.holdTool(0, Eigen::Vector3d(0.08, 0.01, 0.0235));
+    EXPECT_EQ(live.dueNextScripted(), 0);
+    StepPolicy p = sc.dt;
+    p.fraction *= 0.5;
+    EXPECT_EQ(live.setPolicy(sc.integrator, p), "");
+    live.advance(0.01);
+    ASSERT_EQ(live.record().cuts.size(), 1u);
+    EXPECT_EQ(live.scene().cutting.cuts[0].time, sc.cutting.cuts[0].time);
+    EXPECT_EQ(live.scene().tools[0].keys.size(), sc.tools[0].keys.size());
+    EXPECT_EQ(live.scene().dt.fraction, sc.dt.fraction);
+    EXPECT_EQ(live.report()["dt_policy"]["fraction"].get<double>(), p.fraction);
+    ASSERT_EQ(live.takeLog().holds.size(), 1u);
+    EXPECT_EQ(live.takeLog().cutTime(live.scene(), 0), live.record().cuts[0]["time"].get<double>());
+    const json take = takeScene(live, "take.json");
+    EXPECT_EQ(take["cutting"]["cuts"][0]["time"].get<double>(), live.record().cuts[0]["time"].get<double>());
+    EXPECT_EQ(take["tools"][0]["keyframes"].size(),
+              sc.tools[0].keys.size() + 1);  // the first key, the pose at the hold, the held pose
+}
+
 // A probe lowered by holds (a haptic device's samples) and then held still keeps pressing: its
 // force 100 ms after the last hold is the force at it, not decayed towards 0.
 TEST(Take, HeldProbeKeepsItsForce) {
