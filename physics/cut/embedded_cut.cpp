@@ -230,6 +230,120 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
     return *c;
 }
 
+// The cuts near one triangle past the boundary (a plane per cut, from a cut parent near) and
+// which elements lie on which of their sides.
+struct CutEngine::PastBoundarySplit {
+    struct Plane {
+        int cut, parent;
+        Eigen::Vector4d s;                         // signed distance at the parent's corners [m]
+        std::vector<std::pair<int, double>> node;  // ... at the corners of the cut parents near [m]
+    };
+    const CutEngine& eng;
+    const Model& m;
+    std::vector<Plane> planes;
+
+    Eigen::Vector4d inP(int p, const Eigen::Vector3d& y) const {
+        const auto& t = eng.tets0_;
+        return barycentric(y, m.X.col(t(0, p)), m.X.col(t(1, p)), m.X.col(t(2, p)), m.X.col(t(3, p)));
+    }
+    template <class F>
+    void forRing(int p, F&& f) const {  // each parent sharing a corner with p (p too), with repeats
+        for (int a = 0; a < 4; ++a) {
+            const int o = eng.tets0_(a, p);
+            for (int i = eng.ringStart_[static_cast<size_t>(o)]; i < eng.ringStart_[static_cast<size_t>(o) + 1]; ++i)
+                f(eng.ring_[static_cast<size_t>(i)]);
+        }
+    }
+    void addPlanesOf(int q) {
+        if (!eng.virt_.count(q)) return;
+        for (int g : eng.virtualsOf(q))
+            for (const Halfspace& h : eng.virt_.at(g).hs) {
+                auto pl = std::find_if(planes.begin(), planes.end(), [&](const Plane& x) { return x.cut == h.cut; });
+                if (pl == planes.end()) pl = planes.insert(planes.end(), {h.cut, q, h.s, {}});
+                for (int a = 0; a < 4; ++a) pl->node.emplace_back(eng.tets0_(a, q), h.s[a]);
+            }
+    }
+    double level(const Plane& pl, const Eigen::Vector3d& x) const { return pl.s.dot(inP(pl.parent, x)); }
+    std::uint32_t sideOf(const Eigen::Vector3d& x) const {
+        std::uint32_t sig = 0;
+        for (size_t c = 0; c < planes.size() && c < 32; ++c) sig |= std::uint32_t(level(planes[c], x) >= 0) << c;
+        return sig;
+    }
+    // The rest centre of element g of parent q: its piece's, or the parent's when uncut.
+    Eigen::Vector3d centre(int q, int g) const {
+        const auto gv = eng.virt_.find(g);
+        if (gv == eng.virt_.end() || gv->second.piece.xi.empty())
+            return eng.restOf(m, q, Eigen::Vector4d::Constant(0.25));
+        Eigen::Vector4d w = Eigen::Vector4d::Zero();
+        for (const auto& xi : gv->second.piece.xi) w += weightsOf(xi);
+        return eng.restOf(m, q, w / static_cast<double>(gv->second.piece.xi.size()));
+    }
+    // Sides of element g of parent q: its own halfspace of each cut, else the sign its corners
+    // have where a cut parent near gives them (the cut was made in the deformed shape: its rest
+    // level set bends, so a plane far from where it was taken may put an element on the wrong
+    // side), else its centre's.
+    std::uint32_t sidesOf(int q, int g) const {
+        std::uint32_t sig = sideOf(centre(q, g));
+        const auto gv = eng.virt_.find(g);
+        for (size_t c = 0; c < planes.size() && c < 32; ++c) {
+            int known = 0;
+            if (gv != eng.virt_.end())
+                for (const Halfspace& h : gv->second.hs)
+                    if (h.cut == planes[c].cut) known = h.positive ? 1 : -1;
+            for (int a = 0; a < 4 && known == 0; ++a)
+                for (const auto& [n, d] : planes[c].node)
+                    if (n == eng.tets0_(a, q) && d != 0) known = d > 0 ? 1 : -1;
+            if (known != 0) sig = (sig & ~(std::uint32_t(1) << c)) | (std::uint32_t(known > 0) << c);
+        }
+        return sig;
+    }
+    // An element on side sig: of p, else of a parent sharing the most corners with p; {-1, -1}
+    // when none is.
+    std::pair<int, int> rideOnSide(int p, std::uint32_t sig) const {
+        for (int g : eng.virtualsOf(p))
+            if (sidesOf(p, g) == sig) return {g, p};
+        std::pair<int, int> best{-1, -1};
+        int bestShared = -1;
+        forRing(p, [&](int q) {
+            int shared = 0;
+            for (int b = 0; b < 4; ++b)
+                for (int c = 0; c < 4; ++c) shared += eng.tets0_(b, q) == eng.tets0_(c, p);
+            if (q == p || shared <= bestShared) return;
+            for (int g : eng.virtualsOf(q))
+                if (sidesOf(q, g) == sig) {
+                    best = {g, q};
+                    bestShared = shared;
+                    return;
+                }
+        });
+        return best;
+    }
+    // p's element on the fewest wrong sides (nothing on side sig near p).
+    std::pair<int, int> leastWrong(int p, std::uint32_t sig) const {
+        std::pair<int, int> ride{p, p};
+        int fewest = 1 << 30;
+        for (int g : eng.virtualsOf(p))
+            if (const int wrong = std::popcount(sidesOf(p, g) ^ sig); wrong < fewest) fewest = wrong, ride = {g, p};
+        return ride;
+    }
+    // The triangle y0 y1 y2 (rest positions in the first three entries) split by each plane.
+    std::vector<Poly> cells(const std::array<Eigen::Vector3d, 3>& y) const {
+        std::vector<Poly> out{
+            {{y[0].x(), y[0].y(), y[0].z(), 0}, {y[1].x(), y[1].y(), y[1].z(), 0}, {y[2].x(), y[2].y(), y[2].z(), 0}}},
+            next;
+        for (const Plane& pl : planes) {
+            next.clear();
+            for (const Poly& c : out)
+                for (double sign : {1.0, -1.0}) {
+                    Poly part = clipBy(c, [&](const Eigen::Vector4d& w) { return sign * level(pl, w.head<3>()); });
+                    if (!part.empty()) next.push_back(std::move(part));
+                }
+            std::swap(out, next);
+        }
+        return out;
+    }
+};
+
 void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
                                   const std::vector<int>& piece,
                                   const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
@@ -238,153 +352,52 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
     // only on their shared face's plane), so the triangle stays whole but for the cuts: split by
     // one plane per cut, taken from a cut parent near it, each cell drawn linear between corners
     // that ride elements on its side, as an uncut visual triangle rides its corners' elements.
-    auto inP = [&](int p, const Eigen::Vector3d& y) {
-        return barycentric(y, m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)), m.X.col(tets0_(2, p)),
-                           m.X.col(tets0_(3, p)));
-    };
-    std::array<int, 3> corner{}, parent{};
+    std::array<int, 3> parent{};
     std::array<Eigen::Vector3d, 3> y;
     for (size_t i = 0; i < 3; ++i) {
-        corner[i] = original.triangles(static_cast<int>(i), t);
-        parent[i] = original.element[static_cast<size_t>(corner[i])];
-        y[i] = cache.rest.V.col(corner[i]);
+        const int v = original.triangles(static_cast<int>(i), t);
+        parent[i] = original.element[static_cast<size_t>(v)];
+        y[i] = cache.rest.V.col(v);
     }
-    struct Plane {
-        int cut, parent;
-        Eigen::Vector4d s;                         // signed distance at the parent's corners [m]
-        std::vector<std::pair<int, double>> node;  // ... at the corners of the cut parents near [m]
-    };
-    std::vector<Plane> planes;
-    auto planesOf = [&](int q) {
-        if (!virt_.count(q)) return;
-        for (int g : virtualsOf(q))
-            for (const Halfspace& h : virt_.at(g).hs) {
-                auto pl = std::find_if(planes.begin(), planes.end(), [&](const Plane& x) { return x.cut == h.cut; });
-                if (pl == planes.end()) pl = planes.insert(planes.end(), {h.cut, q, h.s, {}});
-                for (int a = 0; a < 4; ++a) pl->node.emplace_back(tets0_(a, q), h.s[a]);
-            }
-    };
-    for (int q : parent) planesOf(q);
+    PastBoundarySplit split{*this, m, {}};
+    for (int q : parent) split.addPlanesOf(q);
     for (int k = cache.partStart[static_cast<size_t>(t)]; k < cache.partStart[static_cast<size_t>(t) + 1]; ++k)
-        planesOf(cache.parts[static_cast<size_t>(k)].first);
-    for (int q : parent)
-        for (int a = 0; a < 4; ++a) {
-            const int o = tets0_(a, q);
-            for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i)
-                planesOf(ring_[static_cast<size_t>(i)]);
-        }
-    auto level = [&](const Plane& pl, const Eigen::Vector3d& x) { return pl.s.dot(inP(pl.parent, x)); };
-    auto sideOf = [&](const Eigen::Vector3d& x) {
-        std::uint32_t sig = 0;
-        for (size_t c = 0; c < planes.size() && c < 32; ++c) sig |= std::uint32_t(level(planes[c], x) >= 0) << c;
-        return sig;
-    };
-    // The rest centre of element g of parent q: its piece's, or the parent's when uncut.
-    auto centre = [&](int q, int g) {
-        const auto gv = virt_.find(g);
-        if (gv == virt_.end() || gv->second.piece.xi.empty()) return restOf(m, q, Eigen::Vector4d::Constant(0.25));
-        Eigen::Vector4d w = Eigen::Vector4d::Zero();
-        for (const auto& xi : gv->second.piece.xi) w += weightsOf(xi);
-        return restOf(m, q, w / static_cast<double>(gv->second.piece.xi.size()));
-    };
-    // Sides of element g of parent q: its own halfspace of each cut, else the sign its corners
-    // have where a cut parent near gives them (the cut was made in the deformed shape: its rest
-    // level set bends, so a plane far from where it was taken may put an element on the wrong
-    // side), else its centre's.
-    auto sidesOf = [&](int q, int g) {
-        std::uint32_t sig = sideOf(centre(q, g));
-        const auto gv = virt_.find(g);
-        for (size_t c = 0; c < planes.size() && c < 32; ++c) {
-            int known = 0;
-            if (gv != virt_.end())
-                for (const Halfspace& h : gv->second.hs)
-                    if (h.cut == planes[c].cut) known = h.positive ? 1 : -1;
-            for (int a = 0; a < 4 && known == 0; ++a)
-                for (const auto& [n, d] : planes[c].node)
-                    if (n == tets0_(a, q) && d != 0) known = d > 0 ? 1 : -1;
-            if (known != 0) sig = (sig & ~(std::uint32_t(1) << c)) | (std::uint32_t(known > 0) << c);
-        }
-        return sig;
-    };
-    // An element on side sig: of p, else of a parent sharing the most corners with p; {-1, -1}
-    // when none is.
-    auto rideOnSide = [&](int p, std::uint32_t sig) {
-        for (int g : virtualsOf(p))
-            if (sidesOf(p, g) == sig) return std::pair{g, p};
-        std::pair<int, int> best{-1, -1};
-        int bestShared = -1;
-        for (int a = 0; a < 4; ++a) {
-            const int o = tets0_(a, p);
-            for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i) {
-                const int q = ring_[static_cast<size_t>(i)];
-                int shared = 0;
-                for (int b = 0; b < 4; ++b)
-                    for (int c = 0; c < 4; ++c) shared += tets0_(b, q) == tets0_(c, p);
-                if (q == p || shared <= bestShared) continue;
-                for (int g : virtualsOf(q))
-                    if (sidesOf(q, g) == sig) {
-                        best = {g, q};
-                        bestShared = shared;
-                        break;
-                    }
-            }
-        }
-        return best;
-    };
-    // Cells of the triangle (rest positions in the first three entries) split by each plane.
-    std::vector<Poly> cells{
-        {{y[0].x(), y[0].y(), y[0].z(), 0}, {y[1].x(), y[1].y(), y[1].z(), 0}, {y[2].x(), y[2].y(), y[2].z(), 0}}},
-        next;
-    for (const Plane& pl : planes) {
-        next.clear();
-        for (const Poly& c : cells)
-            for (double sign : {1.0, -1.0}) {
-                Poly part = clipBy(c, [&](const Eigen::Vector4d& w) { return sign * level(pl, w.head<3>()); });
-                if (!part.empty()) next.push_back(std::move(part));
-            }
-        std::swap(cells, next);
-    }
+        split.addPlanesOf(cache.parts[static_cast<size_t>(k)].first);
+    for (int q : parent) split.forRing(q, [&](int r) { split.addPlanesOf(r); });
     std::vector<int> ids;
     std::vector<std::pair<int, int>> rides;  // (element, parent) of each cell corner
-    for (const Poly& c : cells) {
+    for (const Poly& c : split.cells(y)) {
         Eigen::Vector3d mid = Eigen::Vector3d::Zero();
         for (const auto& w : c) mid += w.head<3>();
-        const std::uint32_t sig = sideOf(mid / static_cast<double>(c.size()));
+        const std::uint32_t sig = split.sideOf(mid / static_cast<double>(c.size()));
         // the triangle's corners to ride from: those in the cell first, then the nearest
         std::array<size_t, 3> order{0, 1, 2};
         std::array<bool, 3> in{};
         for (size_t i = 0; i < 3; ++i)
             in[i] = std::any_of(c.begin(), c.end(), [&](const Eigen::Vector4d& w) { return w.head<3>() == y[i]; });
         rides.clear();
-        int anchor = -1;  // a ride of one of the triangle's corners in the cell, else the first
+        size_t anchor = 0;  // a corner of the triangle in the cell, else the first
+        for (size_t k = c.size(); k-- > 0;)
+            if (std::any_of(y.begin(), y.end(), [&](const Eigen::Vector3d& yi) { return c[k].head<3>() == yi; }))
+                anchor = k;
         for (const auto& w : c) {
             std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
                 if (in[a] != in[b]) return in[a];
                 return (y[a] - w.head<3>()).squaredNorm() < (y[b] - w.head<3>()).squaredNorm();
             });
             std::pair<int, int> ride{-1, -1};
-            for (size_t k = 0; k < 3 && ride.first < 0; ++k) ride = rideOnSide(parent[order[k]], sig);
-            if (ride.first < 0) {  // nothing on its side near: the nearest corner's element on the fewest wrong sides
-                const int p = parent[order[0]];
-                int fewest = 1 << 30;
-                for (int g : virtualsOf(p))
-                    if (const int wrong = std::popcount(sidesOf(p, g) ^ sig); wrong < fewest)
-                        fewest = wrong, ride = {g, p};
-            }
-            if (anchor < 0 &&
-                std::any_of(y.begin(), y.end(), [&](const Eigen::Vector3d& yi) { return w.head<3>() == yi; }))
-                anchor = static_cast<int>(rides.size());
+            for (size_t k = 0; k < 3 && ride.first < 0; ++k) ride = split.rideOnSide(parent[order[k]], sig);
+            if (ride.first < 0) ride = split.leastWrong(parent[order[0]], sig);
             rides.push_back(ride);
         }
-        if (anchor < 0) anchor = 0;
         // One piece per cell: a corner riding an element the cuts have parted from the anchor's
         // would stretch the cell across the opening as a spike; it rides the anchor's instead.
-        const int home = piece[static_cast<size_t>(rides[static_cast<size_t>(anchor)].first)];
+        const int home = piece[static_cast<size_t>(rides[anchor].first)];
         ids.clear();
         for (size_t k = 0; k < c.size(); ++k) {
             auto ride = rides[k];
-            if (piece[static_cast<size_t>(ride.first)] != home) ride = rides[static_cast<size_t>(anchor)];
-            ids.push_back(addVertex(ride.first, inP(ride.second, c[k].head<3>())));
+            if (piece[static_cast<size_t>(ride.first)] != home) ride = rides[anchor];
+            ids.push_back(addVertex(ride.first, split.inP(ride.second, c[k].head<3>())));
         }
         for (size_t k = 1; k + 1 < ids.size(); ++k)
             if (ids[0] != ids[k] && ids[k] != ids[k + 1] && ids[0] != ids[k + 1])

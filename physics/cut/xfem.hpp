@@ -256,6 +256,7 @@ private:
     // label per element, equal within a connected piece). addVertex(element, weights in
     // its parent) gives a vertex index, addTriangle(a, b, c) draws.
     struct SplitCache;
+    struct PastBoundarySplit;  // the cuts near one such triangle and their sides
     void splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
                            const std::vector<int>& piece,
                            const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
