@@ -405,29 +405,46 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
     }
 }
 
-EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
-    if (!prepared_) return original;
-    const int nParents = static_cast<int>(tets0_.cols());
-    const int nv = original.vertices();
-    SplitCache& cache = splitCache(m, original);
-    // Rest position of parent weights: the parent's original corners (their rest positions never change).
-    auto rest = [&](int p, const Eigen::Vector4d& w) { return restOf(m, p, w); };
-    const double tinyArea = cache.tinyArea;
-    auto area = [&](int p, const Poly& poly) {
-        Eigen::Vector3d a = Eigen::Vector3d::Zero();
-        const Eigen::Vector3d y0 = rest(p, poly[0]);
-        for (size_t k = 1; k + 1 < poly.size(); ++k) a += (rest(p, poly[k]) - y0).cross(rest(p, poly[k + 1]) - y0);
-        return 0.5 * a.norm();
-    };
-    // A crossed parent has a piece even when one side was merged (it then has no other virtual element).
-    auto isCut = [&](int p) { return virt_.count(p) > 0; };
-
+// surface(m, original)'s work: the drawn surface as it is built, and its two phases.
+struct CutEngine::SurfaceBuild {
+    const CutEngine& eng;
+    const Model& m;
+    const EmbeddedSurface& original;
+    SplitCache& cache;
     std::vector<int> elem;
     std::vector<Eigen::Vector4d> weights;
     std::vector<Eigen::Vector3i> tris;
     std::vector<int> cutId;
-    std::vector<int> kept(static_cast<size_t>(nv), -1);  // output index of an original vertex kept as is
-    auto keepOriginal = [&](int v) {
+    std::vector<int> kept;  // output index of an original vertex kept as is
+    // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
+    // elements, so a piece's cut face is connected and shades smoothly.
+    std::unordered_map<VertexKey, int, VertexKeyHash> welded;
+    std::vector<Eigen::Vector4d> grid;  // scratch of cap: sample weights and winding numbers - 1/2
+    std::vector<double> wind;
+
+    SurfaceBuild(const CutEngine& e, const Model& model, const EmbeddedSurface& o, SplitCache& c)
+        : eng(e), m(model), original(o), cache(c), kept(static_cast<size_t>(o.vertices()), -1) {}
+    int parents() const { return static_cast<int>(eng.tets0_.cols()); }
+    // Rest position of parent weights: the parent's original corners (their rest positions never change).
+    Eigen::Vector3d rest(int p, const Eigen::Vector4d& w) const { return eng.restOf(m, p, w); }
+    double area(int p, const Poly& poly) const {
+        Eigen::Vector3d a = Eigen::Vector3d::Zero();
+        const Eigen::Vector3d y0 = rest(p, poly[0]);
+        for (size_t k = 1; k + 1 < poly.size(); ++k) a += (rest(p, poly[k]) - y0).cross(rest(p, poly[k + 1]) - y0);
+        return 0.5 * a.norm();
+    }
+    // A crossed parent has a piece even when one side was merged (it then has no other virtual element).
+    bool isCut(int p) const { return eng.virt_.count(p) > 0; }
+    // `poly` (weights in p) in the weights of parent q, extrapolated.
+    Poly inParent(int p, const Poly& poly, int q) const {
+        const auto& t = eng.tets0_;
+        Poly out;
+        for (const auto& w : poly)
+            out.push_back(
+                barycentric(rest(p, w), m.X.col(t(0, q)), m.X.col(t(1, q)), m.X.col(t(2, q)), m.X.col(t(3, q))));
+        return out;
+    }
+    int keepOriginal(int v) {
         int& k = kept[static_cast<size_t>(v)];
         if (k < 0) {
             k = static_cast<int>(elem.size());
@@ -435,27 +452,25 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             weights.push_back(original.weights.col(v));
         }
         return k;
-    };
-    // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
-    // elements, so a piece's cut face is connected and shades smoothly.
-    std::unordered_map<VertexKey, int, VertexKeyHash> welded;
-    auto vertex = [&](int p, int e, const Eigen::Vector4d& w, bool inside) {
+    }
+    int vertex(int p, int e, const Eigen::Vector4d& w, bool inside) {
         // Clipped to the parent's inner faces: only round-off is negative there; beyond a boundary
         // face a visual surface's weights are extrapolated, as are a carrier's (inside false).
         Eigen::Vector4d c = w;
         if (inside)
             for (int a = 0; a < 4; ++a)
-                if (adj_(a, p) >= 0) c[a] = std::max(c[a], 0.0);
+                if (eng.adj_(a, p) >= 0) c[a] = std::max(c[a], 0.0);
         auto [it, added] = welded.emplace(vertexKey(m.tets, e, c), static_cast<int>(elem.size()));
         if (added) {
             elem.push_back(e);
             weights.push_back(c);
         }
         return it->second;
-    };
-    // inside: the polygon's weights lie in e's parent (else extrapolated from it).
-    auto emit = [&](int p, int e, const Poly& poly, int cut, bool inside = true) {  // cut: the cut making it, or -1
-        if (poly.size() < 3 || area(p, poly) <= tinyArea) return;
+    }
+    // cut: the cut making it, or -1. inside: the polygon's weights lie in e's parent (else
+    // extrapolated from it).
+    void emit(int p, int e, const Poly& poly, int cut, bool inside = true) {
+        if (poly.size() < 3 || area(p, poly) <= cache.tinyArea) return;
         const int v0 = vertex(p, e, poly[0], inside);
         for (size_t k = 1; k + 1 < poly.size(); ++k) {
             const int v1 = vertex(p, e, poly[k], inside), v2 = vertex(p, e, poly[k + 1], inside);
@@ -463,68 +478,87 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
             tris.emplace_back(v0, v1, v2);
             cutId.push_back(cut);
         }
-    };
-    // A polygon in cut parent p: split by each cut of p, each cell to the virtual element whose
-    // sides it is on (a merged sliver's cell, on no element's sides, to the one it violates least).
-    auto emitInCutParent = [&](int p, const Poly& poly) {
-        const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
-        std::vector<const Halfspace*> planes;        // one per cut
-        for (int e : ves)
-            for (const Halfspace& h : virt_.at(e).hs)
-                if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
-                    planes.push_back(&h);
-        std::vector<Poly> cells{poly}, next;
-        for (const Halfspace* h : planes) {
-            next.clear();
-            for (const Poly& c : cells) {
-                Poly pos = clipBy(c, [&](const Eigen::Vector4d& w) { return w.dot(h->s); });
-                Poly neg = clipBy(c, [&](const Eigen::Vector4d& w) { return -w.dot(h->s); });
-                if (!pos.empty()) next.push_back(std::move(pos));
-                if (!neg.empty()) next.push_back(std::move(neg));
-            }
-            std::swap(cells, next);
-        }
-        for (const Poly& c : cells) {
-            Eigen::Vector4d mid = Eigen::Vector4d::Zero();
-            for (const auto& w : c) mid += w;
-            mid /= static_cast<double>(c.size());
-            int best = ves[0], fewest = 1 << 30;
-            for (int e : ves) {
-                int bad = 0;
-                for (const Halfspace& h : virt_.at(e).hs) bad += (mid.dot(h.s) >= 0) != h.positive;
-                if (bad < fewest) {
-                    fewest = bad;
-                    best = e;
-                }
-            }
-            // A cell on a side p dropped (a sliver below minFraction) has no element of p on its
-            // side: riding the other side, it would stretch across the opening cut as a shard.
-            // It rides an element of a neighbouring parent on its side instead, its weights
-            // extrapolated from that parent (the sliver is a few percent of an element).
-            int q = -1;
-            const int g = fewest > 0 ? carrierOnSide(m, p, planes, mid, q) : -1;
-            if (g < 0) {
-                emit(p, best, c, -1);
-                continue;
-            }
-            Poly inQ;
-            for (const auto& w : c)
-                inQ.push_back(barycentric(rest(p, w), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
-                                          m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q))));
-            emit(q, g, inQ, -1, false);
-        }
-    };
+    }
+    void emitInCutParent(int p, const Poly& poly);
+    void drawOriginal();
+    // The cut faces
+    bool cornerOutside(int p) const;
+    double windingAt(int p, const Eigen::Vector4d& w) const;
+    double crossingAt(int p, const Eigen::Vector4d& a, const Eigen::Vector4d& b) const;
+    bool atBoundary(int p) const { return cache.outside && eng.adj_.col(p).minCoeff() < 0; }
+    Poly pastBoundary(int p, const Virtual& ve, int cut, const Poly& face) const;
+    // Polygon `poly` (weights in p) riding element e, of parent q: p itself, or a carrier whose
+    // weights are extrapolated.
+    void put(int p, const Poly& poly, int e, int q, int cut) {
+        if (q == p) return emit(p, e, poly, cut);
+        emit(q, e, inParent(p, poly, q), cut, false);
+    }
+    void cap(int p, bool inside, const Poly& poly, int e, int q, int cut, int capLevels);
+    void drawCutFaces(int capLevels);
+    void drawCutFacesOf(int p, const std::unordered_multimap<int, const Sliver*>& sliversIn, int capLevels);
+};
 
+// A polygon in cut parent p: split by each cut of p, each cell to the virtual element whose
+// sides it is on (a merged sliver's cell, on no element's sides, to the one it violates least).
+void CutEngine::SurfaceBuild::emitInCutParent(int p, const Poly& poly) {
+    const std::vector<int> ves = eng.virtualsOf(p);  // copy: virtualsOf reuses scratch
+    std::vector<const Halfspace*> planes;            // one per cut
+    for (int e : ves)
+        for (const Halfspace& h : eng.virt_.at(e).hs)
+            if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
+                planes.push_back(&h);
+    std::vector<Poly> cells{poly}, next;
+    for (const Halfspace* h : planes) {
+        next.clear();
+        for (const Poly& c : cells) {
+            Poly pos = clipBy(c, [&](const Eigen::Vector4d& w) { return w.dot(h->s); });
+            Poly neg = clipBy(c, [&](const Eigen::Vector4d& w) { return -w.dot(h->s); });
+            if (!pos.empty()) next.push_back(std::move(pos));
+            if (!neg.empty()) next.push_back(std::move(neg));
+        }
+        std::swap(cells, next);
+    }
+    for (const Poly& c : cells) {
+        Eigen::Vector4d mid = Eigen::Vector4d::Zero();
+        for (const auto& w : c) mid += w;
+        mid /= static_cast<double>(c.size());
+        int best = ves[0], fewest = 1 << 30;
+        for (int e : ves) {
+            int bad = 0;
+            for (const Halfspace& h : eng.virt_.at(e).hs) bad += (mid.dot(h.s) >= 0) != h.positive;
+            if (bad < fewest) {
+                fewest = bad;
+                best = e;
+            }
+        }
+        // A cell on a side p dropped (a sliver below minFraction) has no element of p on its
+        // side: riding the other side, it would stretch across the opening cut as a shard.
+        // It rides an element of a neighbouring parent on its side instead, its weights
+        // extrapolated from that parent (the sliver is a few percent of an element).
+        int q = -1;
+        const int g = fewest > 0 ? eng.carrierOnSide(m, p, planes, mid, q) : -1;
+        if (g < 0)
+            emit(p, best, c, -1);
+        else
+            emit(q, g, inParent(p, c, q), -1, false);
+    }
+}
+
+// 1. The original triangles. One whose parents are all uncut stays as it is; one past the
+// boundary is split by the cuts near it (splitPastBoundary); any other is split by the cuts of
+// each parent it crosses.
+void CutEngine::SurfaceBuild::drawOriginal() {
     // Parents sharing a corner with a cut parent: a triangle past the boundary near them may be
     // crossed by a cut beyond the parents it lies over.
-    std::vector<char> near(static_cast<size_t>(nParents), 0);
+    std::vector<char> near(static_cast<size_t>(parents()), 0);
     if (cache.outside)
-        for (const auto& kv : virt_) {
-            if (kv.first >= nParents) continue;
+        for (const auto& kv : eng.virt_) {
+            if (kv.first >= parents()) continue;
             for (int a = 0; a < 4; ++a) {
-                const int o = tets0_(a, kv.first);
-                for (int i = ringStart_[static_cast<size_t>(o)]; i < ringStart_[static_cast<size_t>(o) + 1]; ++i)
-                    near[static_cast<size_t>(ring_[static_cast<size_t>(i)])] = 1;
+                const int o = eng.tets0_(a, kv.first);
+                for (int i = eng.ringStart_[static_cast<size_t>(o)]; i < eng.ringStart_[static_cast<size_t>(o) + 1];
+                     ++i)
+                    near[static_cast<size_t>(eng.ring_[static_cast<size_t>(i)])] = 1;
             }
         }
     std::vector<int> piece;  // connected piece of each element, when a triangle past the boundary needs it
@@ -532,10 +566,6 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
         return std::any_of(v.begin(), v.end(),
                            [&](int i) { return near[static_cast<size_t>(original.element[static_cast<size_t>(i)])]; });
     };
-
-    // 1. The original triangles. One whose parents are all uncut stays as it is; one past the
-    // boundary is split by the cuts near it (splitPastBoundary); any other is split by the cuts of
-    // each parent it crosses.
     for (int t = 0; t < original.faces(); ++t) {
         std::array<int, 3> v{};
         bool touchesCut = false;
@@ -549,7 +579,7 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                           cache.pastVertex[static_cast<size_t>(v[2])];
         if (past && (touchesCut || nearCut(v))) {
             if (piece.empty()) piece = pieceLabels(m);
-            splitPastBoundary(
+            eng.splitPastBoundary(
                 m, cache, original, t, piece, [&](int g, const Eigen::Vector4d& w) { return vertex(0, g, w, false); },
                 [&](int a, int b2, int c2) {
                     tris.emplace_back(a, b2, c2);
@@ -570,198 +600,204 @@ EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& origin
                 emit(q, q, poly, -1);
         }
     }
+}
 
-    // 2. The cut faces. In an element the surface crosses (inside share < 1) only the part inside
-    // it: each cap triangle is subdivided into 4^capLevels, the winding number w of the rest
-    // surface sampled at their corners, and each clipped where the linear interpolant of w - 1/2
-    // changes sign (Jacobson et al. 2013: w is 1 inside a closed surface, 0 outside).
-    std::vector<int> cutParents;
-    for (const auto& kv : virt_)
-        if (kv.first < nParents) cutParents.push_back(kv.first);
-    std::sort(cutParents.begin(), cutParents.end());  // deterministic output
-    const int n = 1 << std::max(0, capLevels);
-    std::vector<Eigen::Vector4d> grid;
-    std::vector<double> wind;
-    auto at = [n](int i, int j) { return static_cast<size_t>(i * (n + 1) - i * (i - 1) / 2 + j); };  // i + j <= n
-    // A whole element (share 1) may still reach past the surface when it is a tet mesh's and the
-    // surface a visual one: then a corner lies outside the surface or a surface vertex inside it.
-    auto cornerOutside = [&](int p) {
-        for (int a = 0; a < 4; ++a) {
-            double& w = cache.cornerWinding[static_cast<size_t>(tets0_(a, p))];
-            if (std::isnan(w)) w = windingNumber(cache.tree, m.X.col(tets0_(a, p)));
-            if (w < 0.5) return true;
-        }
-        return false;
-    };
-    auto windingAt = [&](int p, const Eigen::Vector4d& w) {
-        const auto [it, added] = cache.winding.try_emplace({p, {w[0], w[1], w[2], w[3]}}, 0.0);
-        if (added) it->second = windingNumber(cache.tree, rest(p, w));
-        return it->second;
-    };
-    // Where the surface crosses the segment from a to b (their sides differ), as a fraction of it,
-    // so a cap's rim follows the surface instead of the staircase a linear interpolant of the
-    // (step-like) winding number draws: the first triangle the segment meets, or where none does
-    // (a hole, a gap in a self-intersecting surface) bisection on the winding number to 2^-12.
-    auto crossingAt = [&](int p, const Eigen::Vector4d& a, const Eigen::Vector4d& b) {
-        const bool flip = std::lexicographical_compare(b.data(), b.data() + 4, a.data(), a.data() + 4);
-        const Eigen::Vector4d& u = flip ? b : a;
-        const Eigen::Vector4d& v = flip ? a : b;
-        const auto [it, added] = cache.crossing.try_emplace({p, {u[0], u[1], u[2], u[3], v[0], v[1], v[2], v[3]}}, 0.0);
-        if (added && firstCrossing(cache.tree, rest(p, u), rest(p, v), it->second))
-            return flip ? 1 - it->second : it->second;
-        if (added) {
-            const bool in = windingAt(p, u) >= 0.5;
-            double lo = 0, hi = 1;
-            for (int i = 0; i < 12; ++i) {
-                const double mid = 0.5 * (lo + hi);
-                ((windingNumber(cache.tree, rest(p, u + mid * (v - u))) >= 0.5) == in ? lo : hi) = mid;
-            }
-            it->second = 0.5 * (lo + hi);
-        }
+// A whole element (share 1) may still reach past the surface when it is a tet mesh's and the
+// surface a visual one: then a corner lies outside the surface or a surface vertex inside it.
+bool CutEngine::SurfaceBuild::cornerOutside(int p) const {
+    for (int a = 0; a < 4; ++a) {
+        double& w = cache.cornerWinding[static_cast<size_t>(eng.tets0_(a, p))];
+        if (std::isnan(w)) w = windingNumber(cache.tree, m.X.col(eng.tets0_(a, p)));
+        if (w < 0.5) return true;
+    }
+    return false;
+}
+
+double CutEngine::SurfaceBuild::windingAt(int p, const Eigen::Vector4d& w) const {
+    const auto [it, added] = cache.winding.try_emplace({p, {w[0], w[1], w[2], w[3]}}, 0.0);
+    if (added) it->second = windingNumber(cache.tree, rest(p, w));
+    return it->second;
+}
+
+// Where the surface crosses the segment from a to b (their sides differ), as a fraction of it,
+// so a cap's rim follows the surface instead of the staircase a linear interpolant of the
+// (step-like) winding number draws: the first triangle the segment meets, or where none does
+// (a hole, a gap in a self-intersecting surface) bisection on the winding number to 2^-12.
+double CutEngine::SurfaceBuild::crossingAt(int p, const Eigen::Vector4d& a, const Eigen::Vector4d& b) const {
+    const bool flip = std::lexicographical_compare(b.data(), b.data() + 4, a.data(), a.data() + 4);
+    const Eigen::Vector4d& u = flip ? b : a;
+    const Eigen::Vector4d& v = flip ? a : b;
+    const auto [it, added] = cache.crossing.try_emplace({p, {u[0], u[1], u[2], u[3], v[0], v[1], v[2], v[3]}}, 0.0);
+    if (added && firstCrossing(cache.tree, rest(p, u), rest(p, v), it->second))
         return flip ? 1 - it->second : it->second;
-    };
+    if (added) {
+        const bool in = windingAt(p, u) >= 0.5;
+        double lo = 0, hi = 1;
+        for (int i = 0; i < 12; ++i) {
+            const double mid = 0.5 * (lo + hi);
+            ((windingNumber(cache.tree, rest(p, u + mid * (v - u))) >= 0.5) == in ? lo : hi) = mid;
+        }
+        it->second = 0.5 * (lo + hi);
+    }
+    return flip ? 1 - it->second : it->second;
+}
+
+// A surface that bulges past the tet boundary (a visual one) would show its inside between its
+// rim and a cut face that ends at the boundary: a boundary element's cut face reaches past its
+// boundary faces (weights extrapolated), and the winding number clips it to the surface as it
+// does inside. A square in the face's plane, wide enough for the grown element, clipped to it
+// and to the element's other cuts.
+Poly CutEngine::SurfaceBuild::pastBoundary(int p, const Virtual& ve, int cut, const Poly& face) const {
+    constexpr double kPast = 0.5;  // of the element's height, at least
+    const auto& t = eng.tets0_;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero(), nrm = Eigen::Vector3d::Zero();
+    const Eigen::Vector3d y0 = rest(p, face[0]);
+    for (size_t k = 0; k < face.size(); ++k) {
+        c += rest(p, face[k]);
+        if (k + 2 < face.size()) nrm += (rest(p, face[k + 1]) - y0).cross(rest(p, face[k + 2]) - y0);
+    }
+    c /= static_cast<double>(face.size());
+    if (!(nrm.norm() > 0)) return face;
+    nrm.normalize();
+    const Eigen::Vector3d u = nrm.unitOrthogonal(), v = nrm.cross(u);
+    double size = 0;
+    for (int a = 0; a < 4; ++a) size = std::max(size, (m.X.col(t(a, p)) - c).norm());
+    // past each boundary face: kPast, or farther to reach the farthest surface vertex (in
+    // weights: distance over the element's height above that face)
+    Eigen::Vector4d past = Eigen::Vector4d::Zero();
+    for (int a = 0; a < 4; ++a) {
+        if (eng.adj_(a, p) >= 0) continue;
+        const Eigen::Vector3d y1 = m.X.col(t((a + 1) % 4, p)), y2 = m.X.col(t((a + 2) % 4, p)),
+                              y3 = m.X.col(t((a + 3) % 4, p));
+        const Eigen::Vector3d nf = (y2 - y1).cross(y3 - y1);
+        const double height = std::abs(nf.dot(m.X.col(t(a, p)) - y1)) / nf.norm();
+        past[a] = std::max(kPast, 1.25 * cache.reach / height);
+    }
+    const double half = 2 * (1 + 4 * past.maxCoeff()) * size;
+    Poly sq;
+    for (const auto& [du, dv] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}})  // counter-clockwise about nrm
+        sq.push_back(barycentric(c + half * (du * u + dv * v), m.X.col(t(0, p)), m.X.col(t(1, p)), m.X.col(t(2, p)),
+                                 m.X.col(t(3, p))));
+    for (int a = 0; a < 4 && !sq.empty(); ++a)
+        sq = clipBy(sq, [a, pa = past[a]](const Eigen::Vector4d& w) { return w[a] + pa; });
+    for (const Halfspace& h : ve.hs) {
+        if (h.cut == cut || sq.empty()) continue;
+        sq = clipBy(sq, [&h](const Eigen::Vector4d& w) { return h.positive ? w.dot(h.s) : -w.dot(h.s); });
+    }
+    return sq.size() >= 3 ? sq : face;
+}
+
+// A cap polygon of parent p riding e (of parent q). In an element the surface crosses (inside
+// false) only its part inside the surface: each triangle subdivided into 4^capLevels, the
+// winding number w of the rest surface sampled at their corners, and each clipped where the
+// linear interpolant of w - 1/2 changes sign (Jacobson et al. 2013: w is 1 inside a closed
+// surface, 0 outside).
+void CutEngine::SurfaceBuild::cap(int p, bool inside, const Poly& poly, int e, int q, int cut, int capLevels) {
+    if (inside) return put(p, poly, e, q, cut);
+    const int n = 1 << std::max(0, capLevels);
+    auto at = [n](int i, int j) { return static_cast<size_t>(i * (n + 1) - i * (i - 1) / 2 + j); };  // i + j <= n
+    for (size_t k = 1; k + 1 < poly.size(); ++k) {
+        const Eigen::Vector4d A = poly[0], B = poly[k], C = poly[k + 1];
+        grid.assign(static_cast<size_t>((n + 1) * (n + 2) / 2), Eigen::Vector4d::Zero());
+        wind.assign(grid.size(), 0.0);
+        for (int i = 0; i <= n; ++i)
+            for (int j = 0; i + j <= n; ++j) {
+                const Eigen::Vector4d w = A + (double(i) / n) * (B - A) + (double(j) / n) * (C - A);
+                grid[at(i, j)] = w;
+                wind[at(i, j)] = windingAt(p, w) - 0.5;
+            }
+        // inside at every sample: the triangle whole (the same area, 4^capLevels times fewer triangles)
+        if (std::all_of(wind.begin(), wind.end(), [](double x) { return x >= 0; })) {
+            put(p, {A, B, C}, e, q, cut);
+            continue;
+        }
+        // A sub-triangle the surface crosses is clipped by the line through the two
+        // crossings on its edges: values at its corners whose linear interpolant is zero
+        // exactly there (the lone corner on its side at +-1).
+        auto sub = [&](size_t a, size_t b, size_t c) {
+            const std::array<size_t, 3> v{a, b, c};
+            const int nIn = (wind[a] >= 0) + (wind[b] >= 0) + (wind[c] >= 0);
+            if (nIn == 0) return;
+            if (nIn == 3) return put(p, {grid[a], grid[b], grid[c]}, e, q, cut);
+            size_t lone = 0;
+            for (size_t i = 0; i < 3; ++i)
+                if ((wind[v[i]] >= 0) == (nIn == 1)) lone = i;
+            std::vector<double> f(3);
+            f[lone] = nIn == 1 ? 1 : -1;
+            for (size_t i = 0; i < 3; ++i) {
+                if (i == lone) continue;
+                const double t = std::clamp(crossingAt(p, grid[v[lone]], grid[v[i]]), 1e-6, 1 - 1e-6);
+                f[i] = -f[lone] * (1 - t) / t;
+            }
+            put(p, clipPoly({grid[a], grid[b], grid[c]}, f), e, q, cut);
+        };
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; i + j < n; ++j) {
+                sub(at(i, j), at(i + 1, j), at(i, j + 1));
+                if (i + j + 1 < n) sub(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            }
+    }
+}
+
+// 2. The cut faces of each cut parent, in parent order (deterministic output).
+void CutEngine::SurfaceBuild::drawCutFaces(int capLevels) {
+    std::vector<int> cutParents;
+    for (const auto& kv : eng.virt_)
+        if (kv.first < parents()) cutParents.push_back(kv.first);
+    std::sort(cutParents.begin(), cutParents.end());
     // Slivers by parent: their cut faces are drawn on their side (a hole there otherwise, with
     // the inside of the surface in view through it).
     std::unordered_multimap<int, const Sliver*> sliversIn;
-    for (const Sliver& sl : slivers_)
+    for (const Sliver& sl : eng.slivers_)
         if (sl.element >= 0 && sl.element < m.elements())
-            sliversIn.emplace(parent_[static_cast<size_t>(sl.element)], &sl);
-    // A surface that bulges past the tet boundary (a visual one) would show its inside between its
-    // rim and a cut face that ends at the boundary: a boundary element's cut face reaches past its
-    // boundary faces, by up to kPast of the element (weights extrapolated), and the winding number
-    // clips it to the surface as it does inside.
-    constexpr double kPast = 0.5;
-    auto atBoundary = [&](int p) { return cache.outside && adj_.col(p).minCoeff() < 0; };
-    auto pastBoundary = [&](int p, const Virtual& ve, int cut, const Poly& face) {
-        // a square in the face's plane, wide enough for the grown element, clipped to it and to the
-        // element's other cuts
-        Eigen::Vector3d c = Eigen::Vector3d::Zero(), nrm = Eigen::Vector3d::Zero();
-        const Eigen::Vector3d y0 = rest(p, face[0]);
-        for (size_t k = 0; k < face.size(); ++k) {
-            c += rest(p, face[k]);
-            if (k + 2 < face.size()) nrm += (rest(p, face[k + 1]) - y0).cross(rest(p, face[k + 2]) - y0);
-        }
-        c /= static_cast<double>(face.size());
-        if (!(nrm.norm() > 0)) return face;
-        nrm.normalize();
-        const Eigen::Vector3d u = nrm.unitOrthogonal(), v = nrm.cross(u);
-        double size = 0;
-        for (int a = 0; a < 4; ++a) size = std::max(size, (m.X.col(tets0_(a, p)) - c).norm());
-        // past each boundary face: kPast, or farther to reach the farthest surface vertex (in
-        // weights: distance over the element's height above that face)
-        Eigen::Vector4d past = Eigen::Vector4d::Zero();
-        for (int a = 0; a < 4; ++a) {
-            if (adj_(a, p) >= 0) continue;
-            const Eigen::Vector3d y1 = m.X.col(tets0_((a + 1) % 4, p)), y2 = m.X.col(tets0_((a + 2) % 4, p)),
-                                  y3 = m.X.col(tets0_((a + 3) % 4, p));
-            const Eigen::Vector3d nf = (y2 - y1).cross(y3 - y1);
-            const double height = std::abs(nf.dot(m.X.col(tets0_(a, p)) - y1)) / nf.norm();
-            past[a] = std::max(kPast, 1.25 * cache.reach / height);
-        }
-        const double half = 2 * (1 + 4 * past.maxCoeff()) * size;
-        Poly sq;
-        for (const auto& [du, dv] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}})  // counter-clockwise about nrm
-            sq.push_back(barycentric(c + half * (du * u + dv * v), m.X.col(tets0_(0, p)), m.X.col(tets0_(1, p)),
-                                     m.X.col(tets0_(2, p)), m.X.col(tets0_(3, p))));
-        for (int a = 0; a < 4 && !sq.empty(); ++a)
-            sq = clipBy(sq, [a, pa = past[a]](const Eigen::Vector4d& w) { return w[a] + pa; });
-        for (const Halfspace& h : ve.hs) {
-            if (h.cut == cut || sq.empty()) continue;
-            sq = clipBy(sq, [&h](const Eigen::Vector4d& w) { return h.positive ? w.dot(h.s) : -w.dot(h.s); });
-        }
-        return sq.size() >= 3 ? sq : face;
-    };
-    for (int p : cutParents) {
-        const bool inside = nv == 0 || (fraction0_[p] >= 1.0 && !cache.holdsVertex[static_cast<size_t>(p)] &&
-                                        !atBoundary(p) && !cornerOutside(p));
-        // Polygon `poly` (weights in p) riding element e, of parent q: p itself, or a carrier whose
-        // weights are extrapolated.
-        auto put = [&](const Poly& poly, int e, int q, int cut) {
-            if (q == p) return emit(p, e, poly, cut);
-            Poly inQ;
-            for (const auto& w : poly)
-                inQ.push_back(barycentric(rest(p, w), m.X.col(tets0_(0, q)), m.X.col(tets0_(1, q)),
-                                          m.X.col(tets0_(2, q)), m.X.col(tets0_(3, q))));
-            emit(q, e, inQ, cut, false);
-        };
-        auto cap = [&](const Poly& poly, int e, int q, int cut) {
-            if (inside) return put(poly, e, q, cut);
-            for (size_t k = 1; k + 1 < poly.size(); ++k) {
-                const Eigen::Vector4d A = poly[0], B = poly[k], C = poly[k + 1];
-                grid.assign(static_cast<size_t>((n + 1) * (n + 2) / 2), Eigen::Vector4d::Zero());
-                wind.assign(grid.size(), 0.0);
-                for (int i = 0; i <= n; ++i)
-                    for (int j = 0; i + j <= n; ++j) {
-                        const Eigen::Vector4d w = A + (double(i) / n) * (B - A) + (double(j) / n) * (C - A);
-                        grid[at(i, j)] = w;
-                        wind[at(i, j)] = windingAt(p, w) - 0.5;
-                    }
-                // inside at every sample: the triangle whole (the same area, 4^capLevels times fewer triangles)
-                if (std::all_of(wind.begin(), wind.end(), [](double x) { return x >= 0; })) {
-                    put({A, B, C}, e, q, cut);
-                    continue;
-                }
-                // A sub-triangle the surface crosses is clipped by the line through the two
-                // crossings on its edges: values at its corners whose linear interpolant is zero
-                // exactly there (the lone corner on its side at +-1).
-                auto sub = [&](size_t a, size_t b, size_t c) {
-                    const std::array<size_t, 3> v{a, b, c};
-                    const int nIn = (wind[a] >= 0) + (wind[b] >= 0) + (wind[c] >= 0);
-                    if (nIn == 0) return;
-                    if (nIn == 3) return put({grid[a], grid[b], grid[c]}, e, q, cut);
-                    size_t lone = 0;
-                    for (size_t i = 0; i < 3; ++i)
-                        if ((wind[v[i]] >= 0) == (nIn == 1)) lone = i;
-                    std::vector<double> f(3);
-                    f[lone] = nIn == 1 ? 1 : -1;
-                    for (size_t i = 0; i < 3; ++i) {
-                        if (i == lone) continue;
-                        const double t = std::clamp(crossingAt(p, grid[v[lone]], grid[v[i]]), 1e-6, 1 - 1e-6);
-                        f[i] = -f[lone] * (1 - t) / t;
-                    }
-                    put(clipPoly({grid[a], grid[b], grid[c]}, f), e, q, cut);
-                };
-                for (int i = 0; i < n; ++i)
-                    for (int j = 0; i + j < n; ++j) {
-                        sub(at(i, j), at(i + 1, j), at(i, j + 1));
-                        if (i + j + 1 < n) sub(at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-                    }
-            }
-        };
-        const std::vector<int> ves = virtualsOf(p);  // copy: virtualsOf reuses scratch
-        std::vector<const Halfspace*> planes;        // p's cut planes, for carriers
-        for (int e : ves) {
-            const Virtual& ve = virt_.at(e);
-            for (const Halfspace& h : ve.hs)
-                if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
-                    planes.push_back(&h);
-            for (const PolyFace& f : ve.piece.faces) {
-                if (f.tag < 4) continue;
-                Poly poly;
-                for (int vi : f.v) poly.push_back(weightsOf(ve.piece.xi[static_cast<size_t>(vi)]));
-                if (!inside && atBoundary(p)) poly = pastBoundary(p, ve, f.tag - 4, poly);
-                cap(poly, e, p, f.tag - 4);
-            }
-        }
-        const auto range = sliversIn.equal_range(p);
-        for (auto it = range.first; it != range.second; ++it) {
-            const Sliver& sl = *it->second;
-            Eigen::Vector4d mid = Eigen::Vector4d::Zero();
-            for (const auto& xi : sl.piece.xi) mid += weightsOf(xi);
-            mid /= static_cast<double>(std::max<size_t>(1, sl.piece.xi.size()));
-            int q = -1;
-            const int g = carrierOnSide(m, p, planes, mid, q);
-            if (g < 0) continue;  // severed alone: nothing on its side to ride
-            for (const PolyFace& f : sl.piece.faces) {
-                if (f.tag - 4 != sl.cut) continue;
-                Poly poly;
-                for (int vi : f.v) poly.push_back(weightsOf(sl.piece.xi[static_cast<size_t>(vi)]));
-                cap(poly, g, q, sl.cut);
-            }
+            sliversIn.emplace(eng.parent_[static_cast<size_t>(sl.element)], &sl);
+    for (int p : cutParents) drawCutFacesOf(p, sliversIn, capLevels);
+}
+
+void CutEngine::SurfaceBuild::drawCutFacesOf(int p, const std::unordered_multimap<int, const Sliver*>& sliversIn,
+                                             int capLevels) {
+    const bool inside =
+        original.vertices() == 0 ||
+        (eng.fraction0_[p] >= 1.0 && !cache.holdsVertex[static_cast<size_t>(p)] && !atBoundary(p) && !cornerOutside(p));
+    const std::vector<int> ves = eng.virtualsOf(p);  // copy: virtualsOf reuses scratch
+    std::vector<const Halfspace*> planes;            // p's cut planes, for carriers
+    for (int e : ves) {
+        const Virtual& ve = eng.virt_.at(e);
+        for (const Halfspace& h : ve.hs)
+            if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
+                planes.push_back(&h);
+        for (const PolyFace& f : ve.piece.faces) {
+            if (f.tag < 4) continue;
+            Poly poly;
+            for (int vi : f.v) poly.push_back(weightsOf(ve.piece.xi[static_cast<size_t>(vi)]));
+            if (!inside && atBoundary(p)) poly = pastBoundary(p, ve, f.tag - 4, poly);
+            cap(p, inside, poly, e, p, f.tag - 4, capLevels);
         }
     }
+    const auto range = sliversIn.equal_range(p);
+    for (auto it = range.first; it != range.second; ++it) {
+        const Sliver& sl = *it->second;
+        Eigen::Vector4d mid = Eigen::Vector4d::Zero();
+        for (const auto& xi : sl.piece.xi) mid += weightsOf(xi);
+        mid /= static_cast<double>(std::max<size_t>(1, sl.piece.xi.size()));
+        int q = -1;
+        const int g = eng.carrierOnSide(m, p, planes, mid, q);
+        if (g < 0) continue;  // severed alone: nothing on its side to ride
+        for (const PolyFace& f : sl.piece.faces) {
+            if (f.tag - 4 != sl.cut) continue;
+            Poly poly;
+            for (int vi : f.v) poly.push_back(weightsOf(sl.piece.xi[static_cast<size_t>(vi)]));
+            cap(p, inside, poly, g, q, sl.cut, capLevels);
+        }
+    }
+}
 
-    return makeEmbeddedSurface(std::move(elem), weights, tris, std::move(cutId));
+EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
+    if (!prepared_) return original;
+    SurfaceBuild b(*this, m, original, splitCache(m, original));
+    b.drawOriginal();
+    b.drawCutFaces(capLevels);
+    return makeEmbeddedSurface(std::move(b.elem), b.weights, b.tris, std::move(b.cutId));
 }
 
 }  // namespace cutsim
