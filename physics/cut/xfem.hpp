@@ -258,6 +258,7 @@ private:
     struct SplitCache;
     struct PastBoundarySplit;  // the cuts near one such triangle and their sides
     struct SurfaceBuild;       // surface(m, original)'s output and phases (cut/embedded_cut.cpp)
+    struct MeshSurfaceBuild;   // surface(m)'s (cut/cut_surface.cpp)
     void splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
                            const std::vector<int>& piece,
                            const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
