@@ -101,6 +101,117 @@ struct FrameResult {
     std::string line;  // what the frame's line says after "frame N: "
 };
 
+// golden.json of a golden folder, its frame list checked.
+json readGoldenMeta(const CheckArgs& a) {
+    const fs::path mp = fs::path(a.golden) / "golden.json";
+    if (!fs::exists(mp))
+        throw InputError(mp.string() + ": no golden images here (make them with cutsim check " + a.scene +
+                         " --golden " + a.golden + " --update)");
+    json meta;
+    try {
+        meta = json::parse(readBytes(mp));
+    } catch (const json::parse_error& e) {
+        throw InputError(mp.string() + ": invalid JSON: " + e.what());
+    }
+    bool ok = meta.is_object() && meta.contains("frames") && meta["frames"].is_array();
+    for (size_t i = 0; ok && i < meta["frames"].size(); ++i)
+        ok = meta["frames"][i].is_number_integer() && meta["frames"][i].get<long>() >= 0;
+    if (!ok) throw InputError(mp.string() + ": frames: must be an array of frame numbers >= 0");
+    return meta;
+}
+
+// The frames to compare, of a run with `frames` frames: all when none were asked for, -1 the
+// last; sorted, each once.
+std::vector<int> framesOfRun(std::vector<int> wanted, int frames) {
+    if (wanted.empty())
+        for (int f = 0; f < frames; ++f) wanted.push_back(f);
+    for (int& f : wanted) {
+        if (f < 0) f = frames - 1;
+        if (f >= frames)
+            throw InputError("frame " + std::to_string(f) + " asked for, but the run has " + std::to_string(frames) +
+                             " frames (0 to " + std::to_string(frames - 1) + ")");
+    }
+    std::sort(wanted.begin(), wanted.end());
+    wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    return wanted;
+}
+
+int writeGoldens(const CheckArgs& a, const SceneDef& sc, const std::vector<int>& wanted, const json& renderer) {
+    const fs::path golden(a.golden), out(a.out);
+    fs::create_directories(golden);
+    for (int f : wanted) {
+        const std::string name = frameName(f) + ".png";
+        writeFileAtomic((golden / name).string(), readBytes(out / "frames" / name));
+        std::printf("frame %d: written %s\n", f, (golden / name).string().c_str());
+    }
+    const json m = {{"scene", sc.name},
+                    {"frames", wanted},
+                    {"width", sc.capture.width},
+                    {"height", sc.capture.height},
+                    {"renderer", renderer}};
+    writeFileAtomic((golden / "golden.json").string(), jsonText(m));
+    std::printf("%s: %zu golden frames in %s (renderer %s)\n", sc.name.c_str(), wanted.size(), a.golden.c_str(),
+                rendererText(renderer).c_str());
+    return 0;
+}
+
+// Frame f of the run against its golden; a failing one leaves its diff and a side-by-side.
+FrameResult compareFrame(const CheckArgs& a, int f, int tol, double maxFailing, double& compareSeconds) {
+    const fs::path golden(a.golden), out(a.out);
+    FrameResult r;
+    r.frame = f;
+    const std::string name = frameName(f);
+    const fs::path ref = golden / (name + ".png");
+    if (!fs::exists(ref)) {
+        r.line = "FAIL: no golden image " + ref.string();
+        return r;
+    }
+    const render::Image want = render::readPng(ref.string());
+    const render::Image got = render::readPng((out / "frames" / (name + ".png")).string());
+    const Stopwatch sw;
+    render::ImageDiff d = render::diffImages(want, got, tol, false);
+    compareSeconds += sw.seconds();
+    char line[512];
+    if (!d.sameSize) {
+        std::snprintf(line, sizeof line, "FAIL: size %dx%d, golden %dx%d", got.width, got.height, want.width,
+                      want.height);
+        r.line = line;
+        return r;
+    }
+    r.pass = d.fraction <= maxFailing;
+    std::snprintf(line, sizeof line, "%s: %.4f%% of pixels differ by more than %d (allowed %.4f%%), max %d",
+                  r.pass ? "pass" : "FAIL", 100 * d.fraction, tol, 100 * maxFailing, d.maxChannel);
+    r.line = line;
+    if (!r.pass) {
+        d = render::diffImages(want, got, tol, true);
+        const fs::path diff = out / (name + ".diff.png"), side = out / (name + ".side.png");
+        render::writePng(diff.string(), d.diff);
+        render::writePng(side.string(), render::sideBySide(want, got, d.diff));
+        r.line += "; diff " + diff.string() + ", golden | run | diff " + side.string();
+    }
+    return r;
+}
+
+void writeJunit(const std::string& path, const SceneDef& sc, const std::vector<FrameResult>& results, int failed,
+                const json& renderer, const json& goldenRenderer) {
+    std::string x = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
+    x += "<testsuites tests=\"" + std::to_string(results.size()) + "\" failures=\"" + std::to_string(failed) + "\">\n";
+    x += "  <testsuite name=\"" + xmlEscape("cutsim check " + sc.name) + "\" tests=\"" +
+         std::to_string(results.size()) + "\" failures=\"" + std::to_string(failed) + "\">\n";
+    x += "    <properties><property name=\"renderer\" value=\"" + xmlEscape(rendererText(renderer)) +
+         "\"/><property name=\"golden_renderer\" value=\"" + xmlEscape(rendererText(goldenRenderer)) +
+         "\"/></properties>\n";
+    for (const FrameResult& r : results) {
+        x += "    <testcase classname=\"" + xmlEscape(sc.name) + "\" name=\"" + frameName(r.frame) + "\"";
+        if (r.pass)
+            x += "/>\n";
+        else
+            x += "><failure message=\"" + xmlEscape(r.line) + "\"/></testcase>\n";
+    }
+    x += "  </testsuite>\n</testsuites>\n";
+    writeFileAtomic(path, x);
+}
+
 int runCheck(const CheckArgs& a) {
     SceneDef sc = loadScene(a.scene, a.sets);
     // Every frame as a PNG, no video and no mesh: only the frames are compared.
@@ -112,23 +223,7 @@ int runCheck(const CheckArgs& a) {
     const int tol = a.toleranceOpt->count() ? a.tolerance : fromScene.maxDiff;
     const double maxFailing = a.maxFailingOpt->count() ? a.maxFailing : fromScene.maxFailing;
 
-    const fs::path golden(a.golden), out(a.out);
-    json meta;  // golden.json
-    if (!a.update) {
-        const fs::path mp = golden / "golden.json";
-        if (!fs::exists(mp))
-            throw InputError(mp.string() + ": no golden images here (make them with cutsim check " + a.scene +
-                             " --golden " + a.golden + " --update)");
-        try {
-            meta = json::parse(readBytes(mp));
-        } catch (const json::parse_error& e) {
-            throw InputError(mp.string() + ": invalid JSON: " + e.what());
-        }
-        bool ok = meta.is_object() && meta.contains("frames") && meta["frames"].is_array();
-        for (size_t i = 0; ok && i < meta["frames"].size(); ++i)
-            ok = meta["frames"][i].is_number_integer() && meta["frames"][i].get<long>() >= 0;
-        if (!ok) throw InputError(mp.string() + ": frames: must be an array of frame numbers >= 0");
-    }
+    const json meta = a.update ? json() : readGoldenMeta(a);
     std::vector<int> wanted = !a.frames.empty()           ? parseFrames(a.frames)
                               : !fromScene.frames.empty() ? fromScene.frames
                                                           : std::vector<int>{};
@@ -141,7 +236,7 @@ int runCheck(const CheckArgs& a) {
     ro.quiet = true;
     // the run replaces `out` whole (output_folder.hpp): no frame or diff of an earlier check stays
     const int code = runScene(sc, ro);
-    const json report = json::parse(readBytes(out / "report.json"));
+    const json report = json::parse(readBytes(fs::path(a.out) / "report.json"));
     if (code != 0) {
         std::fprintf(stderr, "error: %s: the run did not finish (%s); nothing compared\n", a.scene.c_str(),
                      report.value("status", "?").c_str());
@@ -149,35 +244,9 @@ int runCheck(const CheckArgs& a) {
     }
     const int frames = report.value("frames", 0);
     if (frames == 0) throw InputError(a.scene + ": no frames were rendered (see the message above)");
-    if (wanted.empty())
-        for (int f = 0; f < frames; ++f) wanted.push_back(f);
-    for (int& f : wanted) {
-        if (f < 0) f = frames - 1;
-        if (f >= frames)
-            throw InputError("frame " + std::to_string(f) + " asked for, but the run has " + std::to_string(frames) +
-                             " frames (0 to " + std::to_string(frames - 1) + ")");
-    }
-    std::sort(wanted.begin(), wanted.end());
-    wanted.erase(std::unique(wanted.begin(), wanted.end()), wanted.end());
+    wanted = framesOfRun(std::move(wanted), frames);
     const json renderer = report.value("renderer", json());
-
-    if (a.update) {
-        fs::create_directories(golden);
-        for (int f : wanted) {
-            const std::string name = frameName(f) + ".png";
-            writeFileAtomic((golden / name).string(), readBytes(out / "frames" / name));
-            std::printf("frame %d: written %s\n", f, (golden / name).string().c_str());
-        }
-        const json m = {{"scene", sc.name},
-                        {"frames", wanted},
-                        {"width", sc.capture.width},
-                        {"height", sc.capture.height},
-                        {"renderer", renderer}};
-        writeFileAtomic((golden / "golden.json").string(), jsonText(m));
-        std::printf("%s: %zu golden frames in %s (renderer %s)\n", sc.name.c_str(), wanted.size(), a.golden.c_str(),
-                    rendererText(renderer).c_str());
-        return 0;
-    }
+    if (a.update) return writeGoldens(a, sc, wanted, renderer);
 
     const json goldenRenderer = meta.value("renderer", json());
     const bool otherRenderer = goldenRenderer != renderer;
@@ -186,43 +255,11 @@ int runCheck(const CheckArgs& a) {
                     rendererText(goldenRenderer).c_str(), rendererText(renderer).c_str());
     std::vector<FrameResult> results;
     double compareSeconds = 0;
-    for (int f : wanted) {
-        FrameResult r;
-        r.frame = f;
-        const std::string name = frameName(f);
-        const fs::path ref = golden / (name + ".png");
-        char line[512];
-        if (!fs::exists(ref)) {
-            r.line = "FAIL: no golden image " + ref.string();
-            results.push_back(r);
-            continue;
-        }
-        const render::Image want = render::readPng(ref.string());
-        const render::Image got = render::readPng((out / "frames" / (name + ".png")).string());
-        const Stopwatch sw;
-        render::ImageDiff d = render::diffImages(want, got, tol, false);
-        compareSeconds += sw.seconds();
-        if (!d.sameSize) {
-            std::snprintf(line, sizeof line, "FAIL: size %dx%d, golden %dx%d", got.width, got.height, want.width,
-                          want.height);
-            r.line = line;
-        } else {
-            r.pass = d.fraction <= maxFailing;
-            std::snprintf(line, sizeof line, "%s: %.4f%% of pixels differ by more than %d (allowed %.4f%%), max %d",
-                          r.pass ? "pass" : "FAIL", 100 * d.fraction, tol, 100 * maxFailing, d.maxChannel);
-            r.line = line;
-            if (!r.pass) {
-                d = render::diffImages(want, got, tol, true);
-                const fs::path diff = out / (name + ".diff.png"), side = out / (name + ".side.png");
-                render::writePng(diff.string(), d.diff);
-                render::writePng(side.string(), render::sideBySide(want, got, d.diff));
-                r.line += "; diff " + diff.string() + ", golden | run | diff " + side.string();
-            }
-        }
-        if (!r.pass && otherRenderer) r.line += " (goldens from another renderer)";
-        results.push_back(r);
-    }
     int failed = 0;
+    for (int f : wanted) {
+        results.push_back(compareFrame(a, f, tol, maxFailing, compareSeconds));
+        if (!results.back().pass && otherRenderer) results.back().line += " (goldens from another renderer)";
+    }
     for (const FrameResult& r : results) {
         std::printf("frame %d: %s\n", r.frame, r.line.c_str());
         failed += !r.pass;
@@ -230,26 +267,7 @@ int runCheck(const CheckArgs& a) {
     std::printf("%s: %zu frames, %d differ; renderer %s; comparison %.2f ms per frame\n", sc.name.c_str(),
                 results.size(), failed, rendererText(renderer).c_str(),
                 results.empty() ? 0.0 : 1e3 * compareSeconds / static_cast<double>(results.size()));
-
-    if (!a.junit.empty()) {
-        std::string x = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n";
-        x += "<testsuites tests=\"" + std::to_string(results.size()) + "\" failures=\"" + std::to_string(failed) +
-             "\">\n";
-        x += "  <testsuite name=\"" + xmlEscape("cutsim check " + sc.name) + "\" tests=\"" +
-             std::to_string(results.size()) + "\" failures=\"" + std::to_string(failed) + "\">\n";
-        x += "    <properties><property name=\"renderer\" value=\"" + xmlEscape(rendererText(renderer)) +
-             "\"/><property name=\"golden_renderer\" value=\"" + xmlEscape(rendererText(goldenRenderer)) +
-             "\"/></properties>\n";
-        for (const FrameResult& r : results) {
-            x += "    <testcase classname=\"" + xmlEscape(sc.name) + "\" name=\"" + frameName(r.frame) + "\"";
-            if (r.pass)
-                x += "/>\n";
-            else
-                x += "><failure message=\"" + xmlEscape(r.line) + "\"/></testcase>\n";
-        }
-        x += "  </testsuite>\n</testsuites>\n";
-        writeFileAtomic(a.junit, x);
-    }
+    if (!a.junit.empty()) writeJunit(a.junit, sc, results, failed, renderer, goldenRenderer);
     return failed ? 1 : 0;
 }
 #endif
