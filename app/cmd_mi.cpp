@@ -34,158 +34,178 @@ struct MiArgs {
     std::string vtu;
 };
 
+// What `cutsim mi` measured: the surface, the embedding, the steps and the seconds they took.
+struct MiRun {
+    SurfaceMesh s;
+    MiResult r;
+    SurfaceCheck check;  // of the surface as MI classified it (cleaned)
+    ExactResult ex;
+    double dtCert = 0, dtBg = 0;                       // certified and lattice steps [s]
+    double vSurf = 0, vEmb = 0;                        // [m^3]
+    double tRead = 0, tCert = 0, tExact = 0, tBg = 0;  // [s]
+};
+
+MiRun measureMi(const MiArgs& a) {
+    MiRun run;
+    auto t0 = WallClock::now();
+    run.s = readSurfaceMesh(a.surface, a.scale);
+    run.tRead = secondsSince(t0);
+    MiOptions o;
+    o.cells = a.cells;
+    o.h = a.h;
+    o.refineLevels = a.refine;
+    o.fixOutsideNodes = a.fixOutside;
+    o.keepLatticeStep = a.keepStep;
+    run.r = buildMi(run.s, a.material, o);
+    SurfaceMesh cleaned = run.s;  // the edges and volume of the surface as MI classified it
+    cleanSurface(cleaned, 0);
+    run.check = checkSurface(cleaned);
+
+    t0 = WallClock::now();
+    const StiffnessRows rows = assembleStiffnessRows(run.r.model);
+    run.dtCert = certifiedDt(run.r.model, rows);
+    run.tCert = secondsSince(t0);
+    t0 = WallClock::now();
+    run.ex = exactCriticalDt(run.r.model, rows);
+    run.tExact = secondsSince(t0);
+    // The lattice's step: already known when the step was kept.
+    t0 = WallClock::now();
+    run.dtBg = a.keepStep ? run.r.dtLattice : exactCriticalDt(buildModel(run.r.lattice, a.material)).dt;
+    run.tBg = a.keepStep ? 0.0 : secondsSince(t0);
+    run.vSurf = enclosedVolume(cleaned);
+    run.vEmb = run.r.embeddedVolume();
+    return run;
+}
+
+nlohmann::json miReport(const MiArgs& a, const MiRun& run) {
+    const MiResult& r = run.r;
+    nlohmann::json j;
+    j["file"] = a.surface;
+    j["surface"] = {{"vertices", run.s.vertices()},
+                    {"triangles", run.s.faces()},
+                    {"closed", run.check.closed()},
+                    {"open_edges", run.check.openEdges},
+                    {"non_manifold_edges", run.check.nonManifoldEdges},
+                    {"misoriented_edges", run.check.misorientedEdges},
+                    {"welded_vertices", r.cleanup.weldedVertices},
+                    {"dropped_duplicate_triangles", r.cleanup.duplicateFaces},
+                    {"dropped_degenerate_triangles", r.cleanup.degenerateFaces}};
+    j["lattice"] = {{"h", r.h},
+                    {"cells", {r.cells.x(), r.cells.y(), r.cells.z()}},
+                    {"nodes", r.lattice.nodes()},
+                    {"elements", r.lattice.elements()},
+                    {"split", "kuhn6"}};
+    j["node_classes"] = {{"inside", r.count(NodeClass::Inside)},
+                         {"outside", r.count(NodeClass::Outside)},
+                         {"boundary", r.count(NodeClass::Boundary)}};
+    j["nodes"] = r.model.nodes();
+    j["dofs"] = r.model.freeDofs();
+    j["fix_outside"] = a.fixOutside;
+    j["elements"] = {{"inside", r.count(ElementClass::Inside)},
+                     {"interface", r.count(ElementClass::Interface)},
+                     {"outside", r.count(ElementClass::Outside)}};
+    j["volume_embedded"] = run.vEmb;
+    j["volume_surface"] = run.vSurf;
+    j["volume_error"] = run.vSurf != 0 ? (run.vEmb - run.vSurf) / run.vSurf : 0.0;
+    j["volume_method"] = r.closed ? "exact" : "refined";
+    if (!r.fractionRefined.empty()) {
+        nlohmann::json lv = nlohmann::json::array();
+        for (size_t l = 0; l < r.fractionRefined.size(); ++l) {
+            double v = 0;
+            for (int t = 0; t < r.lattice.elements(); ++t)
+                v += std::abs(tetSignedVolume(r.lattice, t)) * r.fractionRefined[l](t);
+            lv.push_back({{"level", l}, {"volume", v}, {"error_vs_exact", r.closed ? (v - run.vEmb) / run.vEmb : 0.0}});
+        }
+        j["volume_refined"] = lv;
+    }
+    j["dt_exact"] = run.ex.dt;
+    j["dt_certified"] = run.dtCert;
+    j["dt_background_exact"] = run.dtBg;
+    if (a.keepStep) {
+        const KeepStepResult& ks = r.massScaling;
+        j["keep_step"] = {{"dt_before", ks.dtBefore}, {"added_mass", ks.addedMass}, {"mass_fraction", ks.massFraction},
+                          {"nodes", ks.nodes},        {"rounds", ks.rounds},        {"reached", ks.reached}};
+    }
+    j["material"] = {{"E", a.material.E}, {"nu", a.material.nu}, {"rho", a.material.rho}};
+    const MiTimings& st = r.seconds;
+    j["seconds"] = {
+        {"read", run.tRead},        {"lattice", st.lattice},     {"hash", st.hash},
+        {"nodes", st.nodes},        {"volumes", st.volumes},     {"refine", st.refine},
+        {"model", st.model},        {"embed", st.embed},         {"setup", st.total() - st.refine - st.keepStep},
+        {"keep_step", st.keepStep}, {"dt_certified", run.tCert}, {"dt_exact", run.tExact},
+        {"dt_background", run.tBg}};
+    return j;
+}
+
+// The model with each element's fraction and whether it is an interface element.
+void writeMiVtu(const std::string& path, const MiResult& r) {
+    Field frac{"fraction", std::vector<double>(r.model.fraction.data(), r.model.fraction.data() + r.model.elements())};
+    Field cls{"interface", std::vector<double>(static_cast<size_t>(r.model.elements()))};
+    for (int e = 0; e < r.model.elements(); ++e)
+        cls.values[static_cast<size_t>(e)] =
+            r.elementClass[static_cast<size_t>(r.latticeElement[static_cast<size_t>(e)])] == ElementClass::Interface;
+    writeVtu(path, restMesh(r.model), {frac, cls});
+}
+
+void printMi(const MiArgs& a, const MiRun& run, const nlohmann::json& j) {
+    const MiResult& r = run.r;
+    const SurfaceCheck& check = run.check;
+    std::printf("surface:   %s (%d vertices, %d triangles%s)\n", a.surface.c_str(), run.s.vertices(), run.s.faces(),
+                check.closed() ? ", closed" : "");
+    if (!check.closed())
+        std::printf("           not closed: %d open, %d non-manifold, %d misoriented edges; inside shares come from\n"
+                    "           %zu refinement levels with winding numbers instead of exact clipping\n",
+                    check.openEdges, check.nonManifoldEdges, check.misorientedEdges,
+                    r.fractionRefined.empty() ? 0 : r.fractionRefined.size() - 1);
+    if (r.cleanup.weldedVertices + r.cleanup.total() > 0)
+        std::printf("           cleaned: %d coincident vertices welded, %d duplicate and %d degenerate triangles "
+                    "dropped\n",
+                    r.cleanup.weldedVertices, r.cleanup.duplicateFaces, r.cleanup.degenerateFaces);
+    std::printf("lattice:   h = %.4g m, %d x %d x %d cells, %d nodes, %d tets (Kuhn, 6 per cube)\n", r.h, r.cells.x(),
+                r.cells.y(), r.cells.z(), r.lattice.nodes(), r.lattice.elements());
+    std::printf("nodes:     %d inside, %d outside, %d boundary (lattice)\n", r.count(NodeClass::Inside),
+                r.count(NodeClass::Outside), r.count(NodeClass::Boundary));
+    std::printf("elements:  %d inside, %d interface, %d outside\n", r.count(ElementClass::Inside),
+                r.count(ElementClass::Interface), r.count(ElementClass::Outside));
+    std::printf("model:     %d nodes, %d elements, %d dofs%s\n", r.model.nodes(), r.model.elements(),
+                r.model.freeDofs(), a.fixOutside ? " (outside corners of interface tets fixed)" : "");
+    std::printf("volume:    embedded %.6g m^3, surface %.6g m^3, error %+.3e\n", run.vEmb, run.vSurf,
+                run.vSurf != 0 ? (run.vEmb - run.vSurf) / run.vSurf : 0.0);
+    for (const auto& lv : j.value("volume_refined", nlohmann::json::array()))
+        if (r.closed)
+            std::printf("           refined %d levels: %.6g m^3, error vs exact %+.3e\n", lv["level"].get<int>(),
+                        lv["volume"].get<double>(), lv["error_vs_exact"].get<double>());
+        else
+            std::printf("           refined %d levels: %.6g m^3\n", lv["level"].get<int>(), lv["volume"].get<double>());
+    std::printf("dt:        exact %.4f ms, certified %.4f ms; background lattice exact %.4f ms (ratio %.3f)\n",
+                run.ex.dt * 1e3, run.dtCert * 1e3, run.dtBg * 1e3, run.ex.dt / run.dtBg);
+    if (a.keepStep) {
+        const KeepStepResult& ks = r.massScaling;
+        std::printf("keep step: exact %.6f ms before; %.3e kg added (%.3e of the mass) on %d nodes, %d eigen-solves\n",
+                    ks.dtBefore * 1e3, ks.addedMass, ks.massFraction, ks.nodes, ks.rounds);
+    }
+    const MiTimings& st = r.seconds;
+    std::printf("seconds:   read %.3f, lattice %.3f, hash %.3f, nodes %.3f, volumes %.3f, model %.3f, embed %.3f"
+                " (set-up %.3f); refine %.3f; keep step %.3f; dt exact %.3f, certified %.3f, background %.3f\n",
+                run.tRead, st.lattice, st.hash, st.nodes, st.volumes, st.model, st.embed,
+                st.total() - st.refine - st.keepStep, st.refine, st.keepStep, run.tExact, run.tCert, run.tBg);
+    if (!a.vtu.empty()) std::printf("written:   %s\n", a.vtu.c_str());
+}
+
 int runMi(const MiArgs& a) {
     try {
         if (!a.material.valid()) throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
         if (a.refine < 0 || a.refine > 8) throw InputError("--refine: must be in [0, 8]");
-        auto t0 = WallClock::now();
-        const SurfaceMesh s = readSurfaceMesh(a.surface, a.scale);
-        const double tRead = secondsSince(t0);
-        MiOptions o;
-        o.cells = a.cells;
-        o.h = a.h;
-        o.refineLevels = a.refine;
-        o.fixOutsideNodes = a.fixOutside;
-        o.keepLatticeStep = a.keepStep;
-        const MiResult r = buildMi(s, a.material, o);
-        SurfaceMesh cleaned = s;  // the edges and volume of the surface as MI classified it
-        cleanSurface(cleaned, 0);
-        const SurfaceCheck check = checkSurface(cleaned);
-
-        t0 = WallClock::now();
-        const StiffnessRows rows = assembleStiffnessRows(r.model);
-        const double dtCert = certifiedDt(r.model, rows);
-        const double tCert = secondsSince(t0);
-        t0 = WallClock::now();
-        const ExactResult ex = exactCriticalDt(r.model, rows);
-        const double tExact = secondsSince(t0);
-        // The lattice's step: already known when the step was kept.
-        t0 = WallClock::now();
-        const double dtBg = a.keepStep ? r.dtLattice : exactCriticalDt(buildModel(r.lattice, a.material)).dt;
-        const double tBg = a.keepStep ? 0.0 : secondsSince(t0);
-
-        const double vSurf = enclosedVolume(cleaned), vEmb = r.embeddedVolume();
-        nlohmann::json j;
-        j["file"] = a.surface;
-        j["surface"] = {{"vertices", s.vertices()},
-                        {"triangles", s.faces()},
-                        {"closed", check.closed()},
-                        {"open_edges", check.openEdges},
-                        {"non_manifold_edges", check.nonManifoldEdges},
-                        {"misoriented_edges", check.misorientedEdges},
-                        {"welded_vertices", r.cleanup.weldedVertices},
-                        {"dropped_duplicate_triangles", r.cleanup.duplicateFaces},
-                        {"dropped_degenerate_triangles", r.cleanup.degenerateFaces}};
-        j["lattice"] = {{"h", r.h},
-                        {"cells", {r.cells.x(), r.cells.y(), r.cells.z()}},
-                        {"nodes", r.lattice.nodes()},
-                        {"elements", r.lattice.elements()},
-                        {"split", "kuhn6"}};
-        j["node_classes"] = {{"inside", r.count(NodeClass::Inside)},
-                             {"outside", r.count(NodeClass::Outside)},
-                             {"boundary", r.count(NodeClass::Boundary)}};
-        j["nodes"] = r.model.nodes();
-        j["dofs"] = r.model.freeDofs();
-        j["fix_outside"] = a.fixOutside;
-        j["elements"] = {{"inside", r.count(ElementClass::Inside)},
-                         {"interface", r.count(ElementClass::Interface)},
-                         {"outside", r.count(ElementClass::Outside)}};
-        j["volume_embedded"] = vEmb;
-        j["volume_surface"] = vSurf;
-        j["volume_error"] = vSurf != 0 ? (vEmb - vSurf) / vSurf : 0.0;
-        j["volume_method"] = r.closed ? "exact" : "refined";
-        if (!r.fractionRefined.empty()) {
-            nlohmann::json lv = nlohmann::json::array();
-            for (size_t l = 0; l < r.fractionRefined.size(); ++l) {
-                double v = 0;
-                for (int t = 0; t < r.lattice.elements(); ++t)
-                    v += std::abs(tetSignedVolume(r.lattice, t)) * r.fractionRefined[l](t);
-                lv.push_back({{"level", l}, {"volume", v}, {"error_vs_exact", r.closed ? (v - vEmb) / vEmb : 0.0}});
-            }
-            j["volume_refined"] = lv;
-        }
-        j["dt_exact"] = ex.dt;
-        j["dt_certified"] = dtCert;
-        j["dt_background_exact"] = dtBg;
-        if (a.keepStep) {
-            const KeepStepResult& ks = r.massScaling;
-            j["keep_step"] = {
-                {"dt_before", ks.dtBefore}, {"added_mass", ks.addedMass}, {"mass_fraction", ks.massFraction},
-                {"nodes", ks.nodes},        {"rounds", ks.rounds},        {"reached", ks.reached}};
-        }
-        j["material"] = {{"E", a.material.E}, {"nu", a.material.nu}, {"rho", a.material.rho}};
-        const MiTimings& st = r.seconds;
-        j["seconds"] = {{"read", tRead},
-                        {"lattice", st.lattice},
-                        {"hash", st.hash},
-                        {"nodes", st.nodes},
-                        {"volumes", st.volumes},
-                        {"refine", st.refine},
-                        {"model", st.model},
-                        {"embed", st.embed},
-                        {"setup", st.total() - st.refine - st.keepStep},
-                        {"keep_step", st.keepStep},
-                        {"dt_certified", tCert},
-                        {"dt_exact", tExact},
-                        {"dt_background", tBg}};
-
+        const MiRun run = measureMi(a);
+        nlohmann::json j = miReport(a, run);
         if (!a.vtu.empty()) {
-            Field frac{"fraction",
-                       std::vector<double>(r.model.fraction.data(), r.model.fraction.data() + r.model.elements())};
-            Field cls{"interface", std::vector<double>(static_cast<size_t>(r.model.elements()))};
-            for (int e = 0; e < r.model.elements(); ++e)
-                cls.values[static_cast<size_t>(e)] =
-                    r.elementClass[static_cast<size_t>(r.latticeElement[static_cast<size_t>(e)])] ==
-                    ElementClass::Interface;
-            writeVtu(a.vtu, restMesh(r.model), {frac, cls});
+            writeMiVtu(a.vtu, run.r);
             j["written"] = a.vtu;
         }
-        if (a.json) {
+        if (a.json)
             std::cout << jsonText(j);
-            return 0;
-        }
-        std::printf("surface:   %s (%d vertices, %d triangles%s)\n", a.surface.c_str(), s.vertices(), s.faces(),
-                    check.closed() ? ", closed" : "");
-        if (!check.closed())
-            std::printf(
-                "           not closed: %d open, %d non-manifold, %d misoriented edges; inside shares come from\n"
-                "           %zu refinement levels with winding numbers instead of exact clipping\n",
-                check.openEdges, check.nonManifoldEdges, check.misorientedEdges,
-                r.fractionRefined.empty() ? 0 : r.fractionRefined.size() - 1);
-        if (r.cleanup.weldedVertices + r.cleanup.total() > 0)
-            std::printf("           cleaned: %d coincident vertices welded, %d duplicate and %d degenerate triangles "
-                        "dropped\n",
-                        r.cleanup.weldedVertices, r.cleanup.duplicateFaces, r.cleanup.degenerateFaces);
-        std::printf("lattice:   h = %.4g m, %d x %d x %d cells, %d nodes, %d tets (Kuhn, 6 per cube)\n", r.h,
-                    r.cells.x(), r.cells.y(), r.cells.z(), r.lattice.nodes(), r.lattice.elements());
-        std::printf("nodes:     %d inside, %d outside, %d boundary (lattice)\n", r.count(NodeClass::Inside),
-                    r.count(NodeClass::Outside), r.count(NodeClass::Boundary));
-        std::printf("elements:  %d inside, %d interface, %d outside\n", r.count(ElementClass::Inside),
-                    r.count(ElementClass::Interface), r.count(ElementClass::Outside));
-        std::printf("model:     %d nodes, %d elements, %d dofs%s\n", r.model.nodes(), r.model.elements(),
-                    r.model.freeDofs(), a.fixOutside ? " (outside corners of interface tets fixed)" : "");
-        std::printf("volume:    embedded %.6g m^3, surface %.6g m^3, error %+.3e\n", vEmb, vSurf,
-                    vSurf != 0 ? (vEmb - vSurf) / vSurf : 0.0);
-        for (const auto& lv : j.value("volume_refined", nlohmann::json::array()))
-            if (r.closed)
-                std::printf("           refined %d levels: %.6g m^3, error vs exact %+.3e\n", lv["level"].get<int>(),
-                            lv["volume"].get<double>(), lv["error_vs_exact"].get<double>());
-            else
-                std::printf("           refined %d levels: %.6g m^3\n", lv["level"].get<int>(),
-                            lv["volume"].get<double>());
-        std::printf("dt:        exact %.4f ms, certified %.4f ms; background lattice exact %.4f ms (ratio %.3f)\n",
-                    ex.dt * 1e3, dtCert * 1e3, dtBg * 1e3, ex.dt / dtBg);
-        if (a.keepStep) {
-            const KeepStepResult& ks = r.massScaling;
-            std::printf(
-                "keep step: exact %.6f ms before; %.3e kg added (%.3e of the mass) on %d nodes, %d eigen-solves\n",
-                ks.dtBefore * 1e3, ks.addedMass, ks.massFraction, ks.nodes, ks.rounds);
-        }
-        std::printf("seconds:   read %.3f, lattice %.3f, hash %.3f, nodes %.3f, volumes %.3f, model %.3f, embed %.3f"
-                    " (set-up %.3f); refine %.3f; keep step %.3f; dt exact %.3f, certified %.3f, background %.3f\n",
-                    tRead, st.lattice, st.hash, st.nodes, st.volumes, st.model, st.embed,
-                    st.total() - st.refine - st.keepStep, st.refine, st.keepStep, tExact, tCert, tBg);
-        if (!a.vtu.empty()) std::printf("written:   %s\n", a.vtu.c_str());
+        else
+            printMi(a, run, j);
         return 0;
     } catch (const InputError& e) {
         std::cerr << "error: " << e.what() << "\n";
