@@ -266,10 +266,9 @@ void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFl
 }
 
 int Stepper::repairInverted(const Model& m, State& s, const StepOptions& opt, const std::vector<int>& nodes) {
-    if (!(opt.minStretch > 0) || nodes.empty() || m.lightNodes.empty()) return 0;
+    if (!(opt.minStretch > 0) || nodes.empty()) return 0;
     repairSeeds_.clear();
     for (const int i : nodes) {
-        if (!std::binary_search(m.lightNodes.begin(), m.lightNodes.end(), i)) continue;
         for (int k = m.nodeSlotStart[i]; k < m.nodeSlotEnd[i]; ++k) {
             const int e = m.nodeSlots[k] >> 2;
             if (!(deformationGradient(m, s, e).determinant() > 0)) repairSeeds_.push_back(e);

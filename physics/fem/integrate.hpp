@@ -86,12 +86,14 @@ public:
     double lastForceSeconds() const { return forceSeconds_; }
     // CG iterations of the last backward-Euler step (0 for the direct solver or other schemes).
     int lastSolverIterations() const;
-    // After a contact projection that moved `nodes` (sorted): the elements around the light ones
-    // among them (Model::lightNodes: a node of cut slivers or lattice interface elements, which
-    // takes most of a true-mass correction) that it left inverted are limited back (limitStretch
-    // from those elements), so that an inversion is not carried into the next step, where the
-    // limiter and the contact would meet it again. Nothing when stretch limiting is off, no moved
-    // node is light or no such element is inverted. Returns the elements corrected.
+    // After a contact projection that moved `nodes` (sorted): the elements around them that it
+    // left inverted are limited back (limitStretch from those elements), so that the stretch limit
+    // holds after the projection as after the position update, and an inversion is not carried
+    // into the next step, where the limiter and the contact would meet it again. A projection
+    // moves a point's lighter nodes the most: a cut's light control points, and the nodes of an
+    // MI lattice below a surface pressed onto a floor, which were pushed up past the nodes above
+    // them (docs/method.md, Contact). Nothing when stretch limiting is off or no such element is
+    // inverted. Returns the elements corrected.
     int repairInverted(const Model& model, State& state, const StepOptions& opt, const std::vector<int>& nodes);
 
 private:

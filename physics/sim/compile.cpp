@@ -136,6 +136,7 @@ void buildMiObject(SimSetup& s, SimData& d, const Placement& placed) {
     d.model = std::move(mi.model);
     d.model.elementModel = sc.element;
     s.embedded = std::make_unique<const EmbeddedSurface>(std::move(mi.surface));
+    s.latticeStep = mi.cellSize.minCoeff();
     // Lattice nodes of nearly empty cells are light: their motion relative to their neighbours
     // is damped as a cut's light control points are (cutting.light_share; fem/integrate.hpp),
     // else a contact correcting the heavy nodes next to them each step drives their modes,
@@ -407,7 +408,12 @@ void setupContact(SimSetup& s, SimData& d) {
     d.contact = std::make_unique<ContactWorld>(sc.tools, sc.colliders);
     d.contact->setPieceContact(sc.pieceContact && !penalty, sc.pieceFriction);
     ContactSettings& c = s.contact;
-    const double spacing = contactSpacing(sc);
+    double spacing = contactSpacing(sc);
+    // an MI surface crosses cells much smaller than its triangles: points at most half a cell
+    // apart, so that every cell it crosses is held by points of its own (a surface's vertices
+    // alone held a 32-cell liver by a few nodes on a floor, which crushed the cells between them)
+    if (s.embedded && !(sc.contactSpacing > 0))
+        spacing = spacing > 0 ? std::min(spacing, 0.5 * s.latticeStep) : 0.5 * s.latticeStep;
     c.spacing = spacing;
     // an embedded (MI) object is touched on its own fine surface, through the embedding weights;
     // each point's penalty scaled by its effective mass (contact/contact.hpp scaleByMass)

@@ -41,8 +41,8 @@ void stepIntegrate(const SimSetup&, SimData& d) {
 void stepProjection(const SimSetup& s, SimData& d) {
     if (!d.contact || s.scene.contactModel != ContactModel::Projection) return;
     const StageTimer t(d.record.stages, Stage::Contact);
-    // the nodes it moved only where a repair can use them (light nodes under stretch limiting)
-    const bool repair = d.stepOptions.minStretch > 0 && !d.model.lightNodes.empty();
+    // the nodes it moved only where a repair can use them (under stretch limiting)
+    const bool repair = d.stepOptions.minStretch > 0;
     State& st = d.state;
     d.contact->project(d.model.invMass, st.time, d.choice.dt, st.x, st.v, repair ? &d.projected : nullptr);
     if (repair) d.stepper.repairInverted(d.model, st, d.stepOptions, d.projected);

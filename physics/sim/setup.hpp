@@ -54,6 +54,7 @@ struct SimSetup {
     // the object
     std::vector<std::vector<int>> loadNodes;          // nodes of each scene load (scene.forces order)
     std::unique_ptr<const EmbeddedSurface> embedded;  // an MI object's surface in the uncut lattice, else null
+    double latticeStep = 0;                           // MI: the lattice's shortest cell edge [m]
     std::unique_ptr<const EmbeddedSurface> visual;    // object.visual in the uncut mesh, else null
     std::vector<int> inputNode, inputElement;         // object.reorder: file index of each node and element
     TetMesh rest;                                     // the uncut rest mesh, for cutting.compare
