@@ -2,6 +2,7 @@
 // Pareto front of each, and the cost at 1% error explicit against implicit. Results are described
 // in BENCHMARKS.md.
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "timestep/modes.hpp"
@@ -14,7 +15,6 @@
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "timestep/timestep.hpp"
-#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
@@ -775,70 +775,70 @@ int runAccuracy(const AccuracyArgs& a) {
     if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
     if (!a.plot.empty()) plotPoints(pts, a.plot);
     if (a.json) {
-        std::cout << jsonText(j);
+        printJson(j);
         return 0;
     }
     printAccuracy(pts, proj, paired, j["summary"]);
     return 0;
 }
 
+void accuracyOptions(CLI::App& c, AccuracyArgs& a) {
+    jsonFlag(c, a.json,
+             "{points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
+             "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, "
+             "speedup_at_1pct_paired, ...}}, "
+             "paired: [{implicit, implicit_cost, slices, explicit: [{config, cost, ratio, ...}]}] (the explicit "
+             "runs that took turns with the CG runs on the finest bar), references}; error is null for a run "
+             "that diverged or gave no frequency, "
+             "a cost is null when no point reaches the error");
+    csvOption(c, a.csv, "points");
+    plotOption(c, a.plot, "error against cost with the Pareto front");
+    c.add_option("--from", a.from,
+                 "Take the points from a CSV "
+                 "(problem,config,error,wall_per_sim_second,dt[,scheme,pareto,frequency_error,damping_ratio,"
+                 "predicted_error]) "
+                 "instead of running");
+    c.add_option("--max-res", a.maxRes, "Finest explicit mesh: 10N x N x N cubes")
+        ->check(CLI::Range(1, 8))
+        ->capture_default_str();
+    c.add_option("--res", a.res,
+                 "Cantilever meshes N to run instead of 1 .. max-res, comma-separated (10N x N x N cubes)")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 24));
+    c.add_option("--ref-levels", a.refLevels,
+                 "Reference meshes N, comma-separated, at least two: Richardson (h^2) from the "
+                 "two finest [default 2,4,8]")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 24));
+    c.add_option("--implicit-max-res", a.implicitMaxRes,
+                 "Run backward Euler in full up to this N; beyond it only its step "
+                 "is timed (its cost at 1% projected)")
+        ->check(CLI::Range(0, 24))
+        ->capture_default_str();
+    c.add_option("--cg-max-res", a.cgMaxRes,
+                 "Beyond --implicit-max-res and up to this N, run backward Euler with CG "
+                 "in full at the dt its mode formula gives for 1% (the projection, measured)")
+        ->check(CLI::Range(0, 24))
+        ->capture_default_str();
+    tinyFlag(c, a.tiny, "coarse meshes, short runs");
+    threadsOption(c, a.threads,
+                  "Worker threads of the explicit runs and of CG's matrix products (Eigen's, "
+                  "OpenMP) (0 = all cores; the LDL^T factorisation is sequential)",
+                  0)
+        ->capture_default_str();
+    c.add_option("--only", a.only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"cantilever", "mi", "notch-lumping", "liver"}));
+}
+
 }  // namespace
 
 void addAccuracyBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<AccuracyArgs>();
-        auto* c = bench.add_subcommand("accuracy",
-                                       "Error against wall time per simulated second: the cantilever (static tip "
-                                       "deflection, first bending frequency) on conforming and MI meshes, the notched "
-                                       "cantilever per XFEM lumping option, the liver sagging under gravity");
-        c->add_flag("--json", a->json,
-                    "Print {points: [{problem, config, error, wall_per_sim_second, dt, scheme, pareto}], "
-                    "summary: {problem: {best_explicit_cost_at_1pct, implicit_cost_at_1pct, common_error, "
-                    "speedup_at_1pct_paired, ...}}, "
-                    "paired: [{implicit, implicit_cost, slices, explicit: [{config, cost, ratio, ...}]}] (the explicit "
-                    "runs that took turns with the CG runs on the finest bar), references}; error is null for a run "
-                    "that diverged or gave no frequency, "
-                    "a cost is null when no point reaches the error");
-        c->add_option("--csv", a->csv, "Write the points to this CSV file");
-        c->add_option("--plot", a->plot, "Draw error against cost with the Pareto front to this PNG (needs gnuplot)");
-        c->add_option("--from", a->from,
-                      "Take the points from a CSV "
-                      "(problem,config,error,wall_per_sim_second,dt[,scheme,pareto,frequency_error,damping_ratio,"
-                      "predicted_error]) "
-                      "instead of running");
-        c->add_option("--max-res", a->maxRes, "Finest explicit mesh: 10N x N x N cubes")
-            ->check(CLI::Range(1, 8))
-            ->capture_default_str();
-        c->add_option("--res", a->res,
-                      "Cantilever meshes N to run instead of 1 .. max-res, comma-separated (10N x N x N cubes)")
-            ->delimiter(',')
-            ->check(CLI::Range(1, 24));
-        c->add_option("--ref-levels", a->refLevels,
-                      "Reference meshes N, comma-separated, at least two: Richardson (h^2) from the "
-                      "two finest [default 2,4,8]")
-            ->delimiter(',')
-            ->check(CLI::Range(1, 24));
-        c->add_option("--implicit-max-res", a->implicitMaxRes,
-                      "Run backward Euler in full up to this N; beyond it only its step "
-                      "is timed (its cost at 1% projected)")
-            ->check(CLI::Range(0, 24))
-            ->capture_default_str();
-        c->add_option("--cg-max-res", a->cgMaxRes,
-                      "Beyond --implicit-max-res and up to this N, run backward Euler with CG "
-                      "in full at the dt its mode formula gives for 1% (the projection, measured)")
-            ->check(CLI::Range(0, 24))
-            ->capture_default_str();
-        c->add_flag("--tiny", a->tiny, "Test size: coarse meshes, short runs");
-        c->add_option("--threads", a->threads,
-                      "Worker threads of the explicit runs and of CG's matrix products (Eigen's, "
-                      "OpenMP) (0 = all cores; the LDL^T factorisation is sequential)")
-            ->check(CLI::Range(0, 1024))
-            ->capture_default_str();
-        c->add_option("--only", a->only, "Run only these groups, comma-separated: cantilever, mi, notch-lumping, liver")
-            ->delimiter(',')
-            ->check(CLI::IsMember({"cantilever", "mi", "notch-lumping", "liver"}));
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runAccuracy(*a); })); });
-    });
+    addSubcommand("accuracy",
+                  "Error against wall time per simulated second: the cantilever (static tip "
+                  "deflection, first bending frequency) on conforming and MI meshes, the notched "
+                  "cantilever per XFEM lumping option, the liver sagging under gravity",
+                  accuracyOptions, runAccuracy);
 }
 
 }  // namespace cutsim::bench

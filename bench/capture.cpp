@@ -5,6 +5,7 @@
 // PNG and video writers, their drain at the end), the physics stages, and how much of the two the
 // pipeline hid: wall time against their sum and against the larger of them.
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "app/run.hpp"
 
@@ -116,27 +117,27 @@ int runCapture(const CaptureArgs& a) {
     return status;
 }
 
+void captureOptions(CLI::App& c, CaptureArgs& a) {
+    c.add_option("SCENES", a.scenes, "Scene files")->capture_default_str();
+    c.add_option("--set", a.sets, "Override a scene value: key.path=value (JSON value)");
+    c.add_option("--width", a.width, "Frame width [px]")->check(CLI::Range(16, 8192))->capture_default_str();
+    c.add_option("--height", a.height, "Frame height [px]")->check(CLI::Range(16, 8192))->capture_default_str();
+    c.add_flag("!--no-hud", a.hud, "Without the HUD");
+    c.add_flag("!--no-video", a.video, "Without the video");
+    c.add_flag("--serial", a.serial, "Draw each frame before stepping on (no pipeline), to compare");
+    c.add_option("--runs", a.runs, "Runs of each scene")->check(CLI::Range(1, 1000))->capture_default_str();
+    threadsOption(c, a.threads, "Physics threads (0: chosen by measuring)", 0);
+    c.add_option("--keep", a.keep, "Keep the last run's output folder (frames, video, report.json) here");
+}
+
 }  // namespace
 
 void addCaptureBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<CaptureArgs>();
-        auto* c = bench.add_subcommand(
-            "capture", "Capture in real runs: each scene run to its end with its frames, deformation and cuts; per "
-                       "frame the snapshot, draw (with the HUD), read-back and hand-off to the PNG and video "
-                       "writers, the physics stages, and how much the pipeline overlapped them (CSV)");
-        c->add_option("SCENES", a->scenes, "Scene files")->capture_default_str();
-        c->add_option("--set", a->sets, "Override a scene value: key.path=value (JSON value)");
-        c->add_option("--width", a->width, "Frame width [px]")->check(CLI::Range(16, 8192))->capture_default_str();
-        c->add_option("--height", a->height, "Frame height [px]")->check(CLI::Range(16, 8192))->capture_default_str();
-        c->add_flag("!--no-hud", a->hud, "Without the HUD");
-        c->add_flag("!--no-video", a->video, "Without the video");
-        c->add_flag("--serial", a->serial, "Draw each frame before stepping on (no pipeline), to compare");
-        c->add_option("--runs", a->runs, "Runs of each scene")->check(CLI::Range(1, 1000))->capture_default_str();
-        c->add_option("--threads", a->threads, "Physics threads (0: chosen by measuring)")->check(CLI::Range(0, 1024));
-        c->add_option("--keep", a->keep, "Keep the last run's output folder (frames, video, report.json) here");
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runCapture(*a); })); });
-    });
+    addSubcommand("capture",
+                  "Capture in real runs: each scene run to its end with its frames, deformation and cuts; per "
+                  "frame the snapshot, draw (with the HUD), read-back and hand-off to the PNG and video "
+                  "writers, the physics stages, and how much the pipeline overlapped them (CSV)",
+                  captureOptions, runCapture);
 }
 
 }  // namespace cutsim::bench

@@ -4,10 +4,10 @@
 // middle of its top by a 1 cm sphere; contact.spacing sets the number of points (1 m: the
 // surface's vertices only).
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -15,7 +15,6 @@
 
 #include <cstdio>
 #include <fstream>
-#include <iostream>
 #include <sstream>
 #include <memory>
 #include <string>
@@ -171,7 +170,7 @@ int runContact(const ContactArgs& a) {
                      {"status", r.status}});
     if (!a.plot.empty()) plotRows(rows, a.plot);
     if (a.json) {
-        std::cout << jsonText(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}});
+        printJson(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}});
         for (const ContactRow& r : rows)
             if (r.status != "ok") return 1;
         return 0;
@@ -197,24 +196,20 @@ int runContact(const ContactArgs& a) {
     return failed ? 1 : 0;
 }
 
+void contactOptions(CLI::App& c, ContactArgs& a) {
+    jsonFlag(c, a.json, "{probe_radius, pressed, runs: [...]}");
+    tinyFlag(c, a.tiny, "one small slab");
+    plotOption(c, a.plot, "cost against contact points and depth and force against stiffness");
+    threadsOption(c, a.threads, "Worker threads per run", 1)->capture_default_str();
+}
+
 }  // namespace
 
 void addContactBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<ContactArgs>();
-        auto* c =
-            bench.add_subcommand("contact", "Contact cost per step against contact points (tool pressing or away), and "
-                                            "penetration and force against the penalty stiffness");
-        c->add_flag("--json", a->json, "Print {probe_radius, pressed, runs: [...]}");
-        c->add_flag("--tiny", a->tiny, "Test size: one small slab");
-        c->add_option("--plot", a->plot,
-                      "Draw cost against contact points and depth and force against stiffness "
-                      "to this PNG (needs gnuplot)");
-        c->add_option("--threads", a->threads, "Worker threads per run")
-            ->check(CLI::Range(1, 1024))
-            ->capture_default_str();
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runContact(*a); })); });
-    });
+    addSubcommand("contact",
+                  "Contact cost per step against contact points (tool pressing or away), and "
+                  "penetration and force against the penalty stiffness",
+                  contactOptions, runContact);
 }
 
 }  // namespace cutsim::bench

@@ -3,6 +3,7 @@
 // a name and a factory of a run that keeps its own mesh or model and applies one cut at a time.
 // No fixed nodes: the step is that of the free object, so a clamp does not hide a cut's modes.
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "cut/conforming.hpp"
 #include "cut/xfem.hpp"
@@ -14,7 +15,6 @@
 #include "timestep/cut_response.hpp"
 #include "timestep/floor.hpp"
 #include "timestep/hybrid.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -26,7 +26,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <functional>
-#include <iostream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -341,32 +340,32 @@ int runCutStep(const CutStepArgs& a) {
         j["objects"].push_back(std::move(jo));
     }
     setThreads(threadsBefore);
-    if (a.json) std::cout << jsonText(j);
+    if (a.json) printJson(j);
     return 0;
+}
+
+void cutStepOptions(CLI::App& c, CutStepArgs& a) {
+    jsonFlag(c, a.json,
+             "{objects: [{name, tets, dt_uncut, r1r_min_uncut, critical_below, planes, methods: [{name, "
+             "cuts: [{cut, elements, dt_exact, dt_ratio, critical, critical_share, cut_seconds, "
+             "update_seconds, improve_seconds, floor_seconds, added_mass}], cost}]}]}");
+    tinyFlag(c, a.tiny, "the bar only, short cost runs, small full improvement");
+    c.add_option("--only", a.only, "One method alone, by its name in the table");
+    c.add_option("--problems", a.problems,
+                 "subdivision+improve: R1R problems per cut, ranking included (default: NearPlaneOptions::budgeted)");
+    c.add_option("--free-nodes", a.freeNodes,
+                 "subdivision+improve: nodes of the worst critical elements set free (default: budgeted)");
 }
 
 }  // namespace
 
 void addCutStepBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<CutStepArgs>();
-        auto* c = bench.add_subcommand("cutstep", "Tables 5.5 and 5.6: exact step, critical elements and time per cut "
-                                                  "through four plane cuts by subdivision (with and without local "
-                                                  "improvement) and XFEM (with and without the step floor); liver "
-                                                  "and bar; cost per simulated second after the last cut");
-        c->add_flag("--json", a->json,
-                    "Print {objects: [{name, tets, dt_uncut, r1r_min_uncut, critical_below, planes, methods: [{name, "
-                    "cuts: [{cut, elements, dt_exact, dt_ratio, critical, critical_share, cut_seconds, "
-                    "update_seconds, improve_seconds, floor_seconds, added_mass}], cost}]}]}");
-        c->add_flag("--tiny", a->tiny, "Test size: the bar only, short cost runs, small full improvement");
-        c->add_option("--only", a->only, "One method alone, by its name in the table");
-        c->add_option(
-            "--problems", a->problems,
-            "subdivision+improve: R1R problems per cut, ranking included (default: NearPlaneOptions::budgeted)");
-        c->add_option("--free-nodes", a->freeNodes,
-                      "subdivision+improve: nodes of the worst critical elements set free (default: budgeted)");
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runCutStep(*a); })); });
-    });
+    addSubcommand("cutstep",
+                  "Tables 5.5 and 5.6: exact step, critical elements and time per cut "
+                  "through four plane cuts by subdivision (with and without local "
+                  "improvement) and XFEM (with and without the step floor); liver "
+                  "and bar; cost per simulated second after the last cut",
+                  cutStepOptions, runCutStep);
 }
 
 }  // namespace cutsim::bench

@@ -6,13 +6,13 @@
 // share of the loop, and the simulated seconds per wall second (a haptic loop steps at the stable step, so real time
 // needs 1 / dt steps a second).
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "cut/remesh.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -20,7 +20,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <iostream>
 #include <memory>
 #include <string>
 #include <utility>
@@ -152,7 +151,7 @@ int runHaptic(const HapticArgs& a) {
     int failed = 0;
     for (const HapticRow& r : rows) failed += r.status != "ok";
     if (a.json) {
-        std::cout << jsonText(json{{"mesh", how}, {"duration", duration}, {"runs", runs}});
+        printJson(json{{"mesh", how}, {"duration", duration}, {"runs", runs}});
         return failed ? 1 : 0;
     }
     std::printf("liver, %s: %d tets; 1 cm probe pressing 12 mm over %.3g s\n", how.c_str(), mesh.elements(), duration);
@@ -170,26 +169,24 @@ int runHaptic(const HapticArgs& a) {
     return failed ? 1 : 0;
 }
 
+void hapticOptions(CLI::App& c, HapticArgs& a) {
+    jsonFlag(c, a.json, "{mesh, duration, runs: [...]}");
+    tinyFlag(c, a.tiny, "~1,500 tets, 5 ms");
+    c.add_option("--tets", a.tets, "Tets to mesh the liver with (about)")
+        ->check(CLI::Range(100, 2000000))
+        ->capture_default_str();
+    c.add_option("--duration", a.duration, "Simulated time [s]")->check(CLI::PositiveNumber)->capture_default_str();
+    c.add_option("--threads", a.threads, "Worker thread counts, one run each")->capture_default_str();
+    c.add_option("--mesh", a.mesh, "The liver (inches)")->check(CLI::ExistingFile)->capture_default_str();
+}
+
 }  // namespace
 
 void addHapticBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<HapticArgs>();
-        auto* c = bench.add_subcommand(
-            "haptic", "Steps per second of a ~20k-tet liver with a probe pressing it (projection contact): a haptic "
-                      "loop's 1 kHz?");
-        c->add_flag("--json", a->json, "Print {mesh, duration, runs: [...]}");
-        c->add_flag("--tiny", a->tiny, "Test size: ~1,500 tets, 5 ms");
-        c->add_option("--tets", a->tets, "Tets to mesh the liver with (about)")
-            ->check(CLI::Range(100, 2000000))
-            ->capture_default_str();
-        c->add_option("--duration", a->duration, "Simulated time [s]")
-            ->check(CLI::PositiveNumber)
-            ->capture_default_str();
-        c->add_option("--threads", a->threads, "Worker thread counts, one run each")->capture_default_str();
-        c->add_option("--mesh", a->mesh, "The liver (inches)")->check(CLI::ExistingFile)->capture_default_str();
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runHaptic(*a); })); });
-    });
+    addSubcommand("haptic",
+                  "Steps per second of a ~20k-tet liver with a probe pressing it (projection contact): a haptic "
+                  "loop's 1 kHz?",
+                  hapticOptions, runHaptic);
 }
 
 }  // namespace cutsim::bench

@@ -2,6 +2,7 @@
 // mesher on the same meshes (thesis Table 5.1), the step gained against time, and what the improvement does to the
 // physics (the liver's sag, a bar's first frequency).
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 
 #include "cut/remesh.hpp"
@@ -11,7 +12,6 @@
 #include "mesh/io.hpp"
 #include "timestep/modes.hpp"
 #include "timestep/timestep.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -26,7 +26,6 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iostream>
 #include <memory>
 #include <random>
 
@@ -293,7 +292,7 @@ int runImproveBench(const ImproveBenchArgs& a) {
     if (!a.plot.empty()) drawPlot(a.plot, timing);
     if (a.json) {
         for (auto& [k, t] : j["gain_against_time"].items()) t.erase("history");
-        std::cout << jsonText(j);
+        printJson(j);
         return 0;
     }
     std::printf("exact step after improvement (E %g Pa, nu %g, rho %g); gain = after / before; volume and\n"
@@ -335,23 +334,23 @@ int runImproveBench(const ImproveBenchArgs& a) {
     return 0;
 }
 
+void improveOptions(CLI::App& c, ImproveBenchArgs& a) {
+    jsonFlag(c, a.json,
+             "{meshes: [{mesh, tets, dt_exact, methods: {name: {dt_exact, gain, tets, volume_change, "
+             "boundary_distance_rel, seconds} or {error}}}], gain_against_time, liver_sag, bar_frequency}");
+    tinyFlag(c, a.tiny, "the liver only, short runs");
+    c.add_option("--seconds", a.seconds, "Longest run of the gain-against-time table [s]")->capture_default_str();
+    plotOption(c, a.plot, "the gain against time");
+}
+
 }  // namespace
 
 void addImproveBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<ImproveBenchArgs>();
-        auto* c = bench.add_subcommand(
-            "improve", "Mesh improvement: cutsim's improver, TetGen's and Gmsh's optimisers on the data meshes "
-                       "(exact step, elements, volume, boundary, seconds), the gain against time, and the liver's "
-                       "sag and a bar's frequency before and after");
-        c->add_flag("--json", a->json,
-                    "Print {meshes: [{mesh, tets, dt_exact, methods: {name: {dt_exact, gain, tets, volume_change, "
-                    "boundary_distance_rel, seconds} or {error}}}], gain_against_time, liver_sag, bar_frequency}");
-        c->add_flag("--tiny", a->tiny, "Test size: the liver only, short runs");
-        c->add_option("--seconds", a->seconds, "Longest run of the gain-against-time table [s]")->capture_default_str();
-        c->add_option("--plot", a->plot, "Draw the gain against time to this PNG (needs gnuplot)");
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runImproveBench(*a); })); });
-    });
+    addSubcommand("improve",
+                  "Mesh improvement: cutsim's improver, TetGen's and Gmsh's optimisers on the data meshes "
+                  "(exact step, elements, volume, boundary, seconds), the gain against time, and the liver's "
+                  "sag and a bar's frequency before and after",
+                  improveOptions, runImproveBench);
 }
 
 }  // namespace cutsim::bench

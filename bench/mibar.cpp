@@ -19,12 +19,12 @@
 // sub-assembly can exceed the whole lattice's lambda_max (a plain shorter free bar already does, by
 // the free-end effect). The command prints the check for all three.
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 
 #include "cut/baselines.hpp"
 #include "embed/mi.hpp"
 #include "timestep/timestep.hpp"
-#include "util/json_text.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -32,7 +32,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <iostream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -135,7 +134,7 @@ int runSweep(const MiBarArgs& a) {
     const double dtUncut = exactDtOf(barMesh(bo), a.material);
     const std::vector<MiBarTableRow> rows = measureRows(a, kept, false);
     if (a.json) {
-        std::cout << jsonText(rowsJson(rows));
+        printJson(rowsJson(rows));
         return 0;
     }
     std::printf("cut through lattice cell %d along the bar (h = %.4g mm) at %d positions; dt / uncut (%.4f ms)\n", cell,
@@ -170,105 +169,96 @@ int runSweep(const MiBarArgs& a) {
 }
 
 int runMiBar(const MiBarArgs& a) {
-    try {
-        if (!a.material.valid()) throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
-        if (a.sweep > 0) return runSweep(a);
-        // Uncut bar: the mesh both baselines cut and the MI lattice.
-        const BarOptions bo = barOptions(a, kKept);
-        const TetMesh bar = barMesh(bo);
-        const double dtUncut = exactDtOf(bar, a.material);
-        const std::vector<MiBarTableRow> rows = tableOrder(measureRows(a, kKept, true));
+    if (!a.material.valid()) throw InputError("material: need E > 0, -1 < nu < 0.5, rho > 0");
+    if (a.sweep > 0) return runSweep(a);
+    // Uncut bar: the mesh both baselines cut and the MI lattice.
+    const BarOptions bo = barOptions(a, kKept);
+    const TetMesh bar = barMesh(bo);
+    const double dtUncut = exactDtOf(bar, a.material);
+    const std::vector<MiBarTableRow> rows = tableOrder(measureRows(a, kKept, true));
 
-        // The requirement: MI keeps at least the uncut bar's step in every row; checked for the
-        // default (step kept by added mass), without the added mass, and for the thesis's rule.
-        double worst[3] = {1e300, 1e300, 1e300}, worstKept[3] = {1, 1, 1}, added = 0;
-        for (const MiBarTableRow& r : rows)
-            if (r.method == "mi") {
-                for (int k = 0; k < 3; ++k) {
-                    const double ratio = (k == 0 ? r.dtExact : k == 1 ? r.dtUnscaled : r.dtOutsideFixed) / dtUncut;
-                    if (ratio < worst[k]) worst[k] = ratio, worstKept[k] = r.kept;
-                }
-                added = std::max(added, r.addedMassFraction);
+    // The requirement: MI keeps at least the uncut bar's step in every row; checked for the
+    // default (step kept by added mass), without the added mass, and for the thesis's rule.
+    double worst[3] = {1e300, 1e300, 1e300}, worstKept[3] = {1, 1, 1}, added = 0;
+    for (const MiBarTableRow& r : rows)
+        if (r.method == "mi") {
+            for (int k = 0; k < 3; ++k) {
+                const double ratio = (k == 0 ? r.dtExact : k == 1 ? r.dtUnscaled : r.dtOutsideFixed) / dtUncut;
+                if (ratio < worst[k]) worst[k] = ratio, worstKept[k] = r.kept;
             }
-
-        if (a.json) {
-            std::cout << jsonText(rowsJson(rows));
-            return 0;
+            added = std::max(added, r.addedMassFraction);
         }
 
-        std::printf("Table 6.1: bar 1 x 1 x 10 cm cut by the plane z = 10 (1 - kept) cm, top part kept\n");
-        std::printf(
-            "setting: E = %g Pa, nu = %g, rho = %g kg/m^3; every method starts from %d x %d x %d boxes of 6 Kuhn tets "
-            "(%.4g x %.4g x %.4g mm, %d nodes, %d tets; every cut crosses cells); MI embeds the cut bar in that "
-            "lattice\n",
-            a.material.E, a.material.nu, a.material.rho, bo.nx, bo.ny, bo.nz, kUnit / bo.nx * 1e3, kUnit / bo.ny * 1e3,
-            10 * kUnit / bo.nz * 1e3, bar.nodes(), bar.elements());
-        std::printf(
-            "mi: outside corners of interface tets free, the lattice's step kept by adding mass (added mass: its "
-            "share of the model's); no mass: dt/u: the same model without it; MI outside fixed: the thesis's rule\n");
-        std::printf("%6s  %-12s %7s %9s %15s %13s %12s %13s %30s\n", "kept", "method", "nodes", "elements",
-                    "dt_exact [ms]", "dt / uncut", "added mass", "no mass: dt/u", "MI outside fixed: dt / uncut");
-        for (const MiBarTableRow& r : rows) {
-            char fixed[48] = "-", mass[16] = "-", unscaled[16] = "-";
-            if (r.method == "mi") {
-                std::snprintf(fixed, sizeof fixed, "%.9f (%d free nodes)", r.dtOutsideFixed / dtUncut,
-                              r.nodesOutsideFixed);
-                std::snprintf(mass, sizeof mass, "%.3e", r.addedMassFraction);
-                std::snprintf(unscaled, sizeof unscaled, "%.9f", r.dtUnscaled / dtUncut);
-            }
-            std::printf("%5.0f%%  %-12s %7d %9d %15.6f %13.9f %12s %13s %30s\n", 100 * r.kept, r.method.c_str(),
-                        r.nodes, r.elements, 1e3 * r.dtExact, r.dtExact / dtUncut, mass, unscaled, fixed);
-        }
-        char keptRule[160];
-        std::snprintf(keptRule, sizeof keptRule,
-                      "MI (the default: outside corners of interface tets free, the step kept with at most %.3e of the "
-                      "mass added)",
-                      added);
-        const char* rule[3] = {keptRule, "MI without the added mass",
-                               "MI with the outside corners fixed (the thesis's rule)"};
-        for (int k = 0; k < 3; ++k)
-            std::printf("%s keeps at least the uncut bar's dt (%.6f ms, within %.0e relative) in every row: %s; lowest "
-                        "dt / uncut - 1 = %+.3e (%.0f%% kept)\n",
-                        rule[k], 1e3 * dtUncut, kDtTol, worst[k] >= 1 - kDtTol ? "YES" : "NO", worst[k] - 1,
-                        100 * worstKept[k]);
+    if (a.json) {
+        printJson(rowsJson(rows));
         return 0;
-    } catch (const InputError& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 2;
-    } catch (const std::exception& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 1;
     }
+
+    std::printf("Table 6.1: bar 1 x 1 x 10 cm cut by the plane z = 10 (1 - kept) cm, top part kept\n");
+    std::printf(
+        "setting: E = %g Pa, nu = %g, rho = %g kg/m^3; every method starts from %d x %d x %d boxes of 6 Kuhn tets "
+        "(%.4g x %.4g x %.4g mm, %d nodes, %d tets; every cut crosses cells); MI embeds the cut bar in that "
+        "lattice\n",
+        a.material.E, a.material.nu, a.material.rho, bo.nx, bo.ny, bo.nz, kUnit / bo.nx * 1e3, kUnit / bo.ny * 1e3,
+        10 * kUnit / bo.nz * 1e3, bar.nodes(), bar.elements());
+    std::printf(
+        "mi: outside corners of interface tets free, the lattice's step kept by adding mass (added mass: its "
+        "share of the model's); no mass: dt/u: the same model without it; MI outside fixed: the thesis's rule\n");
+    std::printf("%6s  %-12s %7s %9s %15s %13s %12s %13s %30s\n", "kept", "method", "nodes", "elements", "dt_exact [ms]",
+                "dt / uncut", "added mass", "no mass: dt/u", "MI outside fixed: dt / uncut");
+    for (const MiBarTableRow& r : rows) {
+        char fixed[48] = "-", mass[16] = "-", unscaled[16] = "-";
+        if (r.method == "mi") {
+            std::snprintf(fixed, sizeof fixed, "%.9f (%d free nodes)", r.dtOutsideFixed / dtUncut, r.nodesOutsideFixed);
+            std::snprintf(mass, sizeof mass, "%.3e", r.addedMassFraction);
+            std::snprintf(unscaled, sizeof unscaled, "%.9f", r.dtUnscaled / dtUncut);
+        }
+        std::printf("%5.0f%%  %-12s %7d %9d %15.6f %13.9f %12s %13s %30s\n", 100 * r.kept, r.method.c_str(), r.nodes,
+                    r.elements, 1e3 * r.dtExact, r.dtExact / dtUncut, mass, unscaled, fixed);
+    }
+    char keptRule[160];
+    std::snprintf(keptRule, sizeof keptRule,
+                  "MI (the default: outside corners of interface tets free, the step kept with at most %.3e of the "
+                  "mass added)",
+                  added);
+    const char* rule[3] = {keptRule, "MI without the added mass",
+                           "MI with the outside corners fixed (the thesis's rule)"};
+    for (int k = 0; k < 3; ++k)
+        std::printf("%s keeps at least the uncut bar's dt (%.6f ms, within %.0e relative) in every row: %s; lowest "
+                    "dt / uncut - 1 = %+.3e (%.0f%% kept)\n",
+                    rule[k], 1e3 * dtUncut, kDtTol, worst[k] >= 1 - kDtTol ? "YES" : "NO", worst[k] - 1,
+                    100 * worstKept[k]);
+    return 0;
+}
+
+void miBarOptions(CLI::App& c, MiBarArgs& a) {
+    c.add_option("--cells", a.cells,
+                 "Cells across the bar (10 cells + 1 along it, odd: every cut crosses cells) of the common "
+                 "starting mesh and MI lattice")
+        ->check(CLI::Range(1, 12))
+        ->capture_default_str();
+    c.add_option("--E", a.material.E, "Young's modulus [Pa]")->capture_default_str();
+    c.add_option("--nu", a.material.nu, "Poisson's ratio [-]")->capture_default_str();
+    c.add_option("--rho", a.material.rho, "Density [kg/m^3]")->capture_default_str();
+    c.add_option("--sweep", a.sweep,
+                 "Instead of the table: move the 75% cut through its lattice cell at N positions "
+                 "(dt / uncut at each: MI, MI with the outside corners fixed, subdivision)")
+        ->check(CLI::Range(1, 64));
+    jsonFlag(c, a.json,
+             "[{kept, method, nodes, elements, dt_exact}]: kept share [-] (1 = the uncut bar), "
+             "method mi | subdivision | remesh, dt_exact [s] (mi: the lattice's step kept by added "
+             "mass); mi rows add added_mass_fraction [-], dt_exact_unscaled [s] (no mass added), "
+             "dt_exact_outside_fixed [s] and nodes_outside_fixed (free nodes): the outside corners "
+             "of interface tets fixed, the thesis's rule");
 }
 
 }  // namespace
 
 void addMiBarBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<MiBarArgs>();
-        auto* c = bench.add_subcommand("mi-bar",
-                                       "Table 6.1: the 1 x 1 x 10 cm bar cut at 75/50/25% kept by mesh intersection, "
-                                       "conforming subdivision and TetGen remeshing; nodes, tets and exact dt");
-        c->add_option("--cells", a->cells,
-                      "Cells across the bar (10 cells + 1 along it, odd: every cut crosses cells) of the common "
-                      "starting mesh and MI lattice")
-            ->check(CLI::Range(1, 12))
-            ->capture_default_str();
-        c->add_option("--E", a->material.E, "Young's modulus [Pa]")->capture_default_str();
-        c->add_option("--nu", a->material.nu, "Poisson's ratio [-]")->capture_default_str();
-        c->add_option("--rho", a->material.rho, "Density [kg/m^3]")->capture_default_str();
-        c->add_option("--sweep", a->sweep,
-                      "Instead of the table: move the 75% cut through its lattice cell at N positions "
-                      "(dt / uncut at each: MI, MI with the outside corners fixed, subdivision)")
-            ->check(CLI::Range(1, 64));
-        c->add_flag("--json", a->json,
-                    "Print [{kept, method, nodes, elements, dt_exact}]: kept share [-] (1 = the uncut bar), "
-                    "method mi | subdivision | remesh, dt_exact [s] (mi: the lattice's step kept by added "
-                    "mass); mi rows add added_mass_fraction [-], dt_exact_unscaled [s] (no mass added), "
-                    "dt_exact_outside_fixed [s] and nodes_outside_fixed (free nodes): the outside corners "
-                    "of interface tets fixed, the thesis's rule");
-        c->callback([a] { app::setExitCode(runMiBar(*a)); });
-    });
+    addSubcommand("mi-bar",
+                  "Table 6.1: the 1 x 1 x 10 cm bar cut at 75/50/25% kept by mesh intersection, "
+                  "conforming subdivision and TetGen remeshing; nodes, tets and exact dt",
+                  miBarOptions, runMiBar);
 }
 
 }  // namespace cutsim::bench

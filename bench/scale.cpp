@@ -2,11 +2,11 @@
 // (`cutsim tetra` of the shipped surface) and MI lattices of the same surface, for four scenarios
 // (sag, probe, scripted plane cuts, blade stroke), 1 and 2 threads, with memory per element.
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/scene.hpp"
 #include "sim/simulation.hpp"
 #include "sim/tetra.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -260,19 +260,13 @@ json fitScaleExponents(const json& runs, const std::vector<std::string>& scenari
 }
 
 void writeScaleCsv(const json& runs, const std::string& path) {
-    std::ostringstream c;
-    c << "mesh,elements,scene,threads,status,steps,seconds_per_step,loads,contact,cut,forces,integrate,checks,"
-         "timestep,setup_seconds,bytes_per_element\n";
-    for (const auto& r : runs) {
-        if (!r.contains("stages")) continue;
-        const json& st = r["stages"];
-        c << r["mesh"].get<std::string>() << ',' << r["elements"] << ',' << r["scene"].get<std::string>() << ','
-          << r["threads"] << ',' << r["status"].get<std::string>() << ',' << r["steps"] << ',' << r["seconds_per_step"]
-          << ',' << st["loads"] << ',' << st["contact"] << ',' << st["cut"] << ',' << st["forces"] << ','
-          << st["integrate"] << ',' << st["checks"] << ',' << st["timestep"] << ',' << r["setup_seconds"] << ','
-          << r["bytes_per_element"] << '\n';
-    }
-    std::ofstream(path) << c.str();
+    json timed = json::array();
+    for (const auto& r : runs)
+        if (r.contains("stages")) timed.push_back(r);
+    writeCsv(path, timed,
+             {"mesh", "elements", "scene", "threads", "status", "steps", "seconds_per_step", "stages/loads",
+              "stages/contact", "stages/cut", "stages/forces", "stages/integrate", "stages/checks", "stages/timestep",
+              "setup_seconds", "bytes_per_element"});
 }
 
 // Seconds per step against elements on one thread, log-log: a line per scene and mesh kind.
@@ -342,7 +336,7 @@ int runScale(const ScaleArgs& a) {
     if (!a.csv.empty()) writeScaleCsv(runs, a.csv);
     if (!a.plot.empty()) plotScale(runs, scenarios, a.plot);
     if (a.json) {
-        std::cout << jsonText({{"steps", a.steps}, {"runs", runs}, {"exponents", fits}});
+        printJson({{"steps", a.steps}, {"runs", runs}, {"exponents", fits}});
         return 0;
     }
     std::printf("\nexponents p of cost per step ~ elements^p (threads 1 and 2):\n");
@@ -352,32 +346,32 @@ int runScale(const ScaleArgs& a) {
     return 0;
 }
 
+void scaleOptions(CLI::App& c, ScaleArgs& a) {
+    jsonFlag(c, a.json,
+             "{steps, runs: [{mesh, size|cells, scene, threads, elements, status, seconds_per_step, "
+             "stages (seconds per step), setup_seconds, bytes_per_element, ...}], exponents: [{mesh, scene, "
+             "threads, exponents: {stage: p}}]}");
+    csvOption(c, a.csv, "runs");
+    c.add_option("--plot", a.plot, "Draw seconds per step against elements, log-log, to this PNG (gnuplot)");
+    c.add_option("--max-elements", a.maxElements,
+                 "Largest meshes, about (default 1e5: up to about 90k elements; 1.5e6 adds the 280k to 1.2M "
+                 "meshes, minutes each and a few GB)")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    c.add_option("--steps", a.steps, "Timed steps per run")->check(CLI::Range(1, 100000))->capture_default_str();
+    tinyFlag(c, a.tiny, "the coarsest meshes, sag and cuts");
+    c.add_option("--one", a.one, "Run one scene and print its JSON line (what the runs above start)")->group("");
+    threadsOption(c, a.threads, "Threads of --one", 1)->group("");
+}
+
 }  // namespace
 
 void addScaleBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<ScaleArgs>();
-        auto* c = bench.add_subcommand(
-            "scale", "How each stage's cost per step grows with the mesh: sag, probe, scripted plane cuts and a blade "
-                     "stroke on TetGen livers (cutsim tetra of the shipped surface) and MI lattices, 1 and 2 threads, "
-                     "memory per element, fitted exponents");
-        c->add_flag("--json", a->json,
-                    "Print {steps, runs: [{mesh, size|cells, scene, threads, elements, status, seconds_per_step, "
-                    "stages (seconds per step), setup_seconds, bytes_per_element, ...}], exponents: [{mesh, scene, "
-                    "threads, exponents: {stage: p}}]}");
-        c->add_option("--csv", a->csv, "Write the runs to this CSV file");
-        c->add_option("--plot", a->plot, "Draw seconds per step against elements, log-log, to this PNG (gnuplot)");
-        c->add_option("--max-elements", a->maxElements,
-                      "Largest meshes, about (default 1e5: up to about 90k elements; 1.5e6 adds the 280k to 1.2M "
-                      "meshes, minutes each and a few GB)")
-            ->check(CLI::PositiveNumber)
-            ->capture_default_str();
-        c->add_option("--steps", a->steps, "Timed steps per run")->check(CLI::Range(1, 100000))->capture_default_str();
-        c->add_flag("--tiny", a->tiny, "Test size: the coarsest meshes, sag and cuts");
-        c->add_option("--one", a->one, "Run one scene and print its JSON line (what the runs above start)")->group("");
-        c->add_option("--threads", a->threads, "Threads of --one")->group("")->check(CLI::Range(1, 1024));
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runScale(*a); })); });
-    });
+    addSubcommand("scale",
+                  "How each stage's cost per step grows with the mesh: sag, probe, scripted plane cuts and a blade "
+                  "stroke on TetGen livers (cutsim tetra of the shipped surface) and MI lattices, 1 and 2 threads, "
+                  "memory per element, fitted exponents",
+                  scaleOptions, runScale);
 }
 
 }  // namespace cutsim::bench

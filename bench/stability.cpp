@@ -1,6 +1,7 @@
 // `cutsim bench stability`: the largest stable fraction of the exact step per integrator and scheme,
 // after XFEM cuts per lumping, over random cut sequences, and the energy drift of a long run.
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "sim/scene.hpp"
@@ -10,7 +11,6 @@
 #include "mesh/io.hpp"
 #include "timestep/timestep.hpp"
 #include "timestep/modes.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -23,7 +23,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <iostream>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -343,34 +342,34 @@ int runStability(const StabilityArgs& a) {
     sweepAfterCuts(a.tiny, steps, a.json, j);
     randomCutSequences(a, j);
     energyDrift(models[0], a.tiny, a.json, j);
-    if (a.json) std::cout << jsonText(j);
+    if (a.json) printJson(j);
     return 0;
+}
+
+void stabilityOptions(CLI::App& c, StabilityArgs& a) {
+    jsonFlag(c, a.json,
+             "{steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
+             "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
+             "random_cuts: [{object, min_stretch, runs, cuts, steps, failures, inverted_runs, inverted_at_end, "
+             "limited_runs, min_dt_ratio}], energy_drift}");
+    c.add_option("--steps", a.steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
+    c.add_option("--cut-runs", a.cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
+        ->check(CLI::Range(0, 100000))
+        ->capture_default_str();
+    c.add_option("--cut-steps", a.cutSteps, "Steps between two cuts of a random sequence")
+        ->check(CLI::Range(1, 1000000))
+        ->capture_default_str();
+    tinyFlag(c, a.tiny, "a single tet and the notched 20x2x2 cantilever, short runs");
 }
 
 }  // namespace
 
 void addStabilityBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<StabilityArgs>();
-        auto* c = bench.add_subcommand(
-            "stability", "dt sweeps from 0.5 to 1.2 of the exact limit: largest stable fraction per "
-                         "integrator and scheme, also after XFEM cuts per lumping option; random cut sequences; "
-                         "energy drift of a long run");
-        c->add_flag("--json", a->json,
-                    "Print {steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
-                    "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
-                    "random_cuts: [{object, min_stretch, runs, cuts, steps, failures, inverted_runs, inverted_at_end, "
-                    "limited_runs, min_dt_ratio}], energy_drift}");
-        c->add_option("--steps", a->steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
-        c->add_option("--cut-runs", a->cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
-            ->check(CLI::Range(0, 100000))
-            ->capture_default_str();
-        c->add_option("--cut-steps", a->cutSteps, "Steps between two cuts of a random sequence")
-            ->check(CLI::Range(1, 1000000))
-            ->capture_default_str();
-        c->add_flag("--tiny", a->tiny, "Test size: a single tet and the notched 20x2x2 cantilever, short runs");
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runStability(*a); })); });
-    });
+    addSubcommand("stability",
+                  "dt sweeps from 0.5 to 1.2 of the exact limit: largest stable fraction per "
+                  "integrator and scheme, also after XFEM cuts per lumping option; random cut sequences; "
+                  "energy drift of a long run",
+                  stabilityOptions, runStability);
 }
 
 }  // namespace cutsim::bench

@@ -1,6 +1,7 @@
 // `cutsim bench step` (tet-steps per second with the share of each stage) and `cutsim bench cost`
 // (what each optional part of a scene costs).
 #include "bench/bench.hpp"
+#include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
 #include "sim/scene.hpp"
@@ -11,7 +12,6 @@
 #include "mesh/io.hpp"
 #include "timestep/timestep.hpp"
 #include "timestep/modes.hpp"
-#include "util/json_text.hpp"
 #include "util/stopwatch.hpp"
 
 #include <CLI/CLI.hpp>
@@ -24,7 +24,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <iostream>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -101,7 +100,7 @@ int runStep(const StepArgs& a) {
             }
     }
     setThreads(0);
-    if (a.json) std::cout << jsonText(j);
+    if (a.json) printJson(j);
     return 0;
 }
 
@@ -163,7 +162,7 @@ int runCost(const CostArgs& a) {
                                  {"stage_seconds_per_step", perStep}});
     }
     if (a.json) {
-        std::cout << jsonText(j);
+        printJson(j);
         return 0;
     }
     std::printf("scene %s (no rendering)\n%-20s %8s %10s", a.scene.c_str(), "variant", "steps", "wall [s]");
@@ -182,33 +181,30 @@ int runCost(const CostArgs& a) {
 
 // Extensions of `bench`: one line per configuration or subcommand from elsewhere, e.g.
 //   addAccuracyConfig("mi-bar", miBarPoints);
+void stepOptions(CLI::App& c, StepArgs& a) {
+    jsonFlag(c, a.json, "{runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}");
+    c.add_option("--seconds", a.seconds, "Measuring time per configuration [s]")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    tinyFlag(c, a.tiny, "one small box");
+}
+
+void costOptions(CLI::App& c, CostArgs& a) {
+    c.add_option("SCENE", a.scene, "Scene file")->required();
+    c.add_option("--set", a.sets, "Override a scene value: key.path=value");
+    threadsOption(c, a.threads, "Worker threads (0 = all cores)", 0);
+    jsonFlag(c, a.json, "{scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
+}
+
 }  // namespace
 
 void addStepCostBench() {
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<StepArgs>();
-        auto* c =
-            bench.add_subcommand("step", "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, double and "
-                                         "single-precision forces, and the share of each stage");
-        c->add_flag("--json", a->json,
-                    "Print {runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}");
-        c->add_option("--seconds", a->seconds, "Measuring time per configuration [s]")
-            ->check(CLI::PositiveNumber)
-            ->capture_default_str();
-        c->add_flag("--tiny", a->tiny, "Test size: one small box");
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runStep(*a); })); });
-    });
-    addBenchSubcommand([](CLI::App& bench) {
-        auto a = std::make_shared<CostArgs>();
-        auto* c = bench.add_subcommand(
-            "cost", "Per-stage cost of a scene (no rendering), as given and without each optional part");
-        c->add_option("SCENE", a->scene, "Scene file")->required();
-        c->add_option("--set", a->sets, "Override a scene value: key.path=value");
-        c->add_option("--threads", a->threads, "Worker threads (0 = all cores)")->check(CLI::Range(0, 1024));
-        c->add_flag("--json", a->json,
-                    "Print {scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
-        c->callback([a] { app::setExitCode(benchGuarded([&] { return runCost(*a); })); });
-    });
+    addSubcommand("step",
+                  "Tet-steps per second on boxes of 1k to 1M tets, 1 and 2 threads, double and "
+                  "single-precision forces, and the share of each stage",
+                  stepOptions, runStep);
+    addSubcommand("cost", "Per-stage cost of a scene (no rendering), as given and without each optional part",
+                  costOptions, runCost);
 }
 
 }  // namespace cutsim::bench
