@@ -4,6 +4,7 @@
 // middle of its top by a 1 cm sphere; contact.spacing sets the number of points (1 m: the
 // surface's vertices only).
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/scene.hpp"
@@ -31,6 +32,7 @@ struct ContactArgs {
     bool tiny = false;
     int threads = 1;
     std::string plot;  // PNG of the table
+    std::string csv;   // the runs as CSV
 };
 
 constexpr double kRadius = 0.01;  // probe [m]
@@ -135,6 +137,7 @@ void plotRows(const std::vector<ContactRow>& rows, const std::string& out) {
 }
 
 int runContact(const ContactArgs& a) {
+    const json machine = machineJson();
     if (!a.plot.empty() && !haveGnuplot())
         throw InputError("--plot needs gnuplot, which is not installed (Debian package gnuplot-nox)");
     const int cells = a.tiny ? 10 : 20;
@@ -169,8 +172,13 @@ int runContact(const ContactArgs& a) {
                      {"final_contacts", r.contacts},
                      {"status", r.status}});
     if (!a.plot.empty()) plotRows(rows, a.plot);
+    if (!a.csv.empty())
+        writeCsv(a.csv, j,
+                 {"spacing", "tool", "stiffness_fraction", "points", "tets", "steps", "contact_seconds_per_step",
+                  "elastic_seconds_per_step", "stiffness", "stiffness_limit", "max_depth", "final_force",
+                  "final_contacts", "status"});
     if (a.json) {
-        printJson(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}});
+        printResult(json{{"probe_radius", kRadius}, {"pressed", kDepth}, {"runs", j}}, machine);
         for (const ContactRow& r : rows)
             if (r.status != "ok") return 1;
         return 0;
@@ -199,6 +207,7 @@ int runContact(const ContactArgs& a) {
 void contactOptions(CLI::App& c, ContactArgs& a) {
     jsonFlag(c, a.json, "{probe_radius, pressed, runs: [...]}");
     tinyFlag(c, a.tiny, "one small slab");
+    csvOption(c, a.csv, "runs");
     plotOption(c, a.plot, "cost against contact points and depth and force against stiffness");
     threadsOption(c, a.threads, "Worker threads per run", 1)->capture_default_str();
 }

@@ -3,6 +3,7 @@
 // a name and a factory of a run that keeps its own mesh or model and applies one cut at a time.
 // No fixed nodes: the step is that of the free object, so a clamp does not hide a cut's modes.
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "cut/conforming.hpp"
@@ -259,6 +260,7 @@ Cost stepCost(const Model& m0, double dt, double simTime) {
 }
 
 int runCutStep(const CutStepArgs& a) {
+    const json machine = machineJson();
     // One thread throughout: on meshes of a few hundred elements a parallel region's start costs
     // more than its work, and a second busy core turns it into millisecond stalls.
     const int threadsBefore = threads();
@@ -340,7 +342,7 @@ int runCutStep(const CutStepArgs& a) {
         j["objects"].push_back(std::move(jo));
     }
     setThreads(threadsBefore);
-    if (a.json) printJson(j);
+    if (a.json) printResult(j, machine);
     return 0;
 }
 

@@ -6,6 +6,7 @@
 // share of the loop, and the simulated seconds per wall second (a haptic loop steps at the stable step, so real time
 // needs 1 / dt steps a second).
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "cut/remesh.hpp"
@@ -37,6 +38,7 @@ struct HapticArgs {
     double duration = 0.1;  // simulated [s]
     std::vector<int> threads = {1, 2};
     std::string mesh = "assets/meshes/liver.msh";  // the SOFA liver, inches
+    std::string csv;                               // the runs as CSV
 };
 
 constexpr double kInch = 0.0254;
@@ -122,6 +124,7 @@ HapticRow runHapticRow(const SceneDef& def, int threads) {
 }
 
 int runHaptic(const HapticArgs& a) {
+    const json machine = machineJson();
     const int tets = a.tiny ? 1500 : a.tets;
     const double duration = a.tiny ? 0.005 : a.duration;
     std::string how;
@@ -148,10 +151,15 @@ int runHaptic(const HapticArgs& a) {
                         {"max_depth", r.depth},
                         {"status", r.status}});
     }
+    if (!a.csv.empty())
+        writeCsv(a.csv, runs,
+                 {"threads", "tets", "contact_points", "steps", "dt", "wall_seconds", "steps_per_second",
+                  "contact_share", "contact_per_elastic", "haptic_rate", "real_time_factor", "final_contacts",
+                  "final_force", "max_depth", "status"});
     int failed = 0;
     for (const HapticRow& r : rows) failed += r.status != "ok";
     if (a.json) {
-        printJson(json{{"mesh", how}, {"duration", duration}, {"runs", runs}});
+        printResult(json{{"mesh", how}, {"duration", duration}, {"runs", runs}}, machine);
         return failed ? 1 : 0;
     }
     std::printf("liver, %s: %d tets; 1 cm probe pressing 12 mm over %.3g s\n", how.c_str(), mesh.elements(), duration);
@@ -172,6 +180,7 @@ int runHaptic(const HapticArgs& a) {
 void hapticOptions(CLI::App& c, HapticArgs& a) {
     jsonFlag(c, a.json, "{mesh, duration, runs: [...]}");
     tinyFlag(c, a.tiny, "~1,500 tets, 5 ms");
+    csvOption(c, a.csv, "runs");
     c.add_option("--tets", a.tets, "Tets to mesh the liver with (about)")
         ->check(CLI::Range(100, 2000000))
         ->capture_default_str();

@@ -2,6 +2,7 @@
 // mesher on the same meshes (thesis Table 5.1), the step gained against time, and what the improvement does to the
 // physics (the liver's sag, a bar's first frequency).
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 
@@ -230,6 +231,7 @@ void drawPlot(const std::string& out, const json& timing) {
 }
 
 int runImproveBench(const ImproveBenchArgs& a) {
+    const json machine = machineJson();
     const Material mat;
     const bool quiet = a.json;
     json meshes = json::array(), timing = json::object();
@@ -292,7 +294,7 @@ int runImproveBench(const ImproveBenchArgs& a) {
     if (!a.plot.empty()) drawPlot(a.plot, timing);
     if (a.json) {
         for (auto& [k, t] : j["gain_against_time"].items()) t.erase("history");
-        printJson(j);
+        printResult(j, machine);
         return 0;
     }
     std::printf("exact step after improvement (E %g Pa, nu %g, rho %g); gain = after / before; volume and\n"

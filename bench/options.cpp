@@ -1,5 +1,6 @@
 // The shared options and result files of `cutsim bench` (options.hpp).
 #include "bench/options.hpp"
+#include "bench/machine.hpp"
 #include "util/atomic_file.hpp"
 #include "util/json_text.hpp"
 
@@ -27,6 +28,12 @@ CLI::Option* threadsOption(CLI::App& c, int& threads, const std::string& descrip
 }
 
 void printJson(const nlohmann::json& j) { std::cout << jsonText(j); }
+
+void printResult(nlohmann::json j, const nlohmann::json& machine) {
+    j["machine"] = machine;
+    j["machine"]["load_average_end"] = loadAverage();
+    printJson(j);
+}
 
 void writeCsv(const std::string& path, const nlohmann::json& rows, const std::vector<std::string>& columns) {
     std::ostringstream c;

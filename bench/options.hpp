@@ -41,6 +41,9 @@ CLI::Option* threadsOption(CLI::App& c, int& threads, const std::string& descrip
 
 // The result on stdout, as --json prints it.
 void printJson(const nlohmann::json& j);
+// The same with the machine it ran on: machine (machineJson(), taken as the run started) and the
+// load averages at its end (load_average_end).
+void printResult(nlohmann::json j, const nlohmann::json& machine);
 // rows (an array of objects) as CSV into path, written whole or not at all: a header, then a line
 // per row. A column is a key or a path of keys ("stages/cut", headed by its last key "cut"); a
 // string cell is written as it is, any other as JSON, a missing one empty.

@@ -1,6 +1,7 @@
 // `cutsim bench stability`: the largest stable fraction of the exact step per integrator and scheme,
 // after XFEM cuts per lumping, over random cut sequences, and the energy drift of a long run.
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
@@ -333,6 +334,7 @@ void energyDrift(const SweepModel& sm, bool tiny, bool quiet, json& j) {
 }
 
 int runStability(const StabilityArgs& a) {
+    const json machine = machineJson();
     const std::vector<SweepModel> models = sweepModels(a.tiny);
     const int steps = a.tiny ? std::min(a.steps, 400) : a.steps;
     json j;
@@ -342,7 +344,7 @@ int runStability(const StabilityArgs& a) {
     sweepAfterCuts(a.tiny, steps, a.json, j);
     randomCutSequences(a, j);
     energyDrift(models[0], a.tiny, a.json, j);
-    if (a.json) printJson(j);
+    if (a.json) printResult(j, machine);
     return 0;
 }
 

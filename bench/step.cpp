@@ -1,6 +1,7 @@
 // `cutsim bench step` (tet-steps per second with the share of each stage) and `cutsim bench cost`
 // (what each optional part of a scene costs).
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
@@ -42,9 +43,11 @@ namespace {
 struct StepArgs {
     bool json = false, tiny = false;
     double seconds = 1.0;  // measuring time per configuration [s]
+    std::string csv;       // the runs as CSV
 };
 
 int runStep(const StepArgs& a) {
+    const json machine = machineJson();
     const std::vector<int> sizes = a.tiny ? std::vector<int>{3} : std::vector<int>{6, 12, 26, 55};
     const std::vector<int> threadCounts = {1, 2};
     json j;
@@ -100,7 +103,11 @@ int runStep(const StepArgs& a) {
             }
     }
     setThreads(0);
-    if (a.json) printJson(j);
+    if (!a.csv.empty())
+        writeCsv(a.csv, j["runs"],
+                 {"tets", "nodes", "threads", "precision", "steps", "seconds", "tet_steps_per_second", "stages/forces",
+                  "stages/element", "stages/nodes", "stages/integrate"});
+    if (a.json) printResult(j, machine);
     return 0;
 }
 
@@ -111,6 +118,7 @@ struct CostArgs {
     std::vector<std::string> sets;
     bool json = false;
     int threads = 0;
+    std::string csv;  // the variants as CSV
 };
 
 // The scene run without rendering by the library's Simulation, as `cutsim run --no-render` runs it.
@@ -127,6 +135,7 @@ json runVariant(const std::string& scene, std::vector<std::string> sets, int thr
 }
 
 int runCost(const CostArgs& a) {
+    const json machine = machineJson();
     // The scene as given, then without each optional part it uses: the subsystems it leaves out
     // must cost nothing, and each one it uses shows up as the difference.
     struct Variant {
@@ -161,8 +170,13 @@ int runCost(const CostArgs& a) {
                                  {"stages", r["stages"]},
                                  {"stage_seconds_per_step", perStep}});
     }
+    if (!a.csv.empty())
+        writeCsv(a.csv, j["variants"],
+                 {"name", "status", "steps", "wall_time", "stages/loads", "stages/contact", "stages/cut",
+                  "stages/forces", "stages/integrate", "stages/checks", "stages/timestep", "stages/render",
+                  "stages/encode"});
     if (a.json) {
-        printJson(j);
+        printResult(j, machine);
         return 0;
     }
     std::printf("scene %s (no rendering)\n%-20s %8s %10s", a.scene.c_str(), "variant", "steps", "wall [s]");
@@ -187,6 +201,7 @@ void stepOptions(CLI::App& c, StepArgs& a) {
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
     tinyFlag(c, a.tiny, "one small box");
+    csvOption(c, a.csv, "runs");
 }
 
 void costOptions(CLI::App& c, CostArgs& a) {
@@ -194,6 +209,7 @@ void costOptions(CLI::App& c, CostArgs& a) {
     c.add_option("--set", a.sets, "Override a scene value: key.path=value");
     threadsOption(c, a.threads, "Worker threads (0 = all cores)", 0);
     jsonFlag(c, a.json, "{scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
+    csvOption(c, a.csv, "variants");
 }
 
 }  // namespace

@@ -24,22 +24,20 @@ data=$(sed -n 's/^CUTSIM_DATA_DIR:PATH=//p' "$B/CMakeCache.txt")
 cmake --build "$B" --target cutsim cutsim_bench cutsim_bullet_bench -j"$(nproc)"
 
 # step throughput, and beside Bullet's deformable-body solver (one thread, taking turns)
-"$B/cutsim" bench step --seconds 2 > "$D/step.txt"
-{ "$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 5
-  echo
-  echo "# --unrotated: started at the rest shape"
-  "$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 3 --unrotated; } > "$D/bullet_step.txt"
-gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plot.gp
+"$B/cutsim" bench step --seconds 2 --json --csv "$D/step.csv" > "$D/step.json"
+"$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 5 --json > "$D/bullet_step.json"
+"$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 3 --unrotated --json > "$D/bullet_step_unrotated.json"
+gnuplot -e "in='$D/bullet_step.json'; out='$D/bullet_step.png'" scripts/bench_plot.gp
 
 # stable steps: Table 4.3 (liver and armadillo), stability sweeps and random cuts
 { "$B/cutsim" dt assets/meshes/liver.msh --scale 0.0254 --worst 5
   echo
   bin=$(cd "$B" && pwd)/cutsim  # run from the data folder, so the output names the mesh only
   (cd "$data/tet" && "$bin" dt sofa_Armadillo_Tetra_4406.gmsh22.msh --scale 0.01 --worst 5); } > "$D/dt_table43.txt"
-"$B/cutsim" bench stability > "$D/stability.txt"
+"$B/cutsim" bench stability --json > "$D/stability.json"
 
 # mesh improvement against TetGen's and Gmsh's optimisers (thesis Table 5.1)
-"$B/cutsim" bench improve --plot "$D/improve.png" > "$D/improve.txt"
+"$B/cutsim" bench improve --plot "$D/improve.png" --json > "$D/improve.json"
 
 # Table 6.1 (mesh intersection against conforming cuts), and the cut moved through its cell
 "$B/cutsim" bench mi-bar > "$D/mi_bar.txt"
@@ -47,10 +45,19 @@ gnuplot -e "in='$D/bullet_step.txt'; out='$D/bullet_step.png'" scripts/bench_plo
 "$B/cutsim" bench mi-bar --sweep 12 > "$D/mi_bar_sweep.txt"
 
 # the step through four plane cuts per cutting method (thesis Tables 5.5 and 5.6)
-"$B/cutsim" bench cutstep > "$D/cutstep.txt"
+"$B/cutsim" bench cutstep --json > "$D/cutstep.json"
 
 # per-stage cost of a scene
-"$B/cutsim" bench cost assets/scenes/bar_sag.json --set duration=0.5 > "$D/cost.txt"
+"$B/cutsim" bench cost assets/scenes/bar_sag.json --set duration=0.5 --json --csv "$D/cost.csv" > "$D/cost.json"
+
+# contact: its cost against the contact points, the penalty model's depth against its stiffness,
+# the contact stage of the scenes with a tool; a probe on a 20k-tet liver at a haptic rate
+"$B/cutsim" bench contact --plot "$D/contact.png" --json --csv "$D/contact.csv" > "$D/contact.json"
+for s in probe demo_mi demo blade; do
+  "$B/cutsim" bench cost "assets/scenes/$s.json" --set output.vtu=false --threads 1 --json \
+    --csv "$D/cost_$s.csv" > "$D/cost_$s.json"
+done
+"$B/cutsim" bench haptic --json --csv "$D/haptic.csv" > "$D/haptic.json"
 
 # stepping from Python against the CLI (taking turns, fresh processes)
 cmake --build "$B" --target cutsim_py -j"$(nproc)"

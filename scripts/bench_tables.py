@@ -42,6 +42,15 @@ def table(header, rows):
     return "\n".join([line(header), "|" + "---|" * len(header)] + [line(r) for r in rows]) + "\n"
 
 
+def ran_on(*results):
+    """A line under a table of wall times: the machine and its 1-minute load average when each run
+    started and ended (the result's "machine"), lowest to highest."""
+    loads = [x for j in results for x in (j["machine"]["load_average"][0], j["machine"]["load_average_end"][0])]
+    m = results[0]["machine"]
+    span = f"{min(loads):.1f}" if f"{min(loads):.1f}" == f"{max(loads):.1f}" else f"{min(loads):.1f}-{max(loads):.1f}"
+    return f"\n{m['cores']} cores ({m['cpu']}), load average {span} over the run.\n"
+
+
 def decimals(v, n):
     return f"{v:.{n}f}"
 
@@ -151,11 +160,293 @@ def mi_bar():
     return table(["kept", "TetGen remesh", "conforming subdivision", "MI (default: mass added where needed)"], out)
 
 
+# ---- bench step and cutsim_bullet_bench: docs/bench/step.json, bullet_step.json, bullet_step_unrotated.json ----
+
+
+def mega(v):
+    """Millions, three significant digits: 27.9M, 18.0M."""
+    return f"{v / 1e6:#.3g}".rstrip(".") + "M"
+
+
+def step_bullet():
+    """Tet-steps per second of cutsim and Bullet, one thread, the ratios, and the ratio from the rest shape."""
+    rotated = load("bullet_step.json")["runs"]
+    rest = {r["tets"]: r for r in load("bullet_step_unrotated.json")["runs"]}
+    rows = []
+    for r in rotated:
+        t = r["tet_steps_per_second"]
+        r0 = rest.get(r["tets"])
+        rows.append([f"{r['tets']:,}", mega(t["cutsim_double"]), mega(t["cutsim_single"]), mega(t["bullet"]),
+                     mega(t["bullet_damped"]), f"**{r['ratio_cutsim_double_to_bullet']:.1f}x**",
+                     f"{r['ratio_cutsim_double_to_bullet_damped']:.1f}x",
+                     f"{r0['ratio_cutsim_double_to_bullet']:.1f}x" if r0 else ""])
+    return table(["tets", "cutsim double", "cutsim single", "Bullet", "Bullet, default damping", "cutsim / Bullet",
+                  "cutsim / Bullet damped", "cutsim / Bullet from the rest shape"], rows) + \
+        ran_on(load("bullet_step.json"), load("bullet_step_unrotated.json"))
+
+
+def step_threads():
+    """cutsim's tet-steps per second on 1 and 2 threads, double and single, and the element kernel's share."""
+    j = load("step.json")
+    by = {}
+    for r in j["runs"]:
+        by.setdefault(r["tets"], {})[(r["threads"], r["precision"])] = r
+    rows = []
+    for tets, runs in sorted(by.items()):
+        def rate(th, p):
+            return mega(runs[(th, p)]["tet_steps_per_second"])
+
+        share = runs[(1, "double")]["stages"]["element"]
+        rows.append([f"{tets:,}", f"{rate(1, 'double')} / {rate(1, 'single')}",
+                     f"{rate(2, 'double')} / {rate(2, 'single')}", f"{100 * share:.0f}%"])
+    return table(["tets", "1 thread double / single", "2 threads double / single",
+                  "element kernel share (1 thread, double)"], rows) + ran_on(j)
+
+
+# ---- bench stability: docs/bench/stability.json ----
+
+PLAIN = ["symplectic_euler", "central_difference", "newmark"]
+
+
+def joined(values):
+    """One value when all agree, else each, separated by slashes."""
+    return values[0] if len(set(values)) == 1 else " / ".join(values)
+
+
+def stability_sweeps():
+    """Largest stable fraction of the exact step per mesh: the plain schemes, alpha_e, alpha_e with a margin."""
+    by = {}
+    for s in load("stability.json")["sweeps"]:
+        by.setdefault(s["mesh"], {})[(s["integrator"], s["scheme"])] = s
+
+    def frac(s):
+        f = s["largest_stable_fraction"]
+        return decimals(f, 3) if f < 1.005 else f"{f:.3g}"
+
+    rows = []
+    for mesh, runs in by.items():
+        plain = joined([frac(runs[(i, "plain")]) for i in PLAIN])
+        rows.append([f"{mesh} ({next(iter(runs.values()))['tets']} tets)", plain,
+                     frac(runs[("symplectic_euler", "alpha_e")]), frac(runs[("symplectic_euler", "alpha_e_0.95")])])
+    return table(["mesh", "symplectic Euler, central difference, Newmark", "alpha_e (eq. 3.16)",
+                  "alpha_e, margin 0.95"], rows)
+
+
+def stability_after_cuts():
+    """After cuts, per mesh and lumping: the exact step over the uncut one, the largest stable fraction."""
+    by = {}
+    for s in load("stability.json")["after_cuts"]:
+        by.setdefault(s["mesh"], []).append(s)
+    rows = []
+    for mesh, runs in by.items():
+        rows.append([mesh, " / ".join(r["lumping"].replace("_", " ") for r in runs),
+                     " / ".join(decimals(r["dt_ratio"], 3) for r in runs),
+                     " / ".join(f"{r['largest_stable_fraction']:.3g}" for r in runs)])
+    return table(["mesh", "lumping", "exact dt cut / uncut", "largest stable fraction"], rows)
+
+
+FLOORS = {"-": ("none", "none"), "local": ("local (R1R)", "local (R1R)"),
+          "certified": ("certified (local, then exact + keepStep)", "certified"),
+          "global": ("global (keepStep alone)", "global"),
+          "hybrid": ("hybrid (elements under the floor matched, then certified)", "hybrid")}
+
+
+def stability_floor():
+    """Random cut sequences with stretch limiting, per object and floor: the step kept and what it cost."""
+    j = load("stability.json")
+    rows = []
+    seen = []
+    for r in j["random_cuts"]:
+        if r["min_stretch"] == 0:
+            continue
+        if r["object"] not in seen:
+            seen.append(r["object"])
+        fl = r["floor"]
+        label = FLOORS[fl][0 if len(seen) == 1 else 1]
+        none = fl == "-"
+        rows.append([r["object"], label, decimals(r["min_dt_ratio"], 3),
+                     "" if none else (f"{r['cuts_below_floor']} of {r['cuts']}" if r["cuts_below_floor"] else "0"),
+                     str(r["cuts_topped_up"]) if fl in ("certified", "hybrid") else "",
+                     "" if none else percent(r["max_added_mass"]),
+                     "" if none else f"{1e3 * r['mean_floor_seconds']:.2g} / {1e3 * r['max_floor_seconds']:.3g}"])
+    return table(["object", "floor", "min dt ratio", "under floor", "topped up", "max mass added", "ms per cut"],
+                 rows) + ran_on(j)
+
+
+# ---- bench improve: docs/bench/improve.json ----
+
+
+def improve_table():
+    """Table 5.1: the exact step of each data mesh after each method."""
+    j = load("improve.json")
+    rows = []
+    for m in j["meshes"]:
+        dt0 = m["dt_exact"]
+
+        def cell(name, bold=False, detail=False):
+            r = m["methods"].get(name)
+            if r is None:
+                return ""
+            if "error" in r:
+                return "fails"
+            gain = f"{r['gain']:.2f}x"
+            tets = f", {r['tets']} tets" if r["tets"] != m["tets"] else ""
+            if detail:
+                head = f"{1e3 * r['dt_exact']:.4f} ms, {gain}"
+                return (f"**{head}**" if bold else head) + tets + \
+                    f", vol {100 * r['volume_change']:+.2f}%, boundary {100 * r['boundary_distance_rel']:.2f}%"
+            if gain == "1.00x":
+                return gain
+            return (f"{1e3 * r['dt_exact']:.4f} ms, " if name == "gmsh" else "") + gain + tets
+
+        rows.append([f"{m['mesh']} ({m['scale']:g})", str(m["tets"]), f"{1e3 * dt0:.4f} ms",
+                     cell("cutsim", bold=True, detail=True), cell("tetgen -rO10/7"), cell("gmsh"),
+                     cell("cgal remesh")])
+    return table(["mesh (scale)", "tets", "input dt", "cutsim", "TetGen -rO10/7", "Gmsh", "CGAL remesh"], rows) + \
+        ran_on(j)
+
+
+def improve_time():
+    """Gain against time, wall clock only."""
+    j = load("improve.json")
+    rows = []
+    for m in j["meshes"]:
+        t = j["gain_against_time"][m["mesh"]]
+        rows.append([m["mesh"]] + [decimals(t[k], 2) for k in ("gain_at_0.1s", "gain_at_1s", "gain_at_10s")])
+    return table(["mesh", "0.1 s", "1 s", "10 s"], rows)
+
+
+# ---- bench cutstep: docs/bench/cutstep.json ----
+
+
+def cutstep():
+    """Tables 5.5 and 5.6: the exact step after each cut over the uncut one, per object and method."""
+    j = load("cutstep.json")
+    rows = []
+    for o in j["objects"]:
+        for me in o["methods"]:
+            cuts = me["cuts"]
+            last = cuts[-1]
+            n = len(cuts)
+
+            def mean(key):
+                return 1e3 * sum(c[key] for c in cuts) / n
+
+            crit = f"{last['critical']} ({100 * last['critical_share']:.1f}%)" if last["critical"] else "0"
+            improve = mean("improve_seconds")
+            floor = mean("floor_seconds")
+            mass = ""
+            if "floor" in me["name"]:
+                mass = percent(last["added_mass"]) if last["added_mass"] > 0 else "0"
+            rows.append([o["name"], me["name"]] + [decimals(c["dt_ratio"], 4) for c in cuts] +
+                        [str(last["elements"]), crit, decimals(mean("cut_seconds"), 2),
+                         decimals(mean("update_seconds"), 2), decimals(improve, 1) if improve > 0 else "",
+                         decimals(floor, 2) if floor > 0 else "", mass,
+                         decimals(me["cost"]["wall_per_simulated_second"], 3)])
+    return table(["object", "method", "cut 1", "cut 2", "cut 3", "cut 4", "tets", "critical", "cut", "update",
+                  "improve", "floor", "mass added", "cost"], rows) + ran_on(j)
+
+
+# ---- bench contact and bench cost per scene: docs/bench/contact.json, cost_SCENE.json ----
+
+
+def contact_projection():
+    """Projection contact: stage times per step, tool away and pressing, against the contact points."""
+    j = load("contact.json")
+    runs = [r for r in j["runs"] if r["stiffness_fraction"] == 0]
+    by = {}
+    for r in runs:
+        by.setdefault(r["points"], {})[r["tool"]] = r
+    rows = []
+    for k, (points, r) in enumerate(by.items()):
+        a, p = r["away"], r["pressing"]
+        us = 1e6
+        rows.append([f"{points:,}" + (" (vertices only)" if k == 0 else ""),
+                     f"{us * a['contact_seconds_per_step']:.1f} / {us * a['elastic_seconds_per_step']:.0f} us "
+                     f"({percent(a['contact_seconds_per_step'] / a['elastic_seconds_per_step'], 1)})",
+                     f"{us * p['contact_seconds_per_step']:.0f} / {us * p['elastic_seconds_per_step']:.0f} us "
+                     f"({p['contact_seconds_per_step'] / p['elastic_seconds_per_step']:.2f})",
+                     f"{1e3 * p['max_depth']:.2f} mm", f"{p['final_force']:.2f} N"])
+    return table(["contact points", "away: contact / elastic", "pressing: contact / elastic",
+                  "pressing: deepest point", "force"], rows) + ran_on(j)
+
+
+def contact_penalty():
+    """The penalty model against its stiffness (a share of the certified limit): depth and force."""
+    j = load("contact.json")
+    rows = []
+    for r in j["runs"]:
+        f = r["stiffness_fraction"]
+        if f == 0:
+            continue
+        depth = f"{1e3 * r['max_depth']:.2f} mm" + (" (deeper than pressed)" if r["max_depth"] > j["pressed"] else "")
+        rows.append([decimals(f, 2) + (" (its default)" if f == 0.5 else ""), depth, f"{r['final_force']:.2f} N"])
+    return table(["k / k_max", "deepest point", "force"], rows)
+
+
+COST_SCENES = [("probe", "probe.json"), ("demo_mi", "demo_mi.json"), ("demo", "demo.json (MI liver, probe, 2 cuts)"),
+               ("blade", "blade.json (with its floor)")]
+
+
+def contact_scenes():
+    """Per scene, the run as given: the contact stage against the elastic step (forces + integrate)."""
+    rows = []
+    results = [load(f"cost_{name}.json") for name, _ in COST_SCENES]
+    for (name, label), j in zip(COST_SCENES, results):
+        v = next(v for v in j["variants"] if v["name"] == "as given")
+        st = v["stages"]
+        elastic = st["forces"] + st["integrate"]
+        rows.append([label, f"{st['contact']:.3f} s", f"{elastic:.3f} s", f"**{st['contact'] / elastic:.2f}**"])
+    return table(["scene", "contact", "forces + integrate", "contact / (forces + integrate)"], rows) + \
+        ran_on(*results)
+
+
+# ---- bench haptic: docs/bench/haptic.json ----
+
+
+def haptic():
+    """Steps per second of the liver under the probe, per thread count."""
+    j = load("haptic.json")
+    rows = []
+    for r in j["runs"]:
+        rows.append([str(r["threads"]), f"{r['steps_per_second']:,.0f}", "yes" if r["haptic_rate"] else "no",
+                     f"{100 * r['contact_share']:.0f}%", decimals(r["contact_per_elastic"], 2),
+                     decimals(r["real_time_factor"], 3)])
+    return table(["threads", "steps/s", "1 kHz", "contact share of the loop", "contact / elastic",
+                  "simulated s per wall s"], rows) + ran_on(j)
+
+
+# ---- bench cost: docs/bench/cost.json ----
+
+
+def cost():
+    """Per-stage seconds of bar_sag.json, as given and without each optional part."""
+    j = load("cost.json")
+    variants = j["variants"]
+    rows = [[v["name"]] + [decimals(x, 3) for x in (v["wall_time"], v["stages"]["forces"], v["stages"]["integrate"],
+                                                     v["stages"]["timestep"])] for v in variants]
+    return table([f"variant (40x4x4 bar, {variants[0]['steps']} steps)", "wall [s]", "forces", "integrate",
+                  "timestep"], rows) + ran_on(j)
+
+
 TABLES = {
     "scale-step": scale_step,
     "scale-exponents": scale_exponents,
     "accuracy-paired": accuracy_paired,
     "mi-bar": mi_bar,
+    "step-bullet": step_bullet,
+    "step-threads": step_threads,
+    "stability-sweeps": stability_sweeps,
+    "stability-after-cuts": stability_after_cuts,
+    "stability-floor": stability_floor,
+    "improve": improve_table,
+    "improve-time": improve_time,
+    "cutstep": cutstep,
+    "contact-projection": contact_projection,
+    "contact-penalty": contact_penalty,
+    "contact-scenes": contact_scenes,
+    "haptic": haptic,
+    "cost": cost,
 }
 
 

@@ -15,6 +15,7 @@
 // --seconds, --rounds times; the table gives the median of each over its windows and the median
 // of the per-round ratios, and the shares of Bullet's step from its own profile zones.
 //   build/bench/cutsim_bullet_bench [--seconds S] [--rounds R] [--unrotated] [--tiny] [--json]
+#include "bench/machine.hpp"
 #include "bench/step_box.hpp"
 #include "fem/forces.hpp"
 #include "fem/integrate.hpp"
@@ -259,6 +260,7 @@ int main(int argc, char** argv) {
     const int checkSteps = a.tiny ? 20 : 200;
     setThreads(1);
     nlohmann::json j;
+    j["machine"] = machineJson();
     j["dt"] = kDt;
     j["threads"] = 1;
     j["seconds_per_window"] = a.seconds;
@@ -347,6 +349,7 @@ int main(int argc, char** argv) {
         if (!a.json) std::fflush(stdout);
     }
     setThreads(0);
+    j["machine"]["load_average_end"] = loadAverage();
     if (a.json)
         std::cout << j.dump(2) << "\n";
     else

@@ -503,6 +503,43 @@ TEST(BenchStep, TinyRunContract) {
     }
 }
 
+// --csv writes the JSON's runs, one line each in the header's columns (nested keys by their last
+// name), and the result names the machine it ran on.
+TEST(BenchStep, CsvIsTheJsonsRunsAndTheMachineIsNamed) {
+    const std::string dir = workDir("stepcsv");
+    const json j = runJson("bench step --tiny --json --seconds 0.02 --csv " + dir + "/runs.csv");
+    std::ifstream f(dir + "/runs.csv");
+    std::vector<std::string> lines;
+    for (std::string l; std::getline(f, l);) lines.push_back(l);
+    ASSERT_EQ(lines.size(), 1 + j["runs"].size());
+    EXPECT_EQ(lines[0],
+              "tets,nodes,threads,precision,steps,seconds,tet_steps_per_second,forces,element,nodes,integrate");
+    for (size_t k = 0; k < j["runs"].size(); ++k) {
+        const json& r = j["runs"][k];
+        std::vector<std::string> cells = {r["tets"].dump(),
+                                          r["nodes"].dump(),
+                                          r["threads"].dump(),
+                                          r["precision"].get<std::string>(),
+                                          r["steps"].dump(),
+                                          r["seconds"].dump(),
+                                          r["tet_steps_per_second"].dump()};
+        for (const char* s : {"forces", "element", "nodes", "integrate"}) cells.push_back(r["stages"][s].dump());
+        std::string want;
+        for (const std::string& c : cells) {
+            if (!want.empty()) want += ',';
+            want += c;
+        }
+        EXPECT_EQ(lines[k + 1], want);
+    }
+    const json& m = j["machine"];
+    EXPECT_GE(m["cores"].get<int>(), 1);
+    EXPECT_TRUE(m["cpu"].is_string());
+    for (const char* k : {"load_average", "load_average_end"}) {
+        EXPECT_TRUE(m[k].size() == 3 || m[k].empty()) << k;  // 1, 5, 15 min, where the system gives them
+        for (const auto& v : m[k]) EXPECT_GE(v.get<double>(), 0);
+    }
+}
+
 // Tables 5.5 and 5.6 on the bar: four cuts per method; the floor holds 0.95 of the uncut step
 // after every cut; subdivision adds elements with every cut; every step a real one.
 TEST(BenchCutStep, TinyRunContract) {
