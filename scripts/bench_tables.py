@@ -226,7 +226,8 @@ def stability_sweeps():
     rows = []
     for mesh, runs in by.items():
         plain = joined([frac(runs[(i, "plain")]) for i in PLAIN])
-        rows.append([f"{mesh} ({next(iter(runs.values()))['tets']} tets)", plain,
+        name = mesh.split(" (")[0]  # "liver (sofa_liver.msh)": the data file is the section's
+        rows.append([f"{name} ({next(iter(runs.values()))['tets']} tets)", plain,
                      frac(runs[("symplectic_euler", "alpha_e")]), frac(runs[("symplectic_euler", "alpha_e_0.95")])])
     return table(["mesh", "symplectic Euler, central difference, Newmark", "alpha_e (eq. 3.16)",
                   "alpha_e, margin 0.95"], rows)
@@ -241,7 +242,7 @@ def stability_after_cuts():
     for mesh, runs in by.items():
         rows.append([mesh, " / ".join(r["lumping"].replace("_", " ") for r in runs),
                      " / ".join(decimals(r["dt_ratio"], 3) for r in runs),
-                     " / ".join(f"{r['largest_stable_fraction']:.3g}" for r in runs)])
+                     " / ".join(decimals(r["largest_stable_fraction"], 3) for r in runs)])
     return table(["mesh", "lumping", "exact dt cut / uncut", "largest stable fraction"], rows)
 
 
@@ -268,7 +269,7 @@ def stability_floor():
                      "" if none else (f"{r['cuts_below_floor']} of {r['cuts']}" if r["cuts_below_floor"] else "0"),
                      str(r["cuts_topped_up"]) if fl in ("certified", "hybrid") else "",
                      "" if none else percent(r["max_added_mass"]),
-                     "" if none else f"{1e3 * r['mean_floor_seconds']:.2g} / {1e3 * r['max_floor_seconds']:.3g}"])
+                     "" if none else f"{ms(r['mean_floor_seconds'])} / {ms(r['max_floor_seconds'])}"])
     return table(["object", "floor", "min dt ratio", "under floor", "topped up", "max mass added", "ms per cut"],
                  rows) + ran_on(j)
 
