@@ -1,8 +1,9 @@
 // What the files of `cutsim bench` share: accuracy against cost, stability sweeps, step throughput
 // and per-scene cost. Other files extend it by one call each: addAccuracyConfig() adds
 // configurations to `bench accuracy` (e.g. MI background meshes, lumping after cuts),
-// addBenchSubcommand() adds a whole subcommand. Both are listed in registerBenchExtensions() in
-// accuracy.cpp; the program adds the command with addBenchCommand() (bench/command.hpp).
+// addBenchSubcommand() adds a whole subcommand (bench/options.hpp: addSubcommand, with the options
+// and result files the subcommands share). Both are listed in registerBenchExtensions() in
+// bench.cpp; the program adds the command with addBenchCommand() (bench/command.hpp).
 #pragma once
 
 #include "fem/integrate.hpp"

@@ -286,6 +286,8 @@ int runCutStep(const CutStepArgs& a) {
         std::printf("%-6s %-24s %3s %6s %9s %7s %8s %6s %8s %8s %8s %8s %7s %8s\n", "object", "method", "cut", "tets",
                     "dt", "ratio", "critical", "share", "cut", "update", "improve", "floor", "mass", "cost");
     }
+    j["problems"] = a.problems;     // subdivision+improve's budget, 0: NearPlaneOptions::budgeted's
+    j["free_nodes"] = a.freeNodes;  // and its free nodes, 0: budgeted's
     j["objects"] = json::array();
     for (const BenchObject& o : objects) {
         json jo = {{"name", o.name},
@@ -348,7 +350,8 @@ int runCutStep(const CutStepArgs& a) {
 
 void cutStepOptions(CLI::App& c, CutStepArgs& a) {
     jsonFlag(c, a.json,
-             "{objects: [{name, tets, dt_uncut, r1r_min_uncut, critical_below, planes, methods: [{name, "
+             "{problems, free_nodes, objects: [{name, tets, dt_uncut, r1r_min_uncut, critical_below, planes, methods: "
+             "[{name, "
              "cuts: [{cut, elements, dt_exact, dt_ratio, critical, critical_share, cut_seconds, "
              "update_seconds, improve_seconds, floor_seconds, added_mass}], cost}]}]}");
     tinyFlag(c, a.tiny, "the bar only, short cost runs, small full improvement");

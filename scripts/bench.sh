@@ -46,6 +46,19 @@ gnuplot -e "in='$D/bullet_step.json'; out='$D/bullet_step.png'" scripts/bench_pl
 
 # the step through four plane cuts per cutting method (thesis Tables 5.5 and 5.6)
 "$B/cutsim" bench cutstep --json > "$D/cutstep.json"
+# subdivision+improve's budget against its step: three runs of each setting and of the unbudgeted one
+{ for s in "" "--problems 10000 --free-nodes 80" "--problems 20000 --free-nodes 160"; do
+    for k in 1 2 3; do "$B/cutsim" bench cutstep --only subdivision+improve $s --json; done
+  done
+  for k in 1 2 3; do "$B/cutsim" bench cutstep --only subdivision+improve-full --json; done; } |
+  python3 -c '
+import json, sys
+text, runs, at = sys.stdin.read(), [], 0
+while text[at:].strip():
+    at = len(text) - len(text[at:].lstrip())
+    run, at = json.JSONDecoder().raw_decode(text, at)
+    runs.append(run)
+print(json.dumps(runs, indent=2))' > "$D/cutstep_budget.json"
 
 # per-stage cost of a scene
 "$B/cutsim" bench cost assets/scenes/bar_sag.json --set duration=0.5 --json --csv "$D/cost.csv" > "$D/cost.json"

@@ -18,6 +18,7 @@ import argparse
 import difflib
 import json
 import re
+import statistics
 import sys
 from pathlib import Path
 
@@ -348,6 +349,35 @@ def cutstep():
                   "improve", "floor", "mass added", "cost"], rows) + ran_on(j)
 
 
+
+def cutstep_budget():
+    """subdivision+improve's budget against its step: the step after cuts 1 and 4, and its improvement's
+    time per cut (the median over the four cuts of each cut's median over the runs of a setting)."""
+    runs = load("cutstep_budget.json")
+    settings = {}
+    for j in runs:
+        method = j["objects"][0]["methods"][0]["name"]
+        settings.setdefault((method, j["problems"], j["free_nodes"]), []).append(j)
+    rows = []
+    for (method, problems, free), js in settings.items():
+        if method.endswith("-full"):
+            label = f"unbudgeted (`{method}`)"
+        elif problems == 0 and free == 0:
+            label = "budgeted (default: 5000 problems, 40 free nodes)"
+        else:
+            label = f"{problems} problems, {free} free nodes"
+        cells = [label]
+        for k, o in enumerate(js[0]["objects"]):
+            cuts = o["methods"][0]["cuts"]
+            per_cut = [statistics.median(j["objects"][k]["methods"][0]["cuts"][c]["improve_seconds"] for j in js)
+                       for c in range(len(cuts))]
+            cells += [f"{decimals(cuts[0]['dt_ratio'], 4)} / {decimals(cuts[-1]['dt_ratio'], 4)}",
+                      decimals(1e3 * statistics.median(per_cut), 1)]
+        rows.append(cells)
+    names = [o["name"] for o in runs[0]["objects"]]
+    header = ["setting"] + [h for n in names for h in (f"{n}: step after cuts 1 / 4", f"{n}: ms per cut")]
+    return table(header, rows) + ran_on(*runs)
+
 # ---- bench contact and bench cost per scene: docs/bench/contact.json, cost_SCENE.json ----
 
 
@@ -443,6 +473,7 @@ TABLES = {
     "improve": improve_table,
     "improve-time": improve_time,
     "cutstep": cutstep,
+    "cutstep-budget": cutstep_budget,
     "contact-projection": contact_projection,
     "contact-penalty": contact_penalty,
     "contact-scenes": contact_scenes,
