@@ -205,7 +205,7 @@ int runContact(const ContactArgs& a) {
 }
 
 void contactOptions(CLI::App& c, ContactArgs& a) {
-    jsonFlag(c, a.json, "{probe_radius, pressed, runs: [...]}");
+    jsonFlag(c, a.json, "{probe_radius, pressed, runs: [...]}", true);
     tinyFlag(c, a.tiny, "one small slab");
     csvOption(c, a.csv, "runs");
     plotOption(c, a.plot, "cost against contact points and depth and force against stiffness");

@@ -353,7 +353,8 @@ void cutStepOptions(CLI::App& c, CutStepArgs& a) {
              "{problems, free_nodes, objects: [{name, tets, dt_uncut, r1r_min_uncut, critical_below, planes, methods: "
              "[{name, "
              "cuts: [{cut, elements, dt_exact, dt_ratio, critical, critical_share, cut_seconds, "
-             "update_seconds, improve_seconds, floor_seconds, added_mass}], cost}]}]}");
+             "update_seconds, improve_seconds, floor_seconds, added_mass}], cost}]}]}",
+             true);
     tinyFlag(c, a.tiny, "the bar only, short cost runs, small full improvement");
     c.add_option("--only", a.only, "One method alone, by its name in the table");
     c.add_option("--problems", a.problems,

@@ -178,7 +178,7 @@ int runHaptic(const HapticArgs& a) {
 }
 
 void hapticOptions(CLI::App& c, HapticArgs& a) {
-    jsonFlag(c, a.json, "{mesh, duration, runs: [...]}");
+    jsonFlag(c, a.json, "{mesh, duration, runs: [...]}", true);
     tinyFlag(c, a.tiny, "~1,500 tets, 5 ms");
     csvOption(c, a.csv, "runs");
     c.add_option("--tets", a.tets, "Tets to mesh the liver with (about)")

@@ -339,7 +339,8 @@ int runImproveBench(const ImproveBenchArgs& a) {
 void improveOptions(CLI::App& c, ImproveBenchArgs& a) {
     jsonFlag(c, a.json,
              "{meshes: [{mesh, tets, dt_exact, methods: {name: {dt_exact, gain, tets, volume_change, "
-             "boundary_distance_rel, seconds} or {error}}}], gain_against_time, liver_sag, bar_frequency}");
+             "boundary_distance_rel, seconds} or {error}}}], gain_against_time, liver_sag, bar_frequency}",
+             true);
     tinyFlag(c, a.tiny, "the liver only, short runs");
     c.add_option("--seconds", a.seconds, "Longest run of the gain-against-time table [s]")->capture_default_str();
     plotOption(c, a.plot, "the gain against time");

@@ -11,7 +11,11 @@
 
 namespace cutsim::bench {
 
-void jsonFlag(CLI::App& c, bool& json, const std::string& keys) { c.add_flag("--json", json, "Print " + keys); }
+void jsonFlag(CLI::App& c, bool& json, const std::string& keys, bool machine) {
+    c.add_flag("--json", json,
+               "Print " + keys +
+                   (machine ? "; machine: {cpu, cores, load_average, load_average_end} (1, 5, 15 min)" : ""));
+}
 
 void tinyFlag(CLI::App& c, bool& tiny, const std::string& what) { c.add_flag("--tiny", tiny, "Test size: " + what); }
 

@@ -28,8 +28,9 @@ void addSubcommand(const std::string& name, const std::string& description, void
     });
 }
 
-// --json: "Print " + keys (the result's JSON on stdout, printJson).
-void jsonFlag(CLI::App& c, bool& json, const std::string& keys);
+// --json: "Print " + keys (the result's JSON on stdout, printJson); machine: the result also names
+// the machine it ran on (printResult).
+void jsonFlag(CLI::App& c, bool& json, const std::string& keys, bool machine = false);
 // --tiny: "Test size: " + what.
 void tinyFlag(CLI::App& c, bool& tiny, const std::string& what);
 // --csv FILE: "Write the " + what + " to this CSV file" (writeCsv).

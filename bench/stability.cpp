@@ -353,7 +353,8 @@ void stabilityOptions(CLI::App& c, StabilityArgs& a) {
              "{steps, sweeps: [{mesh, integrator, scheme, largest_stable_fraction, runs}], "
              "after_cuts: [{mesh, lumping, dt_ratio, largest_stable_fraction, runs}], "
              "random_cuts: [{object, min_stretch, runs, cuts, steps, failures, inverted_runs, inverted_at_end, "
-             "limited_runs, min_dt_ratio}], energy_drift}");
+             "limited_runs, min_dt_ratio}], energy_drift}",
+             true);
     c.add_option("--steps", a.steps, "Steps per run")->check(CLI::Range(10, 1000000))->capture_default_str();
     c.add_option("--cut-runs", a.cutRuns, "Random cut sequences per object (bar, liver); 0 skips them")
         ->check(CLI::Range(0, 100000))

@@ -196,7 +196,7 @@ int runCost(const CostArgs& a) {
 // Extensions of `bench`: one line per configuration or subcommand from elsewhere, e.g.
 //   addAccuracyConfig("mi-bar", miBarPoints);
 void stepOptions(CLI::App& c, StepArgs& a) {
-    jsonFlag(c, a.json, "{runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}");
+    jsonFlag(c, a.json, "{runs: [{tets, threads, precision, steps, tet_steps_per_second, stages}]}", true);
     c.add_option("--seconds", a.seconds, "Measuring time per configuration [s]")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
@@ -208,7 +208,7 @@ void costOptions(CLI::App& c, CostArgs& a) {
     c.add_option("SCENE", a.scene, "Scene file")->required();
     c.add_option("--set", a.sets, "Override a scene value: key.path=value");
     threadsOption(c, a.threads, "Worker threads (0 = all cores)", 0);
-    jsonFlag(c, a.json, "{scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}");
+    jsonFlag(c, a.json, "{scene, variants: [{name, steps, wall_time, stages, stage_seconds_per_step}]}", true);
     csvOption(c, a.csv, "variants");
 }
 
