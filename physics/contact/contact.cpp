@@ -269,24 +269,26 @@ void ContactWorld::setPieceContact(bool on, double friction) {
     impl_->pieceFriction = friction;
 }
 
+// What one shape's query needs: its bounds, the cut it does not touch, its slot, its band.
+struct ContactWorld::Impl::ShapeQuery {
+    size_t o = 0;                    // the shape
+    Eigen::Vector3d planeN, planeO;  // a plane's normal and origin
+    btDbvtVolume box;                // the shape's own box (not for a plane)
+    int ignored = -1;                // the cut whose faces it does not touch, or -1
+    const ContactWorld::Slot* slot = nullptr;
+    bool fixedShape = false;  // a static collider
+    double band = 0;          // a static collider's band (nearBand), else 0
+    btDbvtVolume banded;      // box grown by band
+    btTransform frame, back;  // the shape's frame at tq; a point's map from tq to tOther
+};
+
 // The surface points inside any shape at time tq (tools posed at tq), into `touches`; a tool's
 // material velocity is taken over [tOther, tq] (either order). With withPieces, also the points of
 // one piece inside another.
 void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double tq, double tOther,
                                 bool withPieces) {
-    const ContactPoints& P = pts;
-    const int nt = static_cast<int>(P.triangles.cols());
-    ContactStep& st = last;
-    st.reaction.assign(tools.size(), Eigen::Vector3d::Zero());
-    st.contacts = 0;
-    st.colliderContacts = 0;
-    st.pieceContacts = 0;
-    st.maxDepth = 0;
-    st.colliderDepth = 0;
-    st.tested = 0;
-    touches.clear();
-    terms.clear();
-    if (nt == 0) return;
+    resetStep();
+    if (pts.triangles.cols() == 0) return;
     xNow = &x;
     const double dt = std::abs(tq - tOther);
     if (++placing == std::numeric_limits<int>::max()) {
@@ -297,6 +299,45 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
     // tree's root box grown by wSum times its farthest (one pass over the surface's nodes)
     const bool scan = sinceChange < kScanSteps;
     if (sinceChange < kScanSteps) ++sinceChange;
+    measureDrift(x);
+    // 2. tool parts at tq and tOther into the collision world; its broad phase updates their boxes
+    poseTools(tq, tOther);
+    // 3. per shape: the bound-volume test per piece, then candidates from its tree, then signed
+    // distances. The projection also takes points just outside (speculative contacts, as Box2D
+    // keeps resting contact): they may close the gap in this step but not pass it, so a point
+    // resting on a surface keeps its contact, and its friction, from step to step.
+    const double speculative = withPieces ? kSpeculative * margin : 0.0;
+    for (size_t o = 0; o < shapes.size(); ++o) {
+        const ShapeQuery sq = shapeQuery(o);
+        candidates.clear();
+        queryPieces(sq, x, v, dt, scan);
+        if (candidates.empty() && triangles.empty()) continue;
+        candidatePoints(sq, x, speculative);
+        testPoints(sq, x, tq, tOther, speculative);
+    }
+    keepNear(x);
+    // 4. pieces pressed into each other
+    if (withPieces && pieceContact && pieces.size() > 1 && restPts.cols() == pts.points()) pressPieces(x, v, dt);
+}
+
+// The step's counts and touches back to none.
+void ContactWorld::Impl::resetStep() {
+    ContactStep& st = last;
+    st.reaction.assign(tools.size(), Eigen::Vector3d::Zero());
+    st.contacts = 0;
+    st.colliderContacts = 0;
+    st.pieceContacts = 0;
+    st.maxDepth = 0;
+    st.colliderDepth = 0;
+    st.tested = 0;
+    touches.clear();
+    terms.clear();
+}
+
+// Each piece's drift (the trees built anew when the surface changed), which pieces query the static
+// colliders afresh, and each piece's bound grown by its drift.
+void ContactWorld::Impl::measureDrift(const Eigen::Matrix3Xd& x) {
+    const int nt = static_cast<int>(pts.triangles.cols());
     if (static_cast<int>(leaves.size()) != nt) {
         build(x);
         for (auto& pc : pieces) pc->drift = 0, pc->refitted = true;
@@ -316,8 +357,7 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         }
     }
     // which pieces keep their static colliders' points from an earlier query
-    const bool statics = !colliders.empty();
-    if (statics)
+    if (!colliders.empty())
         for (auto& pc : pieces) {
             pc->nearFresh =
                 !(pc->nearValid && std::sqrt(3.0) * wSum * pc->nearMove <= nearBand - kSpeculative * margin);
@@ -330,7 +370,10 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
         if (!pc->bounds(pc->around)) continue;  // a shape away from the whole piece costs no more than this
         pc->around.Expand(btVector3(pc->drift, pc->drift, pc->drift));
     }
-    // 2. tool parts at tq and tOther into the collision world; its broad phase updates their boxes
+}
+
+// The tools' parts posed at tq (in the collision world) and at tOther.
+void ContactWorld::Impl::poseTools(double tq, double tOther) {
     now.resize(shapes.size());
     other.resize(shapes.size());
     for (size_t t0 = 0, o = 0; t0 < tools.size(); ++t0) {
@@ -346,198 +389,230 @@ void ContactWorld::Impl::gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3X
             world.updateSingleAabb(objects[o].get());
         }
     }
-    // 3. per shape: the bound-volume test per piece, then candidates from its tree, then signed
-    // distances. The projection also takes points just outside (speculative contacts, as Box2D
-    // keeps resting contact): they may close the gap in this step but not pass it, so a point
-    // resting on a surface keeps its contact, and its friction, from step to step.
-    const double speculative = withPieces ? kSpeculative * margin : 0.0;
-    for (size_t o = 0; o < shapes.size(); ++o) {
-        const Shape& sh = shapes[o];
-        candidates.clear();
-        Eigen::Vector3d planeN, planeO;
-        btDbvtVolume box;
-        if (sh.plane) {
-            const ColliderDef& cd = colliders[static_cast<size_t>(sh.collider)];
-            planeN = cd.normal();
-            planeO = cd.pose.position;
-        } else {
-            // the shape's own box: the broad phase grows the boxes it updates by Bullet's contact
-            // breaking threshold (2 cm, for metre-sized rigid bodies), which made a 1 mm blade 1.5 cm
-            // under a resting piece reach it
-            btVector3 lo, hi;
-            objects[o]->getCollisionShape()->getAabb(objects[o]->getWorldTransform(), lo, hi);
-            box = btDbvtVolume::FromMM(lo, hi);
-        }
-        // a piece away from the shape costs one box test; near it, the leaves within the piece's
-        // drift of the shape's box are visited, their moved nodes reset (surface_tree.cpp), and
-        // those that reach the box are the candidates
-        const int ignored =
-            sh.tool < 0 || ignoredCut.empty() || P.triCut.empty() ? -1 : ignoredCut[static_cast<size_t>(sh.tool)];
-        const ContactWorld::Slot* slot = sh.tool >= 0 && static_cast<size_t>(sh.tool) < slots.size() &&
-                                                 !slots[static_cast<size_t>(sh.tool)].polygons.empty()
-                                             ? &slots[static_cast<size_t>(sh.tool)]
-                                             : nullptr;
-        // a static collider's band: points within it are kept by pieces that query the trees now
-        const bool fixedShape = sh.tool < 0;
-        const double band = fixedShape ? nearBand : 0.0;
-        btDbvtVolume banded = box;
-        banded.Expand(btVector3(band, band, band));
-        for (auto& pc : pieces) {
-            if (pc->empty()) continue;
-            if (fixedShape && !pc->nearFresh) {
-                const auto& kept = pc->near[o];
-                candidates.insert(candidates.end(), kept.begin(), kept.end());
-                continue;
-            }
-            if (sh.plane ? !(belowPlane(pc->around, planeN, planeO) < band) : !Intersect(pc->around, banded)) continue;
-            if (scan && !pc->built) {  // each triangle's own box is tested below
-                for (const int t : pc->tris)
-                    if (ignored < 0 || P.triCut[static_cast<size_t>(t)] != ignored) triangles.push_back(t);
-                continue;
-            }
-            buildTrees(*pc);
-            // a piece that moved far as a whole (sagging, falling) is refitted in one pass, which
-            // brings its drift back down; else only where the shape may reach
-            if (!pc->refitted && pc->drift > kRefitAll * fat) refitMoved(*pc, x, v, dt);
-            const double reach = pc->refitted ? 0.0 : pc->drift;
-            btDbvtVolume region = banded;
-            region.Expand(btVector3(reach, reach, reach));
-            auto reaches = [&](const btDbvtVolume& vol, double by, const btDbvtVolume& b) {
-                return sh.plane ? belowPlane(vol, planeN, planeO) < by + band : Intersect(vol, b);
-            };
-            visited.clear();
-            resetting.clear();
-            // faces of a cut this tool does not touch are not visited: their points are reached
-            // through other candidate faces only
-            walk.clear();
-            for (size_t i = 0; i < pc->trees.size(); ++i)
-                if (pc->trees[i].m_root && (ignored < 0 || pc->treeCut[i] != ignored))
-                    walk.push_back(pc->trees[i].m_root);
-            while (!walk.empty()) {
-                const btDbvtNode* n = walk.back();
-                walk.pop_back();
-                if (!reaches(n->volume, reach, region)) continue;
-                if (!n->isleaf()) {
-                    walk.push_back(n->childs[0]), walk.push_back(n->childs[1]);
-                    continue;
-                }
-                const auto t = static_cast<size_t>(n->dataAsInt);
-                visited.push_back(n->dataAsInt);
-                if (!pc->refitted)
-                    for (int i = triNodeStart[t]; i < triNodeStart[t + 1]; ++i)
-                        if (moved(x, static_cast<size_t>(triNodes[static_cast<size_t>(i)])) > trigger)
-                            resetting.push_back(triNodes[static_cast<size_t>(i)]);
-            }
-            resetNodes(resetting.data(), resetting.data() + resetting.size(), x, v, dt);
-            for (const int t : visited)
-                if (reaches(leaves[static_cast<size_t>(t)]->volume, 0, banded)) triangles.push_back(t);
-        }
+}
 
-        if (candidates.empty() && triangles.empty()) continue;
-        // the candidate triangles' points, each once, after the points kept
-        if (++query == std::numeric_limits<int>::max()) {
-            std::fill(stamp.begin(), stamp.end(), -1);
-            query = 0;
+// Shape o's bounds, ignored cut, slot and band for this step's query.
+ContactWorld::Impl::ShapeQuery ContactWorld::Impl::shapeQuery(size_t o) const {
+    const Shape& sh = shapes[o];
+    ShapeQuery sq;
+    sq.o = o;
+    if (sh.plane) {
+        const ColliderDef& cd = colliders[static_cast<size_t>(sh.collider)];
+        sq.planeN = cd.normal();
+        sq.planeO = cd.pose.position;
+    } else {
+        // the shape's own box: the broad phase grows the boxes it updates by Bullet's contact
+        // breaking threshold (2 cm, for metre-sized rigid bodies), which made a 1 mm blade 1.5 cm
+        // under a resting piece reach it
+        btVector3 lo, hi;
+        objects[o]->getCollisionShape()->getAabb(objects[o]->getWorldTransform(), lo, hi);
+        sq.box = btDbvtVolume::FromMM(lo, hi);
+    }
+    sq.ignored =
+        sh.tool < 0 || ignoredCut.empty() || pts.triCut.empty() ? -1 : ignoredCut[static_cast<size_t>(sh.tool)];
+    sq.slot = sh.tool >= 0 && static_cast<size_t>(sh.tool) < slots.size() &&
+                      !slots[static_cast<size_t>(sh.tool)].polygons.empty()
+                  ? &slots[static_cast<size_t>(sh.tool)]
+                  : nullptr;
+    // a static collider's band: points within it are kept by pieces that query the trees now
+    sq.fixedShape = sh.tool < 0;
+    sq.band = sq.fixedShape ? nearBand : 0.0;
+    sq.banded = sq.box;
+    sq.banded.Expand(btVector3(sq.band, sq.band, sq.band));
+    sq.frame = sh.tool >= 0 ? now[o] : sh.plane ? btTransform::getIdentity() : objects[o]->getWorldTransform();
+    sq.back = sh.tool >= 0 ? other[o] * now[o].inverse() : btTransform::getIdentity();
+    return sq;
+}
+
+// One shape's candidates from each piece, into `candidates` (points kept) and `triangles`.
+// A piece away from the shape costs one box test; near it, the leaves within the piece's drift of
+// the shape's box are visited, their moved nodes reset (surface_tree.cpp), and those that reach the
+// box are the candidates.
+void ContactWorld::Impl::queryPieces(const ShapeQuery& sq, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v,
+                                     double dt, bool scan) {
+    const Shape& sh = shapes[sq.o];
+    for (auto& pc : pieces) {
+        if (pc->empty()) continue;
+        if (sq.fixedShape && !pc->nearFresh) {
+            const auto& kept = pc->near[sq.o];
+            candidates.insert(candidates.end(), kept.begin(), kept.end());
+            continue;
         }
-        const btTransform frame = sh.tool >= 0 ? now[o]
-                                  : sh.plane   ? btTransform::getIdentity()
-                                               : objects[o]->getWorldTransform();
-        const btTransform back = sh.tool >= 0 ? other[o] * now[o].inverse() : btTransform::getIdentity();
-        const btVector3 bc = frame.getOrigin();
-        const double br = sh.radius;
-        const double within = std::max(speculative, band);  // what a point must reach to be tested
-        const double brw = br + band;
-        btDbvtVolume near = box;
-        near.Expand(btVector3(within, within, within));
-        for (const int t : triangles) {
-            // the triangle's points lie in the box of its vertices: a box away from the shape's
-            // box, or from its bounding sphere, leaves them all out (as the test per point would)
-            for (int k = 0; k < 3; ++k) place(x, P.triangles(k, t));
-            const btDbvtVolume tb = triangleBox(xp, P.triangles, t);
-            if (sh.plane ? !(belowPlane(tb, planeN, planeO) < within)
-                         : !Intersect(tb, near) || boxDistance2(tb, bc) > brw * brw * (1 + 1e-9))
-                continue;
-            for (int k = P.triStart[static_cast<size_t>(t)]; k < P.triStart[static_cast<size_t>(t) + 1]; ++k) {
-                const int p = P.triPoints[static_cast<size_t>(k)];
-                if (stamp[static_cast<size_t>(p)] == query) continue;
-                stamp[static_cast<size_t>(p)] = query;
-                candidates.push_back(p);
-            }
+        if (sh.plane ? !(belowPlane(pc->around, sq.planeN, sq.planeO) < sq.band) : !Intersect(pc->around, sq.banded))
+            continue;
+        if (scan && !pc->built) {  // each triangle's own box is tested below
+            for (const int t : pc->tris)
+                if (sq.ignored < 0 || pts.triCut[static_cast<size_t>(t)] != sq.ignored) triangles.push_back(t);
+            continue;
         }
-        triangles.clear();
-        // in point order: the contacts, and the projection's sweeps over them, do not depend on
-        // the trees' state (nor on whether a piece kept its points)
-        std::sort(candidates.begin(), candidates.end());
-        for (int p : candidates) {
-            if (!dropped.empty() && dropped[static_cast<size_t>(p)]) continue;
-            place(x, p);
-            const btVector3 q = bt(Eigen::Vector3d(xp.col(p)));
-            double d = 0;
-            Eigen::Vector3d n;  // the way out of the shape
-            if (sh.plane) {
-                n = planeN;
-                d = planeN.dot(xp.col(p) - planeO);
-            } else {
-                // bounding sphere of the part about its origin: points outside it need no distance
-                if (q.distance2(bc) > brw * brw) continue;
-                if (!closedFormDistance(sh.part, frame, q, d, n)) {
-                    btGjkEpaSolver2::sResults res;
-                    d = btGjkEpaSolver2::SignedDistance(q, 0, btShapes[o].get(), frame, res);
-                    n = eig(res.normal);
-                }
-            }
-            if (fixedShape && d < band) {
-                Piece& pc = *pieces[static_cast<size_t>(pointPiece[static_cast<size_t>(p)])];
-                if (pc.nearFresh) pc.near[o].push_back(p);
-            }
-            if (sh.plane && !(d < speculative)) continue;
-            ++st.tested;
-            if (!(d < speculative) || !std::isfinite(d)) continue;
-            if (!n.allFinite() || std::abs(n.norm() - 1) > 1e-6) continue;
-            if (slot && slot->contains(xp.col(p))) continue;
-            Touch tc;
-            tc.point = p;
-            tc.shape = static_cast<int>(o);
-            tc.n_ = n;
-            tc.depth = -d;
-            tc.c0 = xp.col(p);
-            tc.friction = sh.friction;
-            // the velocity of the shape's material point at q over the step (tools only move)
-            tc.vWall = sh.tool >= 0 && tq != tOther ? Eigen::Vector3d((eig(q) - eig(back * q)) / (tq - tOther))
-                                                    : Eigen::Vector3d::Zero();
-            tc.first = static_cast<int>(terms.size());
-            tc.n = P.count[static_cast<size_t>(p)];
-            for (int i = 0; i < tc.n; ++i) terms.push_back({P.nodes(i, p), P.weights(i, p)});
-            touches.push_back(tc);
-            if (!(d < 0)) continue;  // a speculative contact: near, not in
-            if (sh.tool >= 0)
-                ++st.contacts, st.maxDepth = std::max(st.maxDepth, -d);
-            else
-                ++st.colliderContacts, st.colliderDepth = std::max(st.colliderDepth, -d);
+        walkTrees(*pc, sq, x, v, dt);
+    }
+}
+
+// The triangles of a piece's trees that reach the shape, into `triangles`; the moved nodes of the
+// leaves visited are reset first.
+void ContactWorld::Impl::walkTrees(Piece& pc, const ShapeQuery& sq, const Eigen::Matrix3Xd& x,
+                                   const Eigen::Matrix3Xd& v, double dt) {
+    const Shape& sh = shapes[sq.o];
+    buildTrees(pc);
+    // a piece that moved far as a whole (sagging, falling) is refitted in one pass, which
+    // brings its drift back down; else only where the shape may reach
+    if (!pc.refitted && pc.drift > kRefitAll * fat) refitMoved(pc, x, v, dt);
+    const double reach = pc.refitted ? 0.0 : pc.drift;
+    btDbvtVolume region = sq.banded;
+    region.Expand(btVector3(reach, reach, reach));
+    auto reaches = [&](const btDbvtVolume& vol, double by, const btDbvtVolume& b) {
+        return sh.plane ? belowPlane(vol, sq.planeN, sq.planeO) < by + sq.band : Intersect(vol, b);
+    };
+    visited.clear();
+    resetting.clear();
+    // faces of a cut this tool does not touch are not visited: their points are reached
+    // through other candidate faces only
+    walk.clear();
+    for (size_t i = 0; i < pc.trees.size(); ++i)
+        if (pc.trees[i].m_root && (sq.ignored < 0 || pc.treeCut[i] != sq.ignored)) walk.push_back(pc.trees[i].m_root);
+    while (!walk.empty()) {
+        const btDbvtNode* n = walk.back();
+        walk.pop_back();
+        if (!reaches(n->volume, reach, region)) continue;
+        if (!n->isleaf()) {
+            walk.push_back(n->childs[0]), walk.push_back(n->childs[1]);
+            continue;
+        }
+        const auto t = static_cast<size_t>(n->dataAsInt);
+        visited.push_back(n->dataAsInt);
+        if (!pc.refitted)
+            for (int i = triNodeStart[t]; i < triNodeStart[t + 1]; ++i)
+                if (moved(x, static_cast<size_t>(triNodes[static_cast<size_t>(i)])) > trigger)
+                    resetting.push_back(triNodes[static_cast<size_t>(i)]);
+    }
+    resetNodes(resetting.data(), resetting.data() + resetting.size(), x, v, dt);
+    for (const int t : visited)
+        if (reaches(leaves[static_cast<size_t>(t)]->volume, 0, sq.banded)) triangles.push_back(t);
+}
+
+// The candidate triangles' points, each once, after the points kept; `triangles` emptied.
+void ContactWorld::Impl::candidatePoints(const ShapeQuery& sq, const Eigen::Matrix3Xd& x, double speculative) {
+    const Shape& sh = shapes[sq.o];
+    const ContactPoints& P = pts;
+    if (++query == std::numeric_limits<int>::max()) {
+        std::fill(stamp.begin(), stamp.end(), -1);
+        query = 0;
+    }
+    const btVector3 bc = sq.frame.getOrigin();
+    const double within = std::max(speculative, sq.band);  // what a point must reach to be tested
+    const double brw = sh.radius + sq.band;
+    btDbvtVolume near = sq.box;
+    near.Expand(btVector3(within, within, within));
+    for (const int t : triangles) {
+        // the triangle's points lie in the box of its vertices: a box away from the shape's
+        // box, or from its bounding sphere, leaves them all out (as the test per point would)
+        for (int k = 0; k < 3; ++k) place(x, P.triangles(k, t));
+        const btDbvtVolume tb = triangleBox(xp, P.triangles, t);
+        if (sh.plane ? !(belowPlane(tb, sq.planeN, sq.planeO) < within)
+                     : !Intersect(tb, near) || boxDistance2(tb, bc) > brw * brw * (1 + 1e-9))
+            continue;
+        for (int k = P.triStart[static_cast<size_t>(t)]; k < P.triStart[static_cast<size_t>(t) + 1]; ++k) {
+            const int p = P.triPoints[static_cast<size_t>(k)];
+            if (stamp[static_cast<size_t>(p)] == query) continue;
+            stamp[static_cast<size_t>(p)] = query;
+            candidates.push_back(p);
         }
     }
-    // the pieces that queried the trees keep their points until they move
-    if (statics)
-        for (auto& pc : pieces)
-            if (pc->nearFresh) {
-                pc->snap.resize(3, static_cast<Eigen::Index>(pc->nodes.size()));
-                for (size_t i = 0; i < pc->nodes.size(); ++i)
-                    pc->snap.col(static_cast<Eigen::Index>(i)) = x.col(surfNodes[static_cast<size_t>(pc->nodes[i])]);
-                pc->nearValid = true;
-                pc->nearFresh = false;
+    triangles.clear();
+    // in point order: the contacts, and the projection's sweeps over them, do not depend on
+    // the trees' state (nor on whether a piece kept its points)
+    std::sort(candidates.begin(), candidates.end());
+}
+
+// The candidates' signed distances to the shape: those within a static collider's band are kept
+// by their pieces, those within the speculative reach become touches.
+void ContactWorld::Impl::testPoints(const ShapeQuery& sq, const Eigen::Matrix3Xd& x, double tq, double tOther,
+                                    double speculative) {
+    const Shape& sh = shapes[sq.o];
+    const btVector3 bc = sq.frame.getOrigin();
+    const double brw = sh.radius + sq.band;
+    for (int p : candidates) {
+        if (!dropped.empty() && dropped[static_cast<size_t>(p)]) continue;
+        place(x, p);
+        const btVector3 q = bt(Eigen::Vector3d(xp.col(p)));
+        double d = 0;
+        Eigen::Vector3d n;  // the way out of the shape
+        if (sh.plane) {
+            n = sq.planeN;
+            d = sq.planeN.dot(xp.col(p) - sq.planeO);
+        } else {
+            // bounding sphere of the part about its origin: points outside it need no distance
+            if (q.distance2(bc) > brw * brw) continue;
+            if (!closedFormDistance(sh.part, sq.frame, q, d, n)) {
+                btGjkEpaSolver2::sResults res;
+                d = btGjkEpaSolver2::SignedDistance(q, 0, btShapes[sq.o].get(), sq.frame, res);
+                n = eig(res.normal);
             }
-    // 4. pieces pressed into each other
-    if (withPieces && pieceContact && pieces.size() > 1 && restPts.cols() == P.points()) {
-        for (auto& pc : pieces)
-            if (!pc->refitted && !pc->empty()) {
-                bool near = false;
-                for (auto& q : pieces)
-                    near = near || (q.get() != pc.get() && !q->empty() && Intersect(pc->around, q->around));
-                if (near) buildTrees(*pc), refitMoved(*pc, x, v, dt);
-            }
-        for (auto& pc : pieces) pc->bounds(pc->around);  // refitted: exact where they meet
-        touchPieces();
+        }
+        if (sq.fixedShape && d < sq.band) {
+            Piece& pc = *pieces[static_cast<size_t>(pointPiece[static_cast<size_t>(p)])];
+            if (pc.nearFresh) pc.near[sq.o].push_back(p);
+        }
+        if (sh.plane && !(d < speculative)) continue;
+        ++last.tested;
+        if (!(d < speculative) || !std::isfinite(d)) continue;
+        if (!n.allFinite() || std::abs(n.norm() - 1) > 1e-6) continue;
+        if (sq.slot && sq.slot->contains(xp.col(p))) continue;
+        addTouch(sq, p, q, d, n, tq, tOther);
     }
+}
+
+// The touch of point p (at q, d from the shape along n), its depth counted when it is inside.
+void ContactWorld::Impl::addTouch(const ShapeQuery& sq, int p, const btVector3& q, double d, const Eigen::Vector3d& n,
+                                  double tq, double tOther) {
+    const Shape& sh = shapes[sq.o];
+    ContactStep& st = last;
+    Touch tc;
+    tc.point = p;
+    tc.shape = static_cast<int>(sq.o);
+    tc.n_ = n;
+    tc.depth = -d;
+    tc.c0 = xp.col(p);
+    tc.friction = sh.friction;
+    // the velocity of the shape's material point at q over the step (tools only move)
+    tc.vWall = sh.tool >= 0 && tq != tOther ? Eigen::Vector3d((eig(q) - eig(sq.back * q)) / (tq - tOther))
+                                            : Eigen::Vector3d::Zero();
+    tc.first = static_cast<int>(terms.size());
+    tc.n = pts.count[static_cast<size_t>(p)];
+    for (int i = 0; i < tc.n; ++i) terms.push_back({pts.nodes(i, p), pts.weights(i, p)});
+    touches.push_back(tc);
+    if (!(d < 0)) return;  // a speculative contact: near, not in
+    if (sh.tool >= 0)
+        ++st.contacts, st.maxDepth = std::max(st.maxDepth, -d);
+    else
+        ++st.colliderContacts, st.colliderDepth = std::max(st.colliderDepth, -d);
+}
+
+// The pieces that queried the trees keep their points until they move.
+void ContactWorld::Impl::keepNear(const Eigen::Matrix3Xd& x) {
+    if (colliders.empty()) return;
+    for (auto& pc : pieces)
+        if (pc->nearFresh) {
+            pc->snap.resize(3, static_cast<Eigen::Index>(pc->nodes.size()));
+            for (size_t i = 0; i < pc->nodes.size(); ++i)
+                pc->snap.col(static_cast<Eigen::Index>(i)) = x.col(surfNodes[static_cast<size_t>(pc->nodes[i])]);
+            pc->nearValid = true;
+            pc->nearFresh = false;
+        }
+}
+
+// The pieces near another refitted, then the points of one piece inside another as touches.
+void ContactWorld::Impl::pressPieces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt) {
+    for (auto& pc : pieces)
+        if (!pc->refitted && !pc->empty()) {
+            bool near = false;
+            for (auto& q : pieces)
+                near = near || (q.get() != pc.get() && !q->empty() && Intersect(pc->around, q->around));
+            if (near) buildTrees(*pc), refitMoved(*pc, x, v, dt);
+        }
+    for (auto& pc : pieces) pc->bounds(pc->around);  // refitted: exact where they meet
+    touchPieces();
 }
 
 void ContactWorld::addForces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double time, double dt,

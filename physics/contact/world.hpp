@@ -252,6 +252,20 @@ struct ContactWorld::Impl {
     void touchPieces();
     void pointsInTriangle(int source, int target);
     void gather(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double tq, double tOther, bool withPieces);
+    // gather's phases (contact.cpp)
+    struct ShapeQuery;
+    void resetStep();
+    void measureDrift(const Eigen::Matrix3Xd& x);
+    void poseTools(double tq, double tOther);
+    ShapeQuery shapeQuery(size_t o) const;
+    void queryPieces(const ShapeQuery& sq, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt, bool scan);
+    void walkTrees(Piece& pc, const ShapeQuery& sq, const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt);
+    void candidatePoints(const ShapeQuery& sq, const Eigen::Matrix3Xd& x, double speculative);
+    void testPoints(const ShapeQuery& sq, const Eigen::Matrix3Xd& x, double tq, double tOther, double speculative);
+    void addTouch(const ShapeQuery& sq, int p, const btVector3& q, double d, const Eigen::Vector3d& n, double tq,
+                  double tOther);
+    void keepNear(const Eigen::Matrix3Xd& x);
+    void pressPieces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt);
 };
 
 // Bounds of the triangle of points a, b, c (3 x nPoints columns of xp).
