@@ -647,178 +647,220 @@ void ContactWorld::project(const Eigen::VectorXd& invMass, double time, double d
                            Eigen::Matrix3Xd& v, std::vector<int>* moved) {
     Impl& m = *impl_;
     m.gather(x, v, time, time - dt, true);
-    ContactStep& st = m.last;
-    st.residualDepth = 0;
+    m.last.residualDepth = 0;
     if (moved) moved->clear();
     if (m.touches.empty()) return;
-    auto applyTo = [&](Eigen::Matrix3Xd& y, const Touch& tc, const Eigen::Vector3d& impulse) {
-        for (int i = tc.first; i < tc.first + tc.n; ++i) {
-            const Term& t = m.terms[static_cast<size_t>(i)];
-            y.col(t.node) += (t.w * t.im) * impulse;
-        }
-    };
-    // Each point is corrected through its free nodes with their true masses, so that the velocity
-    // and position projections are orthogonal in the mass norm: they only take energy out. (A
-    // correction with masses capped at the contact's mean moved light nodes as if heavy; on an MI
-    // object landing on a floor that fed ~10 J into a body holding 0.5 J; docs/method.md, Contact.)
-    // A light node that carries a small share of the point would take most of a true-mass
-    // correction, up to depth / w: a node that would move more than kMaxLever times the point is
-    // left out of both the point's measure and its correction (weights renormalised), so the
-    // projection stays consistent on the nodes that remain.
-    // Nodes outside the material (setSurface's `outside`) take no correction when the point's other
-    // free nodes carry kMinFreeWeight of it: they belong to partial elements only, whose lumping
-    // keeps a parent's eigenvalues on light nodes (xfem.hpp), so their modes sit near the step's
-    // limit, and stopping them on contact every step fed a vibration that mass damping could not
-    // remove (a severed lobe on a floor kept ~3 mJ; docs/method.md, Contact).
-    // A contact whose free nodes carry less than kMinFreeWeight of it (a point on the fixed part)
-    // is left alone: stopping it would take node moves of 1 / (their weight) times its own.
-    const bool anyOutside = !m.outside.empty();
     bool renormalised = false;
-    // The point measured on its terms with nonzero weight again: depth moved to the new point.
-    auto remeasure = [&](Touch& tc, double sum) {
-        for (int i = tc.first; i < tc.first + tc.n; ++i) m.terms[static_cast<size_t>(i)].w /= sum;
-        const Eigen::Vector3d c = m.combine(x, tc);
-        tc.depth -= tc.n_.dot(c - tc.c0);
-        tc.c0 = c;
+    for (Touch& tc : m.touches) renormalised = m.setUpTouch(tc, invMass, x) || renormalised;
+    if (renormalised) m.recountDepths();  // the depths reported are the ones held
+    m.sweepVelocities(x, v, dt);
+    m.sweepPositions(x);
+    m.reportProjection(x, dt, moved);
+}
+
+// Adds the impulse to y at the touch's nodes, each by its share over its mass.
+void ContactWorld::Impl::apply(Eigen::Matrix3Xd& y, const Touch& tc, const Eigen::Vector3d& impulse) {
+    for (int i = tc.first; i < tc.first + tc.n; ++i) {
+        const Term& t = terms[static_cast<size_t>(i)];
+        y.col(t.node) += (t.w * t.im) * impulse;
+    }
+}
+
+// sum_i w_i^2 / m_i over the touch's terms: the inverse of its effective mass.
+double ContactWorld::Impl::inverseMass(const Touch& tc) const {
+    double w = 0;
+    for (int i = tc.first; i < tc.first + tc.n; ++i) {
+        const Term& t = terms[static_cast<size_t>(i)];
+        w += t.w * t.w * t.im;
+    }
+    return w;
+}
+
+// The point measured on its terms with nonzero weight again: depth moved to the new point.
+void ContactWorld::Impl::remeasure(Touch& tc, double sum, const Eigen::Matrix3Xd& x) {
+    for (int i = tc.first; i < tc.first + tc.n; ++i) terms[static_cast<size_t>(i)].w /= sum;
+    const Eigen::Vector3d c = combine(x, tc);
+    tc.depth -= tc.n_.dot(c - tc.c0);
+    tc.c0 = c;
+}
+
+// A touch's nodes the projection moves, and its effective mass (0: left alone); true when the point
+// was measured again on fewer nodes.
+// Each point is corrected through its free nodes with their true masses, so that the velocity
+// and position projections are orthogonal in the mass norm: they only take energy out. (A
+// correction with masses capped at the contact's mean moved light nodes as if heavy; on an MI
+// object landing on a floor that fed ~10 J into a body holding 0.5 J; docs/method.md, Contact.)
+// A light node that carries a small share of the point would take most of a true-mass
+// correction, up to depth / w: a node that would move more than kMaxLever times the point is
+// left out of both the point's measure and its correction (weights renormalised), so the
+// projection stays consistent on the nodes that remain.
+// Nodes outside the material (setSurface's `outside`) take no correction when the point's other
+// free nodes carry kMinFreeWeight of it: they belong to partial elements only, whose lumping
+// keeps a parent's eigenvalues on light nodes (xfem.hpp), so their modes sit near the step's
+// limit, and stopping them on contact every step fed a vibration that mass damping could not
+// remove (a severed lobe on a floor kept ~3 mJ; docs/method.md, Contact).
+// A contact whose free nodes carry less than kMinFreeWeight of it (a point on the fixed part)
+// is left alone: stopping it would take node moves of 1 / (their weight) times its own.
+bool ContactWorld::Impl::setUpTouch(Touch& tc, const Eigen::VectorXd& invMass, const Eigen::Matrix3Xd& x) {
+    const bool anyOutside = !outside.empty();
+    bool renormalised = false;
+    double inside = 0, all = 0;
+    for (int i = tc.first; i < tc.first + tc.n; ++i) {
+        const Term& t = terms[static_cast<size_t>(i)];
+        if (!(invMass(t.node) > 0)) continue;
+        all += std::abs(t.w);
+        if (anyOutside && !outside[static_cast<size_t>(t.node)]) inside += std::abs(t.w);
+    }
+    if (all < kMinFreeWeight) {
+        tc.mass = 0;
+        return false;
+    }
+    const bool skipOutside = anyOutside && inside >= kMinFreeWeight;
+    if (skipOutside && tc.shape >= 0) {
+        if (!measureInside(tc, x)) return false;
         renormalised = true;
-    };
-    for (Touch& tc : m.touches) {
-        double inside = 0, all = 0;
-        for (int i = tc.first; i < tc.first + tc.n; ++i) {
-            const Term& t = m.terms[static_cast<size_t>(i)];
-            if (!(invMass(t.node) > 0)) continue;
-            all += std::abs(t.w);
-            if (anyOutside && !m.outside[static_cast<size_t>(t.node)]) inside += std::abs(t.w);
-        }
-        if (all < kMinFreeWeight) {
-            tc.mass = 0;
-            continue;
-        }
-        const bool skipOutside = anyOutside && inside >= kMinFreeWeight;
-        if (skipOutside && tc.shape >= 0) {
-            // The point is then measured on the nodes inside the material too: its position and
-            // velocity from them alone (weights renormalised), its depth moved to that point. A
-            // point read through its outside nodes saw their ringing as an approach, and stopping
-            // it took 1 / (inside weight) times that speed from the inside nodes (a landed lobe was
-            // thrown off the floor).
-            // A point its inside nodes carry less than kMinFreeWeight of (their weights sum to
-            // that or below: it lies beyond them, some weights negative) is left alone: pushing
-            // it out would push them in (a node fought its own floor contact, ringing up to
-            // 150 m/s).
-            double sum = 0;
-            for (int i = tc.first; i < tc.first + tc.n; ++i) {
-                Term& t = m.terms[static_cast<size_t>(i)];
-                if (m.outside[static_cast<size_t>(t.node)])
-                    t.w = 0;
-                else
-                    sum += t.w;
-            }
-            if (!(sum >= kMinFreeWeight)) {
-                tc.mass = 0;
-                tc.depth = 0;  // nor reported as held
-                continue;
-            }
-            remeasure(tc, sum);
-        }
-        for (int i = tc.first; i < tc.first + tc.n; ++i) {
-            Term& t = m.terms[static_cast<size_t>(i)];
-            const bool moves = t.w != 0 && !(skipOutside && m.outside[static_cast<size_t>(t.node)]);
-            t.im = moves ? invMass(t.node) : 0.0;
-        }
-        // Light nodes of a small share out (a point on another piece's triangle keeps its terms:
-        // its weights sum to zero over the two pieces, there is no share to renormalise).
-        for (int round = 0; round < tc.n && tc.shape >= 0; ++round) {
-            double w2 = 0;
-            for (int i = tc.first; i < tc.first + tc.n; ++i) {
-                const Term& t = m.terms[static_cast<size_t>(i)];
-                w2 += t.w * t.w * t.im;
-            }
-            int worst = -1;
-            double lever = kMaxLever * w2;
-            for (int i = tc.first; i < tc.first + tc.n; ++i)
-                if (const Term& t = m.terms[static_cast<size_t>(i)]; std::abs(t.w) * t.im > lever)
-                    lever = std::abs(t.w) * t.im, worst = i;
-            if (worst < 0) break;
-            Term& out = m.terms[static_cast<size_t>(worst)];
-            double rest = -out.w;
-            for (int i = tc.first; i < tc.first + tc.n; ++i) rest += m.terms[static_cast<size_t>(i)].w;
-            if (!(rest >= kMinFreeWeight)) break;  // nothing left to carry the point: keep it whole
-            out.w = 0;
-            out.im = 0;
-            remeasure(tc, rest);
-        }
-        double w = 0;
-        for (int i = tc.first; i < tc.first + tc.n; ++i) {
-            const Term& t = m.terms[static_cast<size_t>(i)];
-            w += t.w * t.w * t.im;
-        }
-        tc.mass = w > 0 ? 1.0 / w : 0.0;  // 0: on fixed nodes only, nothing to move
     }
-    if (renormalised) {  // the depths reported are the ones held
-        st.contacts = st.colliderContacts = 0;
-        st.maxDepth = st.colliderDepth = 0;
-        for (const Touch& tc : m.touches) {
-            if (tc.shape < 0 || !(tc.depth > 0)) continue;
-            if (m.shapes[static_cast<size_t>(tc.shape)].tool >= 0)
-                ++st.contacts, st.maxDepth = std::max(st.maxDepth, tc.depth);
-            else
-                ++st.colliderContacts, st.colliderDepth = std::max(st.colliderDepth, tc.depth);
-        }
+    for (int i = tc.first; i < tc.first + tc.n; ++i) {
+        Term& t = terms[static_cast<size_t>(i)];
+        const bool moves = t.w != 0 && !(skipOutside && outside[static_cast<size_t>(t.node)]);
+        t.im = moves ? invMass(t.node) : 0.0;
     }
-    // velocities: no approach, friction within the cone
-    // Sweeps stop early once one changes no contact's velocity by more than kSettledSpeed (or its
-    // position by kSettledMove): a resting contact, or contacts sharing no node, need one or two.
+    if (dropLightNodes(tc, x)) renormalised = true;
+    const double w = inverseMass(tc);
+    tc.mass = w > 0 ? 1.0 / w : 0.0;  // 0: on fixed nodes only, nothing to move
+    return renormalised;
+}
+
+// The point measured on its nodes inside the material; false when they carry too little of it (the
+// touch is then left alone, its depth not reported as held).
+// The point is then measured on the nodes inside the material too: its position and
+// velocity from them alone (weights renormalised), its depth moved to that point. A
+// point read through its outside nodes saw their ringing as an approach, and stopping
+// it took 1 / (inside weight) times that speed from the inside nodes (a landed lobe was
+// thrown off the floor).
+// A point its inside nodes carry less than kMinFreeWeight of (their weights sum to
+// that or below: it lies beyond them, some weights negative) is left alone: pushing
+// it out would push them in (a node fought its own floor contact, ringing up to
+// 150 m/s).
+bool ContactWorld::Impl::measureInside(Touch& tc, const Eigen::Matrix3Xd& x) {
+    double sum = 0;
+    for (int i = tc.first; i < tc.first + tc.n; ++i) {
+        Term& t = terms[static_cast<size_t>(i)];
+        if (outside[static_cast<size_t>(t.node)])
+            t.w = 0;
+        else
+            sum += t.w;
+    }
+    if (!(sum >= kMinFreeWeight)) {
+        tc.mass = 0;
+        tc.depth = 0;  // nor reported as held
+        return false;
+    }
+    remeasure(tc, sum, x);
+    return true;
+}
+
+// Light nodes of a small share out (a point on another piece's triangle keeps its terms:
+// its weights sum to zero over the two pieces, there is no share to renormalise); true when one was.
+bool ContactWorld::Impl::dropLightNodes(Touch& tc, const Eigen::Matrix3Xd& x) {
+    bool renormalised = false;
+    for (int round = 0; round < tc.n && tc.shape >= 0; ++round) {
+        const double w2 = inverseMass(tc);
+        int worst = -1;
+        double lever = kMaxLever * w2;
+        for (int i = tc.first; i < tc.first + tc.n; ++i)
+            if (const Term& t = terms[static_cast<size_t>(i)]; std::abs(t.w) * t.im > lever)
+                lever = std::abs(t.w) * t.im, worst = i;
+        if (worst < 0) break;
+        Term& out = terms[static_cast<size_t>(worst)];
+        double rest = -out.w;
+        for (int i = tc.first; i < tc.first + tc.n; ++i) rest += terms[static_cast<size_t>(i)].w;
+        if (!(rest >= kMinFreeWeight)) break;  // nothing left to carry the point: keep it whole
+        out.w = 0;
+        out.im = 0;
+        remeasure(tc, rest, x);
+        renormalised = true;
+    }
+    return renormalised;
+}
+
+// The step's contact counts and depths from the touches' depths.
+void ContactWorld::Impl::recountDepths() {
+    ContactStep& st = last;
+    st.contacts = st.colliderContacts = 0;
+    st.maxDepth = st.colliderDepth = 0;
+    for (const Touch& tc : touches) {
+        if (tc.shape < 0 || !(tc.depth > 0)) continue;
+        if (shapes[static_cast<size_t>(tc.shape)].tool >= 0)
+            ++st.contacts, st.maxDepth = std::max(st.maxDepth, tc.depth);
+        else
+            ++st.colliderContacts, st.colliderDepth = std::max(st.colliderDepth, tc.depth);
+    }
+}
+
+// Velocities: no approach, friction within the cone.
+// Sweeps stop early once one changes no contact's velocity by more than kSettledSpeed (or its
+// position by kSettledMove): a resting contact, or contacts sharing no node, need one or two.
+void ContactWorld::Impl::sweepVelocities(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, double dt) {
     for (int it = 0, settled = 0; it < kProjectionIterations && !settled; ++it) {
         double change = 0;
-        for (Touch& tc : m.touches) {
+        for (Touch& tc : touches) {
             if (tc.mass == 0) continue;
             // the normal speed is held against the world, not the tool: a tool moves what it presses
             // by the position correction below (quasi-static), so a tool set to a new pose in one
             // tick (a haptic device's sample) does not throw the tissue off at its jump's speed
-            Eigen::Vector3d rel = m.combine(v, tc);
+            Eigen::Vector3d rel = combine(v, tc);
             const double allowed = tc.depth < 0 && dt > 0 ? tc.depth / dt : 0.0;  // a gap may close, no more
             const double lambda = std::max(0.0, tc.lambda + tc.mass * (allowed - tc.n_.dot(rel)));
-            applyTo(v, tc, (lambda - tc.lambda) * tc.n_);
+            apply(v, tc, (lambda - tc.lambda) * tc.n_);
             change = std::max(change, std::abs(lambda - tc.lambda) / tc.mass);
             tc.lambda = lambda;
             if (!(tc.friction > 0)) continue;
-            rel = m.combine(v, tc) - tc.vWall;
+            rel = combine(v, tc) - tc.vWall;
             Eigen::Vector3d t = tc.tangent - tc.mass * (rel - tc.n_.dot(rel) * tc.n_);
             const double cap = tc.friction * tc.lambda, len = t.norm();
             if (len > cap) t *= cap / len;
-            applyTo(v, tc, t - tc.tangent);
+            apply(v, tc, t - tc.tangent);
             // and on the step's slide: x moved with the velocity before friction, so the step's
             // tangential motion is what friction undoes (else a sticking contact creeps by
             // dt^2 times the driving acceleration each step)
-            if (dt > 0) applyTo(x, tc, dt * (t - tc.tangent));
+            if (dt > 0) apply(x, tc, dt * (t - tc.tangent));
             change = std::max(change, (t - tc.tangent).norm() / tc.mass);
             tc.tangent = t;
         }
         settled = change <= kSettledSpeed;
     }
-    // positions: back onto the surface, depths linearised about the detected points
+}
+
+// Positions: back onto the surface, depths linearised about the detected points.
+void ContactWorld::Impl::sweepPositions(Eigen::Matrix3Xd& x) {
     for (int it = 0, settled = 0; it < kProjectionIterations && !settled; ++it) {
         double change = 0;
-        for (Touch& tc : m.touches) {
+        for (Touch& tc : touches) {
             if (tc.mass == 0) continue;
-            const double depth = tc.depth - tc.n_.dot(m.combine(x, tc) - tc.c0);
+            const double depth = tc.depth - tc.n_.dot(combine(x, tc) - tc.c0);
             const double push = std::max(0.0, tc.push + tc.mass * depth);
-            applyTo(x, tc, (push - tc.push) * tc.n_);
+            apply(x, tc, (push - tc.push) * tc.n_);
             change = std::max(change, std::abs(push - tc.push) / tc.mass);
             tc.push = push;
         }
         settled = change <= kSettledMove;
     }
-    // the reaction on each tool: minus the momentum given to the tissue over the step
-    for (const Touch& tc : m.touches) {
+}
+
+// The depth left, the nodes moved (ascending, each once) and the reaction on each tool: minus the
+// momentum given to the tissue over the step.
+void ContactWorld::Impl::reportProjection(const Eigen::Matrix3Xd& x, double dt, std::vector<int>* moved) {
+    ContactStep& st = last;
+    for (const Touch& tc : touches) {
         if (moved && tc.mass > 0)
             for (int i = tc.first; i < tc.first + tc.n; ++i)
-                if (m.terms[static_cast<size_t>(i)].w != 0 && m.terms[static_cast<size_t>(i)].im > 0)
-                    moved->push_back(m.terms[static_cast<size_t>(i)].node);
+                if (terms[static_cast<size_t>(i)].w != 0 && terms[static_cast<size_t>(i)].im > 0)
+                    moved->push_back(terms[static_cast<size_t>(i)].node);
         if (tc.mass > 0 && tc.depth > 0)
-            st.residualDepth = std::max(st.residualDepth, tc.depth - tc.n_.dot(m.combine(x, tc) - tc.c0));
+            st.residualDepth = std::max(st.residualDepth, tc.depth - tc.n_.dot(combine(x, tc) - tc.c0));
         if (tc.shape < 0) continue;
-        const Shape& sh = m.shapes[static_cast<size_t>(tc.shape)];
+        const Shape& sh = shapes[static_cast<size_t>(tc.shape)];
         if (sh.tool >= 0 && dt > 0) st.reaction[static_cast<size_t>(sh.tool)] -= (tc.lambda * tc.n_ + tc.tangent) / dt;
     }
     if (moved) {

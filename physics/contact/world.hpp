@@ -266,6 +266,17 @@ struct ContactWorld::Impl {
                   double tOther);
     void keepNear(const Eigen::Matrix3Xd& x);
     void pressPieces(const Eigen::Matrix3Xd& x, const Eigen::Matrix3Xd& v, double dt);
+    // ContactWorld::project's parts (contact.cpp)
+    void apply(Eigen::Matrix3Xd& y, const Touch& tc, const Eigen::Vector3d& impulse);
+    double inverseMass(const Touch& tc) const;
+    void remeasure(Touch& tc, double sum, const Eigen::Matrix3Xd& x);
+    bool setUpTouch(Touch& tc, const Eigen::VectorXd& invMass, const Eigen::Matrix3Xd& x);
+    bool measureInside(Touch& tc, const Eigen::Matrix3Xd& x);
+    bool dropLightNodes(Touch& tc, const Eigen::Matrix3Xd& x);
+    void recountDepths();
+    void sweepVelocities(Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v, double dt);
+    void sweepPositions(Eigen::Matrix3Xd& x);
+    void reportProjection(const Eigen::Matrix3Xd& x, double dt, std::vector<int>* moved);
 };
 
 // Bounds of the triangle of points a, b, c (3 x nPoints columns of xp).
