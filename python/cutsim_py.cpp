@@ -286,19 +286,8 @@ py::dict limitsDict(const StepLimits& l) {
     return d;
 }
 
-}  // namespace
-}  // namespace cutsim
-
-PYBIND11_MODULE(cutsim, m) {
-    using namespace cutsim;
-    mapLargeArrays();  // arrays a cut grows are remapped, not copied (util/memory.hpp)
-    m.doc() = "cutsim: explicit FEM soft-tissue cutting (docs/python.md).\n\n"
-              "Simulation.positions, velocities, rest_positions and element_steps are read-only numpy views of "
-              "the simulation's memory (no copy) that follow the steps. A cut (cut_plane, cut_polygon, "
-              "cut_next_scripted, or a scripted cut or blade sweep inside step) keeps the memory of views taken "
-              "before it alive, frozen at the values of just before the cut; take the property again for the "
-              "new state (its new node and element count).";
-    // the CLI's messages: what it prints after "error: "
+// The exceptions the CLI reports (its messages: what it prints after "error: ").
+void bindErrors(py::module_& m) {
     static py::exception<InputError> inputError(m, "InputError", PyExc_ValueError);
     static py::exception<SimulationError> simError(m, "SimulationError", PyExc_RuntimeError);
     py::register_exception_translator([](std::exception_ptr p) {
@@ -310,12 +299,16 @@ PYBIND11_MODULE(cutsim, m) {
             simError(e.what());
         }
     });
+}
 
-    py::class_<PySimulation>(m, "Simulation")
-        .def(py::init(&fromScene), py::arg("scene"), py::arg("set") = std::vector<std::string>{},
-             py::arg("threads") = 0, py::arg("render_surface") = true, py::arg("path") = "scene.json",
-             "A scene file (path) or a dict of the scene format; set: 'key.path=value' overrides as --set; "
-             "threads 0: chosen by measuring as the CLI does")
+using SimulationClass = py::class_<PySimulation>;
+
+// The Simulation from a scene or arrays, and its steps.
+void bindRuns(SimulationClass& cls) {
+    cls.def(py::init(&fromScene), py::arg("scene"), py::arg("set") = std::vector<std::string>{}, py::arg("threads") = 0,
+            py::arg("render_surface") = true, py::arg("path") = "scene.json",
+            "A scene file (path) or a dict of the scene format; set: 'key.path=value' overrides as --set; "
+            "threads 0: chosen by measuring as the CLI does")
         .def_static(
             "from_arrays",
             [](const py::array_t<double, py::array::c_style | py::array::forcecast>& nodes,
@@ -341,19 +334,23 @@ PYBIND11_MODULE(cutsim, m) {
                 s.raiseOnFailure();
             },
             "Steps to the scene's duration and finishes the run (its status and final energy)")
-        .def("finish", [](PySimulation& s) { s.sim().finish(); })
-        .def(
-            "set_tool",
-            [](PySimulation& s, int i, const py::object& pos, const py::object& orientation) {
-                checkTool(s.sim(), i);
-                const Eigen::Vector3d p = vec3(pos, "position");
-                std::optional<Eigen::Quaterniond> q;
-                if (!orientation.is_none()) q = quaternion(orientation);
-                s.sim().holdTool(i, p, q);
-            },
-            py::arg("tool"), py::arg("position"), py::arg("orientation") = py::none(),
-            "Holds tool i at position [m] from now on (keyframes dropped); orientation: a quaternion "
-            "(w, x, y, z), normalised, local -> world; None keeps the tool's orientation now")
+        .def("finish", [](PySimulation& s) { s.sim().finish(); });
+}
+
+// Tools: held, their poses and the forces on them.
+void bindTools(SimulationClass& cls) {
+    cls.def(
+           "set_tool",
+           [](PySimulation& s, int i, const py::object& pos, const py::object& orientation) {
+               checkTool(s.sim(), i);
+               const Eigen::Vector3d p = vec3(pos, "position");
+               std::optional<Eigen::Quaterniond> q;
+               if (!orientation.is_none()) q = quaternion(orientation);
+               s.sim().holdTool(i, p, q);
+           },
+           py::arg("tool"), py::arg("position"), py::arg("orientation") = py::none(),
+           "Holds tool i at position [m] from now on (keyframes dropped); orientation: a quaternion "
+           "(w, x, y, z), normalised, local -> world; None keeps the tool's orientation now")
         .def(
             "tool_force",
             [](PySimulation& s, int i) {
@@ -383,19 +380,23 @@ PYBIND11_MODULE(cutsim, m) {
                 const double wxyz[4] = {q.w(), q.x(), q.y(), q.z()};
                 return py::array_t<double>(4, wxyz);
             },
-            py::arg("tool") = 0, "Tool i's orientation now, a unit quaternion (w, x, y, z)")
-        .def(
-            "cut_plane",
-            [](PySimulation& s, const py::object& point, const py::object& normal, const std::string& key) {
-                CutDef cd;
-                cd.point = vec3(point, "point");
-                cd.normal = vec3(normal, "normal");
-                if (cd.normal.norm() < 1e-12) throw InputError("normal: must not be zero");
-                cd.normal.normalize();
-                return s.cut(cd, key);
-            },
-            py::arg("point"), py::arg("normal"), py::arg("key") = "python",
-            "Cuts the deformed object by the plane now (XFEM); returns the cut's figures")
+            py::arg("tool") = 0, "Tool i's orientation now, a unit quaternion (w, x, y, z)");
+}
+
+// Cuts made now.
+void bindCuts(SimulationClass& cls) {
+    cls.def(
+           "cut_plane",
+           [](PySimulation& s, const py::object& point, const py::object& normal, const std::string& key) {
+               CutDef cd;
+               cd.point = vec3(point, "point");
+               cd.normal = vec3(normal, "normal");
+               if (cd.normal.norm() < 1e-12) throw InputError("normal: must not be zero");
+               cd.normal.normalize();
+               return s.cut(cd, key);
+           },
+           py::arg("point"), py::arg("normal"), py::arg("key") = "python",
+           "Cuts the deformed object by the plane now (XFEM); returns the cut's figures")
         .def(
             "cut_polygon",
             [](PySimulation& s, const py::object& point, const py::object& normal,
@@ -420,11 +421,15 @@ PYBIND11_MODULE(cutsim, m) {
             "Cuts by the convex polygon (K x 3 corners in the plane) now")
         .def(
             "cut_next_scripted", [](PySimulation& s) { return s.sim().cutNextScripted(); },
-            "The scene's next scripted cut now; False when none is left")
-        .def_property_readonly(
-            "positions", [](const py::object& self) { return view(self, Positions); },
-            "Node positions (N x 3) [m]: a read-only view (no copy) that follows the steps; a view taken "
-            "before a cut keeps the values of just before it (take the property again for the new nodes)")
+            "The scene's next scripted cut now; False when none is left");
+}
+
+// The state's arrays: views that follow the steps, and copies.
+void bindArrays(SimulationClass& cls) {
+    cls.def_property_readonly(
+           "positions", [](const py::object& self) { return view(self, Positions); },
+           "Node positions (N x 3) [m]: a read-only view (no copy) that follows the steps; a view taken "
+           "before a cut keeps the values of just before it (take the property again for the new nodes)")
         .def_property_readonly(
             "velocities", [](const py::object& self) { return view(self, Velocities); },
             "Node velocities (N x 3) [m/s]: a read-only view as positions (frozen at a cut)")
@@ -470,10 +475,14 @@ PYBIND11_MODULE(cutsim, m) {
                     if (r1r(e) < bound) out.push_back(static_cast<int>(e));
                 return py::array_t<int>(static_cast<py::ssize_t>(out.size()), out.data());
             },
-            "Elements whose estimate is under capture.critical_factor times dt")
-        .def_property_readonly(
-            "limits", [](PySimulation& s) { return limitsDict(s.sim().limits()); },
-            "Current stable limits {exact, certified, estimate} [s]; exact NaN: unknown")
+            "Elements whose estimate is under capture.critical_factor times dt");
+}
+
+// The run's limits, figures, names, hash and report.
+void bindFigures(SimulationClass& cls) {
+    cls.def_property_readonly(
+           "limits", [](PySimulation& s) { return limitsDict(s.sim().limits()); },
+           "Current stable limits {exact, certified, estimate} [s]; exact NaN: unknown")
         .def_property_readonly("initial_limits", [](PySimulation& s) { return limitsDict(s.sim().initialLimits()); })
         .def_property_readonly("dt", [](PySimulation& s) { return s.sim().dt(); })
         .def_property_readonly("time", [](PySimulation& s) { return s.sim().state().time; })
@@ -507,10 +516,37 @@ PYBIND11_MODULE(cutsim, m) {
                 if (path) writeFileAtomic(*path, r.dump(2) + "\n");
                 return toPython(r);
             },
-            py::arg("path") = py::none(), "The run's report (report.json) as a dict, written to path when given")
+            py::arg("path") = py::none(), "The run's report (report.json) as a dict, written to path when given");
+}
+
 #ifdef CUTSIM_HAVE_RENDER
-        .def("render", &PySimulation::render, py::arg("width") = 0, py::arg("height") = 0,
-             "The frame now, offscreen, as an (H x W x 3) uint8 image; size 0: the scene's capture size")
+// The frame now, offscreen.
+void bindRender(SimulationClass& cls) {
+    cls.def("render", &PySimulation::render, py::arg("width") = 0, py::arg("height") = 0,
+            "The frame now, offscreen, as an (H x W x 3) uint8 image; size 0: the scene's capture size");
+}
 #endif
-        ;
+
+}  // namespace
+}  // namespace cutsim
+
+PYBIND11_MODULE(cutsim, m) {
+    using namespace cutsim;
+    mapLargeArrays();  // arrays a cut grows are remapped, not copied (util/memory.hpp)
+    m.doc() = "cutsim: explicit FEM soft-tissue cutting (docs/python.md).\n\n"
+              "Simulation.positions, velocities, rest_positions and element_steps are read-only numpy views of "
+              "the simulation's memory (no copy) that follow the steps. A cut (cut_plane, cut_polygon, "
+              "cut_next_scripted, or a scripted cut or blade sweep inside step) keeps the memory of views taken "
+              "before it alive, frozen at the values of just before the cut; take the property again for the "
+              "new state (its new node and element count).";
+    bindErrors(m);
+    SimulationClass cls(m, "Simulation");
+    bindRuns(cls);
+    bindTools(cls);
+    bindCuts(cls);
+    bindArrays(cls);
+    bindFigures(cls);
+#ifdef CUTSIM_HAVE_RENDER
+    bindRender(cls);
+#endif
 }
