@@ -95,8 +95,7 @@ int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
 }  // namespace
 
 const std::vector<int>& CutEngine::virtualsOf(int parent) const {
-    auto it = children_.find(parent);
-    if (it != children_.end()) return it->second;
+    if (marked(parent, kChildren)) return children_.find(parent)->second;
     single_.assign(1, parent);
     return single_;
 }
@@ -150,7 +149,7 @@ void CutEngine::prepare(const Model& m) {
 
 void CutEngine::setMassShare(Model& m, int e) const {
     if (m.massShare.cols() != m.elements()) return;  // enrichment lumping: fraction / 4 by default
-    const auto it = virt_.find(e);
+    const auto it = findVirtual(e);
     const double f = m.fraction(e);
     if (it == virt_.end() || opts_.lumping == MassLumping::Enrichment) {
         m.massShare.col(e).setConstant(f / 4.0);
@@ -302,25 +301,53 @@ struct CutEngine::Pass {
         return true;
     }
 
-    // Coverage: every point of the side's cross-section (its faces on this cut) lies in the cut area.
-    // Returns the points inside and the total.
-    std::pair<int, int> covered(const Model& m, const State& s, int e, const ConvexPiece& side) const {
-        int total = 0, inside = 0;
+    // The side's cross-section (its faces on this cut) as corner weights, into sec.
+    void keepSectionPoints(Section& sec) const {
+        const ConvexPiece& side = sec.neg.empty() ? sec.pos : sec.neg;
+        sec.points = 0;
         for (const PolyFace& f : side.faces) {
             if (f.tag != 4 + cutId) continue;
             for (int vi : f.v) {
-                const Eigen::Vector4d w = weightsOf(side.xi[vi]);
-                Eigen::Vector3d x = Eigen::Vector3d::Zero();
-                for (int a = 0; a < 4; ++a) x += w[a] * s.x.col(m.tets(a, e));
-                const Eigen::Vector3d dx = x - surface.point;
-                const Eigen::Vector2d p(dx.dot(u), dx.dot(v));
-                ++total;
-                for (const auto& poly : surface.regions)
-                    if (insideConvex(poly, p, tol)) {
-                        ++inside;
-                        break;
-                    }
+                if (sec.points == static_cast<int>(sec.w.size())) {
+                    sec.points = -1;
+                    return;
+                }
+                const Eigen::Vector4d w = weightsOf(side.xi[static_cast<size_t>(vi)]);
+                for (int a = 0; a < 4; ++a) sec.w[static_cast<size_t>(sec.points)][static_cast<size_t>(a)] = w[a];
+                ++sec.points;
             }
+        }
+    }
+
+    // Coverage: every point of the side's cross-section lies in the cut area. Returns the points
+    // inside and the total, or as soon as one is in and one out, (1, 2): partly covered.
+    std::pair<int, int> covered(const Model& m, const State& s, int e, const Section& sec) const {
+        Eigen::Matrix<double, 3, 4> xe;
+        for (int a = 0; a < 4; ++a) xe.col(a) = s.x.col(m.tets(a, e));
+        int total = 0, inside = 0;
+        auto test = [&](const Eigen::Vector4d& w) {
+            Eigen::Vector3d x = Eigen::Vector3d::Zero();
+            for (int a = 0; a < 4; ++a) x += w[a] * xe.col(a);
+            const Eigen::Vector3d dx = x - surface.point;
+            const Eigen::Vector2d p(dx.dot(u), dx.dot(v));
+            ++total;
+            for (const auto& poly : surface.regions)
+                if (insideConvex(poly, p, tol)) {
+                    ++inside;
+                    break;
+                }
+            return inside > 0 && inside < total;
+        };
+        if (sec.points >= 0) {
+            for (int k = 0; k < sec.points; ++k)
+                if (test(Eigen::Map<const Eigen::Vector4d>(sec.w[static_cast<size_t>(k)].data()))) return {1, 2};
+            return {inside, total};
+        }
+        const ConvexPiece& side = sec.neg.empty() ? sec.pos : sec.neg;
+        for (const PolyFace& f : side.faces) {
+            if (f.tag != 4 + cutId) continue;
+            for (int vi : f.v)
+                if (test(weightsOf(side.xi[static_cast<size_t>(vi)]))) return {1, 2};
         }
         return {inside, total};
     }
@@ -330,9 +357,9 @@ struct CutEngine::Pass {
 // it completely (a sliver side merged into the other, CutOptions::minFraction), else left, and
 // watched when a bounded surface covers its section only in part.
 void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
-    if (fusedTo_.count(e)) return;  // follows its sibling (mergeDebris)
+    if (marked(e, kFused)) return;  // follows its sibling (mergeDebris)
     CutResult& r = pass.r;
-    auto it = virt_.find(e);
+    auto it = findVirtual(e);
     if (it != virt_.end())
         for (const Halfspace& h : it->second.hs)
             if (h.cut == pass.cutId) return;  // done by an earlier sweep of this stroke
@@ -368,10 +395,11 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
         sec->s = hs;
         sec->neg = clip(piece, hn);
         sec->pos = clip(piece, hp);
+        if (bounded) pass.keepSectionPoints(*sec);
     }
     if (sec->neg.empty() && sec->pos.empty()) return;
     if (bounded) {
-        const auto [inside, total] = pass.covered(m, s, e, sec->neg.empty() ? sec->pos : sec->neg);
+        const auto [inside, total] = pass.covered(m, s, e, *sec);
         if (inside < total || total == 0) {
             if (pass.watchOut) pass.watchOut->push_back(e);
             r.pending += inside > 0;
@@ -411,6 +439,7 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
         pass.fresh.push_back(std::move(ne));
     }
     Virtual& mine = virt_[e];
+    setMark(e, kVirtual);
     mine = std::move(base);
     mine.hs.push_back(keepNeg ? hn : hp);
     mine.piece = keepNeg ? std::move(neg) : std::move(pos);
@@ -478,9 +507,10 @@ void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
         s.rot.col(e) = s.rot.col(src);
         parent_.push_back(p);
         auto ch = children_.find(p);
-        if (ch == children_.end()) ch = children_.emplace(p, std::vector<int>{p}).first;
+        if (ch == children_.end()) ch = children_.emplace(p, std::vector<int>{p}).first, setMark(p, kChildren);
         ch->second.push_back(e);
         virt_[e] = std::move(pass.fresh[k].virt);
+        setMark(e, kVirtual);
         pass.r.newElements.push_back(e);
         pass.r.elementSource.push_back(src);
     }
@@ -539,7 +569,7 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
 // Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
 // across the face when their sides leave part of it to both (Molino et al. 2004).
 bool CutEngine::gluedAcross(int e, int p, int k, int g, int q, std::vector<FaceSide>& sides) const {
-    const auto ie = virt_.find(e), ig = virt_.find(g);
+    const auto ie = findVirtual(e), ig = findVirtual(g);
     if (ie == virt_.end() && ig == virt_.end()) return true;
     int cp[3], cq[3];
     for (int a = 0, j = 0; a < 4; ++a)
@@ -653,7 +683,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             const int p = ring_[static_cast<size_t>(i)];
             const int c = localIndex(tets0_, p, N);
             for (int e : virtualsOf(p))
-                if (!fusedTo_.count(e)) slots.push_back({e, c, p});
+                if (!marked(e, kFused)) slots.push_back({e, c, p});
         }
         uf.reset(slots.size());
         for (size_t i = 0; i < slots.size(); ++i)
@@ -715,7 +745,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             // sequences, tests/cut).
             bool held = false;
             for (int i : comp) {
-                const auto it = virt_.find(slots[i].elem);
+                const auto it = findVirtual(slots[i].elem);
                 if (it == virt_.end()) {
                     held = true;
                     break;
@@ -795,7 +825,7 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
         bool all = true;
         for (size_t k = 0; k < piece.size() && all; ++k) {
             const int e = piece[k];
-            if (fusedTo_.count(e)) continue;
+            if (marked(e, kFused)) continue;
             const double h = std::cbrt(m.volume(e)), tie = 1e-9 * h;
             double best = std::max(opts_.fuseReach * h, tie);
             for (int g : virtualsOf(parent_[static_cast<size_t>(e)])) {
@@ -813,7 +843,7 @@ void CutEngine::mergeDebris(Model& m, const Eigen::Matrix3Xd& x, CutResult& r) {
         }
         if (!all) continue;
         for (size_t k = 0; k < piece.size(); ++k)
-            if (sibling[k] >= 0) fusedTo_[piece[k]] = sibling[k];
+            if (sibling[k] >= 0) fusedTo_[piece[k]] = sibling[k], setMark(piece[k], kFused);
         ++r.merged;
     }
     if (r.merged == 0) return;
@@ -834,7 +864,7 @@ void CutEngine::relaxCutNodes(const Model& m, State& s, const CutResult& r) cons
         if (n >= m.nodes() || m.invMass(n) == 0) continue;
         bool onlyCut = m.nodeSlotStart[n] < m.nodeSlotEnd[n];
         for (int sl = m.nodeSlotStart[n]; sl < m.nodeSlotEnd[n] && onlyCut; ++sl)
-            onlyCut = virt_.count(m.nodeSlots[static_cast<size_t>(sl)] / 4) > 0;
+            onlyCut = marked(m.nodeSlots[static_cast<size_t>(sl)] / 4, kVirtual);
         if (onlyCut) nodes.push_back(n);
     }
     relaxNodes(m, s, nodes, opts_.relaxIterations);

@@ -205,6 +205,11 @@ private:
     struct Section {
         std::array<double, 4> s{};  // the distances they were clipped at [m]
         ConvexPiece neg, pos;
+        // The cross-section's vertices (the cut faces of the side coverage is tested on) as corner
+        // weights, kept beside the sides so that each sweep's retest reads one place; points < 0:
+        // more than fit, read from the side's faces.
+        std::array<std::array<double, 4>, 8> w{};
+        int points = -1;
     };
     struct Stroke {
         bool active = false;
@@ -305,7 +310,20 @@ private:
     std::vector<int> pieceMark_;            // scratch of mergeDebris: exploration that reached each element
     int pieceStamp_ = 0;                    // last stamp mergeDebris put in pieceMark_
     std::unordered_map<int, int> fusedTo_;  // fused debris element -> the sibling whose nodes it uses
-    std::vector<Sliver> slivers_;           // dropped sides, drawn by surface() on their side
+    // Which elements the three maps above hold, flat: most elements a blade step visits are in
+    // none, and a hash lookup each (a cache miss at 100k elements) was most of the visit's time.
+    enum : std::uint8_t { kVirtual = 1, kFused = 2, kChildren = 4 };
+    std::vector<std::uint8_t> marks_;
+    bool marked(int e, std::uint8_t bit) const {
+        return static_cast<size_t>(e) < marks_.size() && (marks_[static_cast<size_t>(e)] & bit) != 0;
+    }
+    void setMark(int e, std::uint8_t bit) {
+        if (static_cast<size_t>(e) >= marks_.size()) marks_.resize(static_cast<size_t>(e) + 1, 0);
+        marks_[static_cast<size_t>(e)] |= bit;
+    }
+    auto findVirtual(int e) { return marked(e, kVirtual) ? virt_.find(e) : virt_.end(); }
+    auto findVirtual(int e) const { return marked(e, kVirtual) ? virt_.find(e) : virt_.end(); }
+    std::vector<Sliver> slivers_;  // dropped sides, drawn by surface() on their side
     mutable SplitSlot split_;
 };
 
