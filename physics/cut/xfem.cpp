@@ -358,11 +358,14 @@ struct CutEngine::Pass {
 // watched when a bounded surface covers its section only in part.
 void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     if (marked(e, kFused)) return;  // follows its sibling (mergeDebris)
+    // done by an earlier sweep of this stroke (most often its last split; a scripted cut may have
+    // split it since)
+    const int last = lastCutOf(e);
+    if (last == pass.cutId) return;
+    if (last > pass.cutId)
+        for (const Halfspace& hc : findVirtual(e)->second.hs)
+            if (hc.cut == pass.cutId) return;
     CutResult& r = pass.r;
-    auto it = findVirtual(e);
-    if (it != virt_.end())
-        for (const Halfspace& h : it->second.hs)
-            if (h.cut == pass.cutId) return;  // done by an earlier sweep of this stroke
     Halfspace h;
     h.cut = pass.cutId;
     bool anyPos = false, anyNeg = false;
@@ -376,6 +379,7 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
         if (pass.watchOut) pass.watchOut->push_back(e);
         return;
     }
+    const auto it = findVirtual(e);
     const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
     Halfspace hn = h, hp = h;
     hn.positive = false;
@@ -442,6 +446,7 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     setMark(e, kVirtual);
     mine = std::move(base);
     mine.hs.push_back(keepNeg ? hn : hp);
+    setLastCut(e, pass.cutId);
     mine.piece = keepNeg ? std::move(neg) : std::move(pos);
     mine.share = keepNeg ? sneg : spos;
     m.fraction(e) = f0 * mine.share;
@@ -511,6 +516,7 @@ void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
         ch->second.push_back(e);
         virt_[e] = std::move(pass.fresh[k].virt);
         setMark(e, kVirtual);
+        setLastCut(e, pass.cutId);
         pass.r.newElements.push_back(e);
         pass.r.elementSource.push_back(src);
     }

@@ -321,6 +321,16 @@ private:
         if (static_cast<size_t>(e) >= marks_.size()) marks_.resize(static_cast<size_t>(e) + 1, 0);
         marks_[static_cast<size_t>(e)] |= bit;
     }
+    // The cut that last split each element (its last half-space's), or -1: a stroke visits the
+    // elements it already split again at each sweep.
+    std::vector<int> lastCut_;
+    int lastCutOf(int e) const {
+        return static_cast<size_t>(e) < lastCut_.size() ? lastCut_[static_cast<size_t>(e)] : -1;
+    }
+    void setLastCut(int e, int cut) {
+        if (static_cast<size_t>(e) >= lastCut_.size()) lastCut_.resize(static_cast<size_t>(e) + 1, -1);
+        lastCut_[static_cast<size_t>(e)] = cut;
+    }
     auto findVirtual(int e) { return marked(e, kVirtual) ? virt_.find(e) : virt_.end(); }
     auto findVirtual(int e) const { return marked(e, kVirtual) ? virt_.find(e) : virt_.end(); }
     std::vector<Sliver> slivers_;  // dropped sides, drawn by surface() on their side
