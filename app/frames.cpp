@@ -179,20 +179,16 @@ private:
         renderer.draw(job.snap);
         draw = t.lap();
         const bool png = sc_.capture.pngEvery > 0 && job.index % sc_.capture.pngEvery == 0;
-        render::Image img = png ? pngs_.spare() : video_ ? video_->spareFrame() : render::Image{};
+        render::Image img = png ? pngs_.spare() : std::move(frame_);
         renderer.read(img);
         read = t.lap();
-        if (video_ && png) {
-            render::Image copy = video_->spareFrame();
-            copy = img;  // into the spare's buffer
-            video_->addFrame(std::move(copy));
-        } else if (video_) {
-            video_->addFrame(std::move(img));
-        }
+        if (video_) video_->addFrame(img);
         if (png) {
             char name[32];
             std::snprintf(name, sizeof name, "frame_%06d.png", job.index);
             pngs_.push((dir_ / name).string(), std::move(img));
+        } else {
+            frame_ = std::move(img);
         }
         handoff = t.lap();
     }
@@ -219,6 +215,7 @@ private:
     std::future<void> made_;
     render::PngWriter pngs_{8};  // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
+    render::Image frame_;  // the read-back of frames without a PNG, its buffer reused
     std::string videoPath_;
     std::array<std::string, 3> info_;  // GL_VENDOR, GL_RENDERER, GL_VERSION
     int frames_ = 0;

@@ -58,21 +58,21 @@ void main() {
 }
 )";
 
-constexpr const char* kMeshFs = R"(#version 330 core
+// Compiled in variants (MAP, LIT, EDGE: 0 or 1, see Renderer::Gl::program): llvmpipe runs both
+// sides of a branch for every fragment, so a flat segment must not pay for lighting and the map.
+constexpr const char* kMeshFs = R"(
 in vec3 vNormal;
 in vec3 vPosV;
 in float vScalar;
 in float vCut;
 noperspective in float vEdge;  // smoothed segments: distance from the centre line [px]
-uniform float uEdgeHalf;       // their half width [px]; 0: a surface
-uniform int uUseMap;
+uniform float uEdgeHalf;       // their half width [px] (EDGE)
 uniform vec3 uMap[16];
 uniform int uMapN;
 uniform float uMin;
 uniform float uMax;
 uniform vec3 uColour;
 uniform vec3 uCutColour;
-uniform int uLit;
 uniform float uAlpha;
 out vec4 fragColour;
 vec3 colourMap(float s) {
@@ -82,10 +82,18 @@ vec3 colourMap(float s) {
     return mix(uMap[i], uMap[i + 1], x - float(i));
 }
 void main() {
-    vec3 base = uUseMap != 0 ? colourMap(vScalar) : uColour;
+#if MAP
+    vec3 base = colourMap(vScalar);
+#else
+    vec3 base = uColour;
+#endif
     if (vCut > 0.5) base = uCutColour;
-    float alpha = uEdgeHalf > 0.0 ? uAlpha * clamp(uEdgeHalf + 0.5 - abs(vEdge), 0.0, 1.0) : uAlpha;
-    if (uLit == 0) { fragColour = vec4(base, alpha); return; }
+#if EDGE
+    float alpha = uAlpha * clamp(uEdgeHalf + 0.5 - abs(vEdge), 0.0, 1.0);
+#else
+    float alpha = uAlpha;
+#endif
+#if LIT
     vec3 n = normalize(vNormal);
     vec3 v = normalize(-vPosV);
     if (dot(n, v) < 0.0) n = -n;
@@ -96,6 +104,9 @@ void main() {
     bool cut = vCut > 0.5;
     float spec = (cut ? 0.45 : 0.22) * pow(max(dot(reflect(-key, n), v), 0.0), cut ? 60.0 : 32.0);
     fragColour = vec4(base * (0.22 + diffuse) + vec3(spec), alpha);
+#else
+    fragColour = vec4(base, alpha);
+#endif
 }
 )";
 
@@ -180,7 +191,7 @@ Mat4f perspective(double fovYDeg, double aspect, double zNear, double zFar) {
 struct Renderer::Gl {
     GLuint msFbo = 0, msColour = 0, msDepth = 0;     // multisampled target (MSAA)
     GLuint outFbo = 0, outColour = 0, outDepth = 0;  // read back; drawn into directly with one sample
-    GLuint meshProg = 0, lineProg = 0;
+    GLuint lineProg = 0;
     GLuint vao = 0;
     // One buffer per draw of a frame, kept between frames: rewriting a buffer a pending draw reads
     // would wait for it, and new storage each draw is page faults.
@@ -197,10 +208,58 @@ struct Renderer::Gl {
     std::vector<std::pair<std::uint64_t, int>> halfEdges;  // scratch of silhouetteLines
     SurfaceTopology topo;                                  // of the last surface drawn
     std::vector<int> ids;
-    // Uniform locations.
-    GLint mView = -1, mProj = -1, mUseMap = -1, mMap = -1, mMapN = -1, mMin = -1, mMax = -1, mColour = -1,
-          mCutColour = -1, mLit = -1, mAlpha = -1, mEdgeHalf = -1;
+    // What the next mesh draw uses; drawMesh picks the program variant and sets its uniforms.
+    struct MeshState {
+        Mat4f view = Mat4f::Identity(), proj = Mat4f::Identity();
+        std::array<float, 16 * 3> map{};
+        int mapN = 2;
+        float min = 0, max = 1;
+        bool useMap = false, lit = true;
+        Vec3f colour = Vec3f::Ones(), cutColour = Vec3f::Ones();
+        float alpha = 1, edgeHalf = 0;  // edgeHalf > 0: smoothed segments
+    } ms;
+    // The mesh program's variants by (MAP, LIT, EDGE), linked on first use, and their uniforms.
+    struct MeshProgram {
+        GLuint id = 0;
+        GLint view = -1, proj = -1, map = -1, mapN = -1, min = -1, max = -1, colour = -1, cutColour = -1, alpha = -1,
+              edgeHalf = -1;
+    };
+    std::array<MeshProgram, 8> meshProgs;
     GLint lView = -1, lProj = -1, lColour = -1;
+
+    // Binds the mesh program variant for `ms` with its uniforms.
+    void useMeshProgram() {
+        const bool edge = ms.edgeHalf > 0;
+        MeshProgram& p = meshProgs[(ms.useMap ? 1 : 0) + (ms.lit ? 2 : 0) + (edge ? 4 : 0)];
+        if (!p.id) {
+            const std::string fs = std::string("#version 330 core\n#define MAP ") + (ms.useMap ? "1" : "0") +
+                                   "\n#define LIT " + (ms.lit ? "1" : "0") + "\n#define EDGE " + (edge ? "1" : "0") +
+                                   kMeshFs;
+            p.id = link(kMeshVs, fs.c_str());
+            auto loc = [&](const char* n) { return glGetUniformLocation(p.id, n); };
+            p.view = loc("uView");
+            p.proj = loc("uProj");
+            p.map = loc("uMap");
+            p.mapN = loc("uMapN");
+            p.min = loc("uMin");
+            p.max = loc("uMax");
+            p.colour = loc("uColour");
+            p.cutColour = loc("uCutColour");
+            p.alpha = loc("uAlpha");
+            p.edgeHalf = loc("uEdgeHalf");
+        }
+        glUseProgram(p.id);
+        glUniformMatrix4fv(p.view, 1, GL_FALSE, ms.view.data());
+        glUniformMatrix4fv(p.proj, 1, GL_FALSE, ms.proj.data());
+        glUniform3fv(p.map, 16, ms.map.data());  // -1 (unused in the variant): ignored
+        glUniform1i(p.mapN, ms.mapN);
+        glUniform1f(p.min, ms.min);
+        glUniform1f(p.max, ms.max);
+        glUniform3f(p.colour, ms.colour.x(), ms.colour.y(), ms.colour.z());
+        glUniform3f(p.cutColour, ms.cutColour.x(), ms.cutColour.y(), ms.cutColour.z());
+        glUniform1f(p.alpha, ms.alpha);
+        glUniform1f(p.edgeHalf, ms.edgeHalf);
+    }
 
     // Binds the next buffer of this frame with `bytes` of data.
     void upload(const void* data, GLsizeiptr bytes) {
@@ -220,6 +279,7 @@ struct Renderer::Gl {
     // Uploads and draws interleaved mesh vertices (triangles, or segments with GL_LINES).
     void drawMesh(const std::vector<MeshVertex>& v, GLenum mode = GL_TRIANGLES) {
         if (v.empty()) return;
+        useMeshProgram();
         upload(v.data(), static_cast<GLsizeiptr>(v.size() * sizeof(MeshVertex)));
         const GLsizei stride = sizeof(MeshVertex);
         glEnableVertexAttribArray(0);
@@ -270,21 +330,8 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     glGenRenderbuffers(1, &g.outDepth);
     allocateTargets();
 
-    g.meshProg = link(kMeshVs, kMeshFs);
     g.lineProg = link(kLineVs, kLineFs);
     auto loc = [](GLuint p, const char* n) { return glGetUniformLocation(p, n); };
-    g.mView = loc(g.meshProg, "uView");
-    g.mProj = loc(g.meshProg, "uProj");
-    g.mUseMap = loc(g.meshProg, "uUseMap");
-    g.mMap = loc(g.meshProg, "uMap");
-    g.mMapN = loc(g.meshProg, "uMapN");
-    g.mMin = loc(g.meshProg, "uMin");
-    g.mMax = loc(g.meshProg, "uMax");
-    g.mColour = loc(g.meshProg, "uColour");
-    g.mCutColour = loc(g.meshProg, "uCutColour");
-    g.mLit = loc(g.meshProg, "uLit");
-    g.mAlpha = loc(g.meshProg, "uAlpha");
-    g.mEdgeHalf = loc(g.meshProg, "uEdgeHalf");
     g.lView = loc(g.lineProg, "uView");
     g.lProj = loc(g.lineProg, "uProj");
     g.lColour = loc(g.lineProg, "uColour");
@@ -364,7 +411,8 @@ Renderer::~Renderer() {
     ImGui::DestroyContext(g.imgui);
     if (!g.vbos.empty()) glDeleteBuffers(static_cast<GLsizei>(g.vbos.size()), g.vbos.data());
     glDeleteVertexArrays(1, &g.vao);
-    glDeleteProgram(g.meshProg);
+    for (const auto& p : g.meshProgs)
+        if (p.id) glDeleteProgram(p.id);
     glDeleteProgram(g.lineProg);
     glDeleteFramebuffers(1, &g.msFbo);
     glDeleteFramebuffers(1, &g.outFbo);
@@ -438,28 +486,24 @@ void Renderer::drawSurface(const RenderSnapshot& snap, const View& v) {
     Gl& g = *gl_;
     const int n = snap.vertices();
     const bool useMap = snap.scalar.size() == n && n > 0;
-    glUseProgram(g.meshProg);
-    glUniformMatrix4fv(g.mView, 1, GL_FALSE, v.view.data());
-    glUniformMatrix4fv(g.mProj, 1, GL_FALSE, v.proj.data());
+    Gl::MeshState& ms = g.ms;
     {
         auto table = colorMapTable(snap.diverging ? ColorMapKind::Diverging : ColorMapKind::Sequential);
-        float map[16 * 3] = {};
+        ms.map.fill(0);
         for (size_t i = 0; i < table.size() && i < 16; ++i) {
-            map[3 * i] = table[i].r / 255.0f;
-            map[3 * i + 1] = table[i].g / 255.0f;
-            map[3 * i + 2] = table[i].b / 255.0f;
+            ms.map[3 * i] = table[i].r / 255.0f;
+            ms.map[3 * i + 1] = table[i].g / 255.0f;
+            ms.map[3 * i + 2] = table[i].b / 255.0f;
         }
-        glUniform3fv(g.mMap, 16, map);
-        glUniform1i(g.mMapN, static_cast<GLint>(std::min<size_t>(table.size(), 16)));
+        ms.mapN = static_cast<int>(std::min<size_t>(table.size(), 16));
     }
-    glUniform1f(g.mMin, static_cast<float>(snap.scalarMin));
-    glUniform1f(g.mMax, static_cast<float>(snap.scalarMax));
-    glUniform1i(g.mUseMap, useMap ? 1 : 0);
-    const Vec3f surf = rgb(opts_.surfaceColour), cut = rgb(opts_.cutColour);
-    glUniform3f(g.mColour, surf.x(), surf.y(), surf.z());
-    glUniform3f(g.mCutColour, cut.x(), cut.y(), cut.z());
-    glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
-    glUniform1f(g.mAlpha, 1.0f);
+    ms.min = static_cast<float>(snap.scalarMin);
+    ms.max = static_cast<float>(snap.scalarMax);
+    ms.useMap = useMap;
+    ms.colour = rgb(opts_.surfaceColour);
+    ms.cutColour = rgb(opts_.cutColour);
+    ms.lit = opts_.lighting;
+    ms.alpha = 1.0f;
 
     g.topo.update(snap);
     surfaceVertices(snap, g.topo, useMap, g.verts);
@@ -496,16 +540,13 @@ void Renderer::drawSmoothSegments(const View& v) {
     g.quads.clear();
     segmentQuads(g.silhouette, pv, 0.5f * static_cast<float>(opts_.width), 0.5f * static_cast<float>(opts_.height),
                  kHalfWidth, g.quads);
-    glUseProgram(g.meshProg);
-    glUniformMatrix4fv(g.mView, 1, GL_FALSE, v.view.data());
-    glUniformMatrix4fv(g.mProj, 1, GL_FALSE, v.proj.data());
-    glUniform1f(g.mEdgeHalf, kHalfWidth);
+    g.ms.edgeHalf = kHalfWidth;
     blendOver();
     glDepthMask(GL_FALSE);
     g.drawMesh(g.quads);
     glDepthMask(GL_TRUE);
     glDisable(GL_BLEND);
-    glUniform1f(g.mEdgeHalf, 0.0f);
+    g.ms.edgeHalf = 0.0f;
 }
 
 // Lines of one colour (xyz pairs): smoothed segments when they are in use, else GL lines.
@@ -522,14 +563,13 @@ void Renderer::drawColourLines(const std::vector<float>& xyz, const Vec4f& colou
     g.silhouette.clear();
     for (size_t i = 0; i + 2 < xyz.size(); i += 3)
         g.silhouette.push_back({{xyz[i], xyz[i + 1], xyz[i + 2]}, {0, 0, 1}, 0, 0});
-    glUseProgram(g.meshProg);
-    glUniform1i(g.mUseMap, 0);
-    glUniform1i(g.mLit, 0);
-    glUniform3f(g.mColour, colour.x(), colour.y(), colour.z());
-    glUniform1f(g.mAlpha, colour.w());
+    g.ms.useMap = false;
+    g.ms.lit = false;
+    g.ms.colour = colour.head<3>();
+    g.ms.alpha = colour.w();
     drawSmoothSegments(v);
-    glUniform1i(g.mLit, opts_.lighting ? 1 : 0);
-    glUniform1f(g.mAlpha, 1.0f);
+    g.ms.lit = opts_.lighting;
+    g.ms.alpha = 1.0f;
 }
 
 void Renderer::drawTools(const RenderSnapshot& snap, const View& v) {
@@ -538,8 +578,8 @@ void Renderer::drawTools(const RenderSnapshot& snap, const View& v) {
     g.verts.clear();
     for (const auto& t : snap.tools) toolTriangles(t, g.verts);
     const Vec3f tc = rgb(opts_.toolColour);
-    glUniform1i(g.mUseMap, 0);
-    glUniform3f(g.mColour, tc.x(), tc.y(), tc.z());
+    g.ms.useMap = false;
+    g.ms.colour = tc;
     g.drawMesh(g.verts);
     if (smoothEdges()) {
         g.ids.clear();  // corners at one position are one vertex
@@ -601,11 +641,10 @@ void Renderer::drawXray(const Vec3f& face, float faceAlpha, const Vec4f& edge, c
     Gl& g = *gl_;
     glDisable(GL_DEPTH_TEST);
     blendOver();
-    glUseProgram(g.meshProg);
-    glUniform1i(g.mUseMap, 0);
-    glUniform1i(g.mLit, 0);
-    glUniform3f(g.mColour, face.x(), face.y(), face.z());
-    glUniform1f(g.mAlpha, faceAlpha);
+    g.ms.useMap = false;
+    g.ms.lit = false;
+    g.ms.colour = face;
+    g.ms.alpha = faceAlpha;
     g.drawMesh(g.critTris);
     drawColourLines(g.critLines, edge, v);
     glDisable(GL_BLEND);
@@ -634,6 +673,8 @@ void Renderer::draw(const RenderSnapshot& snap) {
     Gl& g = *gl_;
     const View v = viewOf(snap);
     g.nextVbo = 0;
+    g.ms.view = v.view;
+    g.ms.proj = v.proj;
     glBindFramebuffer(GL_FRAMEBUFFER, samples_ > 1 ? g.msFbo : g.outFbo);
     glViewport(0, 0, opts_.width, opts_.height);
     glClearColor(v.bg.x(), v.bg.y(), v.bg.z(), 1.0f);
@@ -658,8 +699,8 @@ void Renderer::draw(const RenderSnapshot& snap) {
         g.critLines.clear();
         tetGeometry(snap.criticalTets, g.critTris, g.critLines);
         const Vec3f cc = rgb(opts_.criticalColour);
-        glUniform1i(g.mUseMap, 0);
-        glUniform3f(g.mColour, cc.x(), cc.y(), cc.z());
+        g.ms.useMap = false;
+        g.ms.colour = cc;
         g.drawMesh(g.critTris);
     }
     drawLines(snap, v);

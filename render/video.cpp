@@ -23,6 +23,36 @@ std::string findOnPath(const std::string& program) {
     return {};
 }
 
+void rgbaToYuv420(const Image& img, std::vector<std::uint8_t>& out) {
+    const size_t w = static_cast<size_t>(img.width), h = static_cast<size_t>(img.height);
+    out.resize(w * h + 2 * (w / 2) * (h / 2));
+    std::uint8_t* yp = out.data();
+    std::uint8_t* up = yp + w * h;
+    std::uint8_t* vp = up + (w / 2) * (h / 2);
+    const std::uint8_t* px = img.rgba.data();
+    for (size_t y = 0; y < h; ++y) {
+        const std::uint8_t* row = px + 4 * w * y;
+        std::uint8_t* yr = yp + w * y;
+        for (size_t x = 0; x < w; ++x) {
+            const int r = row[4 * x], g = row[4 * x + 1], b = row[4 * x + 2];
+            yr[x] = static_cast<std::uint8_t>(((66 * r + 129 * g + 25 * b + 128) >> 8) + 16);
+        }
+    }
+    for (size_t y = 0; y + 1 < h; y += 2) {
+        const std::uint8_t* r0 = px + 4 * w * y;
+        const std::uint8_t* r1 = r0 + 4 * w;
+        std::uint8_t* ur = up + (w / 2) * (y / 2);
+        std::uint8_t* vr = vp + (w / 2) * (y / 2);
+        for (size_t x = 0; x < w / 2; ++x) {
+            const std::uint8_t *a = r0 + 8 * x, *c = r1 + 8 * x;
+            const int r = (a[0] + a[4] + c[0] + c[4] + 2) >> 2, g = (a[1] + a[5] + c[1] + c[5] + 2) >> 2,
+                      b = (a[2] + a[6] + c[2] + c[6] + 2) >> 2;
+            ur[x] = static_cast<std::uint8_t>(((-38 * r - 74 * g + 112 * b + 128) >> 8) + 128);
+            vr[x] = static_cast<std::uint8_t>(((112 * r - 94 * g - 18 * b + 128) >> 8) + 128);
+        }
+    }
+}
+
 namespace {
 // Single-quoted for /bin/sh.
 std::string shellQuote(const std::string& s) {
@@ -46,7 +76,7 @@ VideoEncoder::VideoEncoder(const std::string& path, int width, int height, doubl
     // A dying ffmpeg must give a write error here, not kill the simulation with SIGPIPE.
     std::signal(SIGPIPE, SIG_IGN);
     std::ostringstream cmd;
-    cmd << shellQuote(ffmpeg) << " -hide_banner -loglevel error -y -f rawvideo -pix_fmt rgba -s " << width << "x"
+    cmd << shellQuote(ffmpeg) << " -hide_banner -loglevel error -y -f rawvideo -pix_fmt yuv420p -s " << width << "x"
         << height << " -r " << fps << " -i - -c:v libx264 -preset ultrafast -threads 1 -pix_fmt yuv420p -f mp4 "
         << shellQuote(tmp_);
     pipe_ = ::popen(cmd.str().c_str(), "w");
@@ -59,18 +89,18 @@ void VideoEncoder::run() {
     for (;;) {
         changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
         if (queue_.empty()) return;  // stop requested and nothing left
-        Image img = std::move(queue_.front());
+        std::vector<std::uint8_t> frame = std::move(queue_.front());
         queue_.pop_front();
         changed_.notify_all();
         if (failed_) continue;  // drain: ffmpeg is gone
         lock.unlock();
-        const bool ok = std::fwrite(img.rgba.data(), 1, img.rgba.size(), pipe_) == img.rgba.size();
+        const bool ok = std::fwrite(frame.data(), 1, frame.size(), pipe_) == frame.size();
         lock.lock();
         if (ok)
             ++frames_;
         else
             failed_ = true;
-        if (spare_.size() < 4) spare_.push_back(std::move(img));
+        if (spare_.size() < 4) spare_.push_back(std::move(frame));
         changed_.notify_all();
     }
 }
@@ -93,24 +123,25 @@ VideoEncoder::~VideoEncoder() {
     }
 }
 
-void VideoEncoder::addFrame(Image img) {
+void VideoEncoder::addFrame(const Image& img) {
     if (!pipe_) throw std::runtime_error("video " + path_ + " already finished");
     if (img.width != width_ || img.height != height_)
         throw std::runtime_error("video frame is " + std::to_string(img.width) + "x" + std::to_string(img.height) +
                                  ", the video " + std::to_string(width_) + "x" + std::to_string(height_));
+    std::vector<std::uint8_t> frame;
+    {
+        std::lock_guard lock(mutex_);
+        if (!spare_.empty()) {
+            frame = std::move(spare_.back());
+            spare_.pop_back();
+        }
+    }
+    rgbaToYuv420(img, frame);
     std::unique_lock lock(mutex_);
     changed_.wait(lock, [&] { return queue_.size() < 4 || failed_; });
     if (failed_) throw std::runtime_error("ffmpeg stopped while writing " + path_);
-    queue_.push_back(std::move(img));
+    queue_.push_back(std::move(frame));
     changed_.notify_all();
-}
-
-Image VideoEncoder::spareFrame() {
-    std::lock_guard lock(mutex_);
-    if (spare_.empty()) return {};
-    Image img = std::move(spare_.back());
-    spare_.pop_back();
-    return img;
 }
 
 void VideoEncoder::finish() {

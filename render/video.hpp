@@ -1,11 +1,13 @@
-// MP4 video through the ffmpeg program: raw RGBA frames piped to its stdin, H.264 out. Frames go
-// to the pipe from a writer thread, so the caller does not wait while ffmpeg encodes.
+// MP4 video through the ffmpeg program: frames converted to yuv420p here and piped raw to its
+// stdin, H.264 out. Frames go to the pipe from a writer thread, so the caller does not wait while
+// ffmpeg encodes.
 #pragma once
 
 #include "image.hpp"
 
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <cstdio>
 #include <deque>
 #include <mutex>
@@ -18,6 +20,13 @@ namespace cutsim::render {
 // Full path of an executable found on PATH, or "" when there is none.
 std::string findOnPath(const std::string& program);
 
+// An RGBA image (even width and height) as planar yuv420p into out (resized): BT.601 with 8-bit
+// studio range (Y 16..235, U and V 16..240 around 128) in fixed point (ITU-R BT.601, the 8-bit
+// integer form of its equations), U and V of each 2x2 block's mean colour; alpha is ignored.
+// What ffmpeg's own conversion gives an H.264 stream without colour tags, at a third of the
+// bytes through the pipe.
+void rgbaToYuv420(const Image& img, std::vector<std::uint8_t>& out);
+
 class VideoEncoder {
 public:
     // Starts ffmpeg writing path.tmp (renamed to path by finish). Width and height must be even
@@ -27,10 +36,9 @@ public:
     VideoEncoder(const VideoEncoder&) = delete;
     VideoEncoder& operator=(const VideoEncoder&) = delete;
 
-    // Queues a frame (blocks while 4 wait); throws if the size differs or ffmpeg stopped.
-    void addFrame(Image img);
-    // A frame whose pixels were written, to be filled again (its buffer reused), or an empty one.
-    Image spareFrame();
+    // Converts a frame (rgbaToYuv420) and queues it (blocks while 4 wait); throws if the size
+    // differs or ffmpeg stopped.
+    void addFrame(const Image& img);
     void finish();                          // waits for ffmpeg, renames; throws with its exit status
     int frames() const { return frames_; }  // frames written to ffmpeg
 
@@ -43,8 +51,9 @@ private:
     std::FILE* pipe_ = nullptr;
     std::mutex mutex_;
     std::condition_variable changed_;
-    std::deque<Image> queue_;
-    std::vector<Image> spare_;  // written frames kept for reuse (a frame-sized allocation page-faults)
+    std::deque<std::vector<std::uint8_t>> queue_;   // yuv420p frames
+    std::vector<std::vector<std::uint8_t>> spare_;  // written ones kept for reuse (a frame-sized
+                                                    // allocation page-faults)
     bool stop_ = false, failed_ = false;
     std::thread writer_;
 };

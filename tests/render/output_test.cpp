@@ -101,6 +101,35 @@ TEST(RenderOutput, MissingFfmpegIsReportedClearly) {
     EXPECT_FALSE(std::filesystem::exists(dir + "/v.mp4"));
 }
 
+// BT.601 studio range in 8 bits: white Y 235, black Y 16, both U = V = 128; pure red Y 82,
+// U 90, V 240 (16 + 65.738 * 255 / 256 = 81.5, 128 - 37.945 * 255 / 256 = 90.2, 128 + 112.439 * 255 / 256
+// = 240.0, ITU-R BT.601 sec. 2.5); chroma of the mean colour of each 2x2 block.
+TEST(RenderOutput, Yuv420OfKnownColours) {
+    render::Image img;
+    img.width = 4;
+    img.height = 2;
+    img.rgba.assign(4 * 4 * 2, 0);
+    auto set = [&](int x, int y, int r, int g, int b) {
+        std::uint8_t* p = &img.rgba[4 * (static_cast<size_t>(y) * 4 + static_cast<size_t>(x))];
+        p[0] = static_cast<std::uint8_t>(r), p[1] = static_cast<std::uint8_t>(g), p[2] = static_cast<std::uint8_t>(b);
+        p[3] = 255;
+    };
+    // Left block: white over black; right block: red, all four.
+    set(0, 0, 255, 255, 255), set(1, 0, 255, 255, 255), set(0, 1, 0, 0, 0), set(1, 1, 0, 0, 0);
+    for (int x : {2, 3})
+        for (int y : {0, 1}) set(x, y, 255, 0, 0);
+    std::vector<std::uint8_t> yuv;
+    render::rgbaToYuv420(img, yuv);
+    ASSERT_EQ(yuv.size(), 8u + 2u + 2u);
+    EXPECT_EQ(std::vector<std::uint8_t>(yuv.begin(), yuv.begin() + 8),
+              (std::vector<std::uint8_t>{235, 235, 82, 82, 16, 16, 82, 82}));
+    // Mean of white and black: grey (128, 128, 128), no chroma.
+    EXPECT_EQ(yuv[8], 128);
+    EXPECT_EQ(yuv[10], 128);
+    EXPECT_EQ(yuv[9], 90);    // U of red
+    EXPECT_EQ(yuv[11], 240);  // V of red
+}
+
 TEST(RenderOutput, VideoEncodes) {
     if (render::findOnPath("ffmpeg").empty()) GTEST_SKIP() << "ffmpeg not installed";
     const std::string dir = test::tempDir();
