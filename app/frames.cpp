@@ -148,6 +148,22 @@ private:
         ready_.set_value();
         std::unique_lock lock(mutex_);
         for (;;) {
+            if (queue_.empty() && busy_) {  // nothing to draw: the frame read last goes out now
+                lock.unlock();
+                double handoff = 0;
+                std::exception_ptr err;
+                try {
+                    handOffRead(handoff);
+                } catch (...) {
+                    err = std::current_exception();
+                }
+                lock.lock();
+                busy_ = false;
+                if (err && !error_) error_ = err;
+                times_.handoff += handoff;
+                changed_.notify_all();
+                continue;
+            }
             changed_.wait(lock, [&] { return stop_ || !queue_.empty(); });
             if (queue_.empty()) return;  // stopped and nothing left
             Job job = std::move(queue_.front());
@@ -163,7 +179,6 @@ private:
                 err = std::current_exception();
             }
             lock.lock();
-            busy_ = false;
             if (err && !error_) error_ = err;
             times_.draw += draw;
             times_.read += read;
@@ -174,23 +189,37 @@ private:
         }
     }
 
+    // Draws a frame and reads it back; the frame read before it is handed to the PNG and video
+    // writers while llvmpipe rasterises this one (draw flushes), and this one waits in read_ for
+    // the next frame or for the queue to run dry. busy_ stays set while a frame waits there.
     void drawOne(render::Renderer& renderer, const Job& job, double& draw, double& read, double& handoff) {
         Stopwatch t;
         renderer.draw(job.snap);
         draw = t.lap();
+        handOffRead(handoff);
+        t.lap();
+        readIndex_ = job.index;
         const bool png = sc_.capture.pngEvery > 0 && job.index % sc_.capture.pngEvery == 0;
-        render::Image img = png ? pngs_.spare() : std::move(frame_);
-        renderer.read(img);
+        read_ = png ? pngs_.spare() : std::move(frame_);
+        renderer.read(read_);
         read = t.lap();
-        if (video_) video_->addFrame(img);
+    }
+
+    // Hands the frame in read_ (if any) to the PNG and video writers.
+    void handOffRead(double& handoff) {
+        if (readIndex_ < 0) return;
+        const Stopwatch t;
+        if (video_) video_->addFrame(read_);
+        const bool png = sc_.capture.pngEvery > 0 && readIndex_ % sc_.capture.pngEvery == 0;
         if (png) {
             char name[32];
-            std::snprintf(name, sizeof name, "frame_%06d.png", job.index);
-            pngs_.push((dir_ / name).string(), std::move(img));
+            std::snprintf(name, sizeof name, "frame_%06d.png", readIndex_);
+            pngs_.push((dir_ / name).string(), std::move(read_));
         } else {
-            frame_ = std::move(img);
+            frame_ = std::move(read_);
         }
-        handoff = t.lap();
+        readIndex_ = -1;
+        handoff += t.seconds();
     }
 
     void stopDrawer() {
@@ -216,6 +245,8 @@ private:
     render::PngWriter pngs_{8};  // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     render::Image frame_;  // the read-back of frames without a PNG, its buffer reused
+    render::Image read_;   // the frame read last, not yet handed off (drawing thread only)
+    int readIndex_ = -1;   // its index; -1: none
     std::string videoPath_;
     std::array<std::string, 3> info_;  // GL_VENDOR, GL_RENDERER, GL_VERSION
     int frames_ = 0;

@@ -718,6 +718,7 @@ void Renderer::draw(const RenderSnapshot& snap) {
                           GL_NEAREST);
     }
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    glFlush();  // llvmpipe rasterises from here on, while the caller does other work until read
 }
 
 void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
