@@ -189,14 +189,15 @@ void silhouetteLines(const std::vector<MeshVertex>& soup, const std::vector<std:
     }
 }
 
-// Segments (corner pairs) as screen-space quads `halfWidth` + 1 px to each side of the line: each
+// Segments (corner pairs) as screen-space quads `halfWidth` + 1/2 px to each side of the line (where
+// the shader's 1 px ramp ends: a wider quad only adds fragments of no coverage): each
 // corner keeps its world position and gets an offset in normalised device coordinates, and `edge`,
 // the distance from the centre line, which the fragment shader turns into coverage. A segment is
 // clipped to the front of the camera. width, height: half the frame's size [px].
 void segmentQuads(const std::vector<MeshVertex>& segs, const Eigen::Matrix4f& pv, float width, float height,
                   float halfWidth, std::vector<MeshVertex>& out) {
     constexpr float kNearW = 1e-5f;
-    const float reach = halfWidth + 1.0f;
+    const float reach = halfWidth + 0.5f;
     for (size_t i = 0; i + 1 < segs.size(); i += 2) {
         MeshVertex e[2] = {segs[i], segs[i + 1]};
         Eigen::Vector4f c[2];

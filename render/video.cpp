@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <fcntl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -81,6 +82,9 @@ VideoEncoder::VideoEncoder(const std::string& path, int width, int height, doubl
         << shellQuote(tmp_);
     pipe_ = ::popen(cmd.str().c_str(), "w");
     if (!pipe_) throw std::runtime_error("cannot start ffmpeg for " + path);
+    // A frame in few pipe fills instead of one each 64 KiB (Linux's default): every fill is a
+    // switch to ffmpeg and back. Where the system allows less, the default stays.
+    ::fcntl(::fileno(pipe_), F_SETPIPE_SZ, 1 << 20);
     writer_ = std::thread([this] { run(); });
 }
 
