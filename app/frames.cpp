@@ -141,6 +141,7 @@ private:
         try {
             renderer = std::make_unique<render::Renderer>(ro);
             info_ = {renderer->glVendor(), renderer->glRenderer(), renderer->glVersion()};
+            renderer->warmUp();  // shaders compiled while the simulation is built, not in its frames
         } catch (...) {
             ready_.set_exception(std::current_exception());
             return;

@@ -854,6 +854,33 @@ void Renderer::drawHudAndLegend(const RenderSnapshot& snap) {
     ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
 }
 
+void Renderer::warmUp() {
+    RenderSnapshot s;
+    s.positions.resize(3, 4);
+    s.positions << 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1;
+    s.triangles.resize(3, 4);
+    s.triangles << 0, 0, 0, 1, 2, 1, 3, 2, 1, 3, 2, 3;
+    s.cutFace = {0, 0, 0, 1};
+    s.scalar.resize(4);
+    s.scalar << 0, 1, 2, 3;
+    s.scalarMax = 3;
+    s.scalarName = "warm-up";
+    s.edges = s.positions.leftCols(2);
+    s.criticalTets = s.positions;
+    s.answeredTets = s.positions;
+    ToolShape tool;
+    tool.position = Vec3d(0.3, 0.3, 1.2);
+    tool.size = Vec3d::Constant(0.1);
+    s.tools.push_back(tool);
+    s.camera = frameBox(Vec3d::Constant(-0.2), Vec3d::Constant(1.4));
+    s.hud.lines = {"warm-up"};
+    s.hud.forcePlot = {0.0f, 1.0f};
+    s.hud.answeredElements = 1;
+    Image img;
+    draw(s);
+    read(img);
+}
+
 Image Renderer::read() const {
     Image img;
     read(img);

@@ -65,6 +65,11 @@ public:
     Image read() const;
     // The same into `img`, reusing its buffer (no allocation when it already has the size).
     void read(Image& img) const;
+    // Draws and reads a small frame with everything the options show (a surface with a colour
+    // map and a cut face, a tool, critical and answered elements, the floor, HUD and legend), so
+    // that the shaders and the rasteriser's code for them are compiled before the first real
+    // frame. The last frame is then that one.
+    void warmUp();
     // draw + read.
     Image render(const RenderSnapshot& snap) {
         draw(snap);
