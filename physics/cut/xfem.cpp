@@ -95,7 +95,7 @@ int localIndex(const Eigen::Matrix4Xi& tets, int e, int node) {
 }  // namespace
 
 const std::vector<int>& CutEngine::virtualsOf(int parent) const {
-    if (marked(parent, kChildren)) return children_.find(parent)->second;
+    if (marked(parent, kChildren)) return children_[static_cast<size_t>(parent)];
     single_.assign(1, parent);
     return single_;
 }
@@ -123,6 +123,7 @@ void CutEngine::prepare(const Model& m) {
         }
     std::sort(faces.begin(), faces.end());
     adj_ = Eigen::Matrix4Xi::Constant(4, ne, -1);
+    children_.assign(static_cast<size_t>(ne), {});
     for (size_t i = 0; i + 1 < faces.size(); ++i)
         if (std::get<0>(faces[i]) == std::get<0>(faces[i + 1])) {
             adj_(std::get<2>(faces[i]), std::get<1>(faces[i])) = std::get<1>(faces[i + 1]);
@@ -149,16 +150,16 @@ void CutEngine::prepare(const Model& m) {
 
 void CutEngine::setMassShare(Model& m, int e) const {
     if (m.massShare.cols() != m.elements()) return;  // enrichment lumping: fraction / 4 by default
-    const auto it = findVirtual(e);
+    const Virtual* it = findVirtual(e);
     const double f = m.fraction(e);
-    if (it == virt_.end() || opts_.lumping == MassLumping::Enrichment) {
+    if (!it || opts_.lumping == MassLumping::Enrichment) {
         m.massShare.col(e).setConstant(f / 4.0);
         return;
     }
     // Shares of the side's integrals, scaled to the side's mass (f, with the parent's own
     // fraction f0 for an embedded element).
     Eigen::Vector4d first, second;
-    weightIntegrals(it->second.piece, first, second);
+    weightIntegrals(it->piece, first, second);
     const Eigen::Vector4d w = opts_.lumping == MassLumping::RowSum ? first : second;
     const double sum = w.sum();
     if (sum > 0)
@@ -363,7 +364,7 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     const int last = lastCutOf(e);
     if (last == pass.cutId) return;
     if (last > pass.cutId)
-        for (const Halfspace& hc : findVirtual(e)->second.hs)
+        for (const Halfspace& hc : findVirtual(e)->hs)
             if (hc.cut == pass.cutId) return;
     CutResult& r = pass.r;
     Halfspace h;
@@ -379,8 +380,8 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
         if (pass.watchOut) pass.watchOut->push_back(e);
         return;
     }
-    const auto it = findVirtual(e);
-    const ConvexPiece& piece = it != virt_.end() ? it->second.piece : wholeTet();
+    const Virtual* it = findVirtual(e);
+    const ConvexPiece& piece = it ? it->piece : wholeTet();
     Halfspace hn = h, hp = h;
     hn.positive = false;
     hp.positive = true;
@@ -417,8 +418,8 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
     const int p = parent_[static_cast<size_t>(e)];
     const double fneg = volumeFraction(neg), fpos = volumeFraction(pos);
     Virtual base;
-    if (it != virt_.end())
-        base = it->second;
+    if (it)
+        base = *it;
     else
         base.share = volumeFraction(piece);
     // Shares of the two sides; a sliver side is merged into the other (see CutOptions).
@@ -442,8 +443,7 @@ void CutEngine::visitElement(Model& m, State& s, Pass& pass, int e) {
         ne.virt.hs.push_back(hp);
         pass.fresh.push_back(std::move(ne));
     }
-    Virtual& mine = virt_[e];
-    setMark(e, kVirtual);
+    Virtual& mine = addVirtual(e);
     mine = std::move(base);
     mine.hs.push_back(keepNeg ? hn : hp);
     setLastCut(e, pass.cutId);
@@ -511,11 +511,10 @@ void CutEngine::appendVirtuals(Model& m, State& s, Pass& pass) {
         m.fraction(e) = fraction0_[p] * pass.fresh[k].virt.share;
         s.rot.col(e) = s.rot.col(src);
         parent_.push_back(p);
-        auto ch = children_.find(p);
-        if (ch == children_.end()) ch = children_.emplace(p, std::vector<int>{p}).first, setMark(p, kChildren);
-        ch->second.push_back(e);
-        virt_[e] = std::move(pass.fresh[k].virt);
-        setMark(e, kVirtual);
+        std::vector<int>& ch = children_[static_cast<size_t>(p)];
+        if (!marked(p, kChildren)) ch.assign(1, p), setMark(p, kChildren);
+        ch.push_back(e);
+        addVirtual(e) = std::move(pass.fresh[k].virt);
         setLastCut(e, pass.cutId);
         pass.r.newElements.push_back(e);
         pass.r.elementSource.push_back(src);
@@ -575,8 +574,8 @@ CutResult CutEngine::apply(Model& m, State& s, const CutSurface& surface, int cu
 // Two virtual elements of face-adjacent parents p (face opposite corner k) and q are one body
 // across the face when their sides leave part of it to both (Molino et al. 2004).
 bool CutEngine::gluedAcross(int e, int p, int k, int g, int q, std::vector<FaceSide>& sides) const {
-    const auto ie = findVirtual(e), ig = findVirtual(g);
-    if (ie == virt_.end() && ig == virt_.end()) return true;
+    const Virtual *ie = findVirtual(e), *ig = findVirtual(g);
+    if (!ie && !ig) return true;
     int cp[3], cq[3];
     for (int a = 0, j = 0; a < 4; ++a)
         if (a != k) {
@@ -585,10 +584,10 @@ bool CutEngine::gluedAcross(int e, int p, int k, int g, int q, std::vector<FaceS
             ++j;
         }
     sides.clear();
-    if (ie != virt_.end())
-        for (const Halfspace& h : ie->second.hs) sides.push_back({{h.s[cp[0]], h.s[cp[1]], h.s[cp[2]]}, h.positive});
-    if (ig != virt_.end())
-        for (const Halfspace& h : ig->second.hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
+    if (ie)
+        for (const Halfspace& h : ie->hs) sides.push_back({{h.s[cp[0]], h.s[cp[1]], h.s[cp[2]]}, h.positive});
+    if (ig)
+        for (const Halfspace& h : ig->hs) sides.push_back({{h.s[cq[0]], h.s[cq[1]], h.s[cq[2]]}, h.positive});
     return faceAreaFraction(sides) > 1e-9;
 }
 
@@ -668,7 +667,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     // Scratch reused across the nodes (this runs at every blade step).
     UnionFind uf;
     std::vector<std::vector<int>> comps;
-    std::vector<int> rootComp, used, ids;
+    std::vector<int> rootComp, used, ids, slotStart;
     // A face holds three nodes, so each pair of virtual elements across it is asked about up to
     // three times: remember the answer (glued depends only on virt_, fixed during the relink).
     std::unordered_map<std::uint64_t, bool>& gluedSeen = gluedSeen_;
@@ -685,24 +684,34 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     int nextNode = m.nodes();
     for (int N : nodes) {
         slots.clear();
-        for (int i = ringStart_[N]; i < ringStart_[N + 1]; ++i) {
+        const int ring0 = ringStart_[N], ring1 = ringStart_[N + 1];
+        slotStart.clear();
+        for (int i = ring0; i < ring1; ++i) {
             const int p = ring_[static_cast<size_t>(i)];
             const int c = localIndex(tets0_, p, N);
+            slotStart.push_back(static_cast<int>(slots.size()));
             for (int e : virtualsOf(p))
                 if (!marked(e, kFused)) slots.push_back({e, c, p});
         }
+        slotStart.push_back(static_cast<int>(slots.size()));
+        // Sides of one parent are apart by construction; sides of two parents are one body only
+        // across a face holding N, so each slot is paired with the slots of its three neighbours
+        // there (the earlier slot of a pair asks, as a scan of all pairs would).
         uf.reset(slots.size());
-        for (size_t i = 0; i < slots.size(); ++i)
-            for (size_t j = i + 1; j < slots.size(); ++j) {
-                const Slot &a = slots[i], &b = slots[j];
-                if (a.parent == b.parent) continue;  // sides of one parent are apart by construction
-                int k = -1;
-                for (int c = 0; c < 4; ++c)
-                    if (adj_(c, a.parent) == b.parent) k = c;
-                if (k < 0 || k == a.corner) continue;  // not neighbours across a face holding N
-                if (uf.find(static_cast<int>(i)) == uf.find(static_cast<int>(j))) continue;
-                if (gluedOnce(a.elem, a.parent, k, b.elem, b.parent)) uf.join(static_cast<int>(i), static_cast<int>(j));
+        for (size_t i = 0; i < slots.size(); ++i) {
+            const Slot& a = slots[i];
+            for (int k = 0; k < 4; ++k) {
+                const int q = adj_(k, a.parent);
+                if (q < 0 || k == a.corner) continue;
+                const int* ring = ring_.data();
+                const int r0 = static_cast<int>(std::find(ring + ring0, ring + ring1, q) - (ring + ring0));
+                if (r0 == ring1 - ring0) continue;
+                for (int j = std::max(slotStart[r0], static_cast<int>(i) + 1); j < slotStart[r0 + 1]; ++j) {
+                    if (uf.find(static_cast<int>(i)) == uf.find(j)) continue;
+                    if (gluedOnce(a.elem, a.parent, k, slots[j].elem, q)) uf.join(static_cast<int>(i), j);
+                }
             }
+        }
 
         // Components; the largest keep existing node ids, the others get new copies of N.
         // (comps keeps its inner vectors between nodes; only the first nComps are this node's.)
@@ -751,12 +760,12 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             // sequences, tests/cut).
             bool held = false;
             for (int i : comp) {
-                const auto it = findVirtual(slots[i].elem);
-                if (it == virt_.end()) {
+                const Virtual* it = findVirtual(slots[i].elem);
+                if (!it) {
                     held = true;
                     break;
                 }
-                for (int a : it->second.piece.corner)
+                for (int a : it->piece.corner)
                     if (a >= 0 && fixed0_[static_cast<size_t>(tets0_(a, slots[i].parent))]) held = true;
                 if (held) break;
             }

@@ -298,12 +298,12 @@ private:
     double massChange_ = 0;                    // change of the node masses' sum in this application [kg]
     std::vector<int> visitQueue_, visitMark_;  // visitFromCandidates' queue and its marks
     int visitStamp_ = 0;
-    Eigen::Matrix4Xi adj_;                   // parent across the face opposite each corner, or -1 (4 x nParents)
-    std::vector<int> ringStart_, ring_;      // original node -> parents (CSR)
-    std::vector<int> parent_;                // parent of each element (nElems)
-    std::vector<int> origNode_;              // original node of each node (nNodes)
-    std::unordered_map<int, Virtual> virt_;  // element -> its piece, for cut elements only
-    std::unordered_map<int, std::vector<int>> children_;  // parent -> its elements, for cut parents only
+    Eigen::Matrix4Xi adj_;                    // parent across the face opposite each corner, or -1 (4 x nParents)
+    std::vector<int> ringStart_, ring_;       // original node -> parents (CSR)
+    std::vector<int> parent_;                 // parent of each element (nElems)
+    std::vector<int> origNode_;               // original node of each node (nNodes)
+    std::unordered_map<int, Virtual> virt_;   // element -> its piece, for cut elements only
+    std::vector<std::vector<int>> children_;  // parent -> its elements, for cut parents only (nParents)
     Stroke stroke_;
     mutable std::vector<int> single_;                    // scratch for virtualsOf on an uncut parent
     std::unordered_map<std::uint64_t, bool> gluedSeen_;  // scratch of relink: (element, element) -> glued
@@ -331,8 +331,34 @@ private:
         if (static_cast<size_t>(e) >= lastCut_.size()) lastCut_.resize(static_cast<size_t>(e) + 1, -1);
         lastCut_[static_cast<size_t>(e)] = cut;
     }
-    auto findVirtual(int e) { return marked(e, kVirtual) ? virt_.find(e) : virt_.end(); }
-    auto findVirtual(int e) const { return marked(e, kVirtual) ? virt_.find(e) : virt_.end(); }
+    // virt_'s entries by element, flat (an unordered_map's entries keep their address). A copy
+    // of the engine starts without them, its source's would point into the source: lookups of
+    // the elements it has no pointer for go to virt_.
+    struct VirtualIndex {
+        std::vector<Virtual*> at;
+        VirtualIndex() = default;
+        VirtualIndex(const VirtualIndex&) {}
+        VirtualIndex& operator=(const VirtualIndex&) {
+            at.clear();
+            return *this;
+        }
+        VirtualIndex(VirtualIndex&&) = default;
+        VirtualIndex& operator=(VirtualIndex&&) = default;
+    };
+    VirtualIndex virtOf_;
+    Virtual& addVirtual(int e) {
+        Virtual& v = virt_[e];
+        if (static_cast<size_t>(e) >= virtOf_.at.size()) virtOf_.at.resize(static_cast<size_t>(e) + 1, nullptr);
+        virtOf_.at[static_cast<size_t>(e)] = &v;
+        setMark(e, kVirtual);
+        return v;
+    }
+    const Virtual* findVirtual(int e) const {
+        if (!marked(e, kVirtual)) return nullptr;
+        if (static_cast<size_t>(e) < virtOf_.at.size() && virtOf_.at[static_cast<size_t>(e)])
+            return virtOf_.at[static_cast<size_t>(e)];
+        return &virt_.find(e)->second;
+    }
     std::vector<Sliver> slivers_;  // dropped sides, drawn by surface() on their side
     mutable SplitSlot split_;
 };
