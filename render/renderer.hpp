@@ -101,11 +101,16 @@ private:
     void drawTools(const RenderSnapshot& snap, const View& v);
     // Of the soup in Gl::verts: its edges sorted (half), or found from Gl::ids.
     void drawSilhouette(const View& v, const std::vector<std::pair<std::uint64_t, int>>* half = nullptr);
-    void drawSmoothSegments(const View& v);  // Gl::silhouette
+    void setSegments(const std::vector<float>& xyz);  // xyz pairs into Gl::silhouette
+    void smoothQuads(const View& v);                  // Gl::silhouette into Gl::quads
+    void drawQuads();
+    void drawQuads(const Eigen::Vector4f& colour);
     void drawColourLines(const std::vector<float>& xyz, const Eigen::Vector4f& colour, const View& v);
     bool smoothEdges() const;  // smoothed lines and silhouettes in use
     void drawLines(const RenderSnapshot& snap, const View& v);
-    void drawFloor(const RenderSnapshot& snap, const View& v);
+    bool floorLines(const RenderSnapshot& snap, const View& v, std::vector<float>& lines) const;
+    void drawBackground(const RenderSnapshot& snap, const View& v);
+    bool insideDepthRange(const std::vector<float>& xyz, const View& v) const;
     void drawCriticalXray(const View& v);
     void drawXray(const Eigen::Vector3f& face, float faceAlpha, const Eigen::Vector4f& edge, const View& v);
     void drawAnsweredXray(const RenderSnapshot& snap, const View& v);

@@ -448,6 +448,32 @@ TEST(RenderGolden, FloorStaysWhereTheScenePutsIt) {
     test::expectGolden("floor_fixed", after, {5, 0.001});
 }
 
+// With a still camera the background and floor are drawn once and each frame starts from a copy of
+// them: every frame is the one a renderer draws whole, also while the falling box moves the near
+// and far planes, after the camera moves away and when it comes back.
+TEST(Render, StillCameraFramesAreTheFramesDrawnWhole) {
+    const RenderOptions o = goldenOptions();
+    Renderer r(o), whole(o);
+    std::vector<RenderSnapshot> fall;
+    for (double drop : {0.0, 0.004, 0.008, 0.012}) fall.push_back(fallingBox(drop, true));
+    RenderSnapshot moved = fall[1], away = fall[0];
+    moved.camera.eye += Eigen::Vector3d(0.01, 0, 0);
+    away.camera.eye += Eigen::Vector3d(0, 0.02, 0);
+    int frame = 0;
+    for (const RenderSnapshot* s : {&fall[0], &fall[1], &fall[2], &moved, &moved, &fall[3], &fall[3], &fall[0]}) {
+        const Image a = r.render(*s);
+        whole.render(away);  // a camera that moves every frame: `whole` draws each frame whole
+        const Image b = whole.render(*s);
+        EXPECT_TRUE(a.rgba == b.rgba) << "frame " << frame;
+        ++frame;
+    }
+    RenderOptions noFloor = o;
+    noFloor.floor = false;
+    Renderer bare(noFloor);
+    const std::vector<bool> m0 = objectMask(bare.render(fall[0]), o), m1 = objectMask(bare.render(away), o);
+    EXPECT_GT(gridChanges(whole.render(fall[0]), whole.render(away), m0, m1), 100) << "the floor must show";
+}
+
 // `cutsim render --hud` draws a still mesh: no time, step or count lines ("dt used 0").
 TEST(RenderGolden, HudOfAStillMesh) {
     MeshSnapshot ms = snapshotFromTetMesh(scenebox());
