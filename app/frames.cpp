@@ -38,7 +38,7 @@ namespace {
 class RenderSink final : public FrameSink {
 public:
     // Starts the drawing thread, which makes the GL context and the renderer meanwhile.
-    RenderSink(const SceneDef& sc, bool pipelined) : sc_(sc), pipelined_(pipelined) {
+    RenderSink(const SceneDef& sc, const std::string& outDir, bool pipelined) : sc_(sc), pipelined_(pipelined) {
         times_.pipelined = pipelined;
         render::RenderOptions ro;
         ro.width = sc.capture.width;
@@ -48,27 +48,23 @@ public:
         ro.floor = sc.capture.floor;
         ro.hud = sc.capture.hud;
         ro.samples = sc.capture.samples;
+        dir_ = std::filesystem::path(outDir) / "frames";
         made_ = ready_.get_future();
         drawer_ = std::thread([this, ro] { drawLoop(ro); });
+        // ffmpeg starts now: loading its libraries overlaps the simulation's set-up
+        try {
+            startVideo(outDir);
+        } catch (...) {
+            videoError_ = std::current_exception();  // begin throws it
+        }
     }
 
-    void begin(const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt, double dt,
+    void begin(const Model& model, const Eigen::VectorXd& elementDt, double dt,
                const EmbeddedSurface* surface) override {
         made_.get();  // the renderer's constructor threw there when no GL context could be made
-        scene_ = std::make_unique<SceneSnapshot>(sc_, model, elementDt, dt, surface);
-        dir_ = std::filesystem::path(outDir) / "frames";
+        if (videoError_) std::rethrow_exception(videoError_);
         std::filesystem::create_directories(dir_);
-        if (!sc_.capture.video) return;
-        if (render::findOnPath("ffmpeg").empty()) {
-            std::fprintf(stderr, "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
-        } else if (sc_.capture.width % 2 || sc_.capture.height % 2) {
-            std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
-        } else {
-            videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
-            video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc_.capture.width, sc_.capture.height,
-                                                            sc_.capture.playbackFps > 0 ? sc_.capture.playbackFps
-                                                                                        : sc_.capture.fps);
-        }
+        scene_ = std::make_unique<SceneSnapshot>(sc_, model, elementDt, dt, surface);
     }
 
     ~RenderSink() override { stopDrawer(); }
@@ -135,6 +131,20 @@ private:
         RenderSnapshot snap;
         int index = 0;
     };
+
+    void startVideo(const std::string& outDir) {
+        if (!sc_.capture.video) return;
+        if (render::findOnPath("ffmpeg").empty()) {
+            std::fprintf(stderr, "frames: ffmpeg is not installed (apt-get install ffmpeg); writing PNG frames only\n");
+        } else if (sc_.capture.width % 2 || sc_.capture.height % 2) {
+            std::fprintf(stderr, "frames: video needs an even width and height; writing PNG frames only\n");
+        } else {
+            videoPath_ = (std::filesystem::path(outDir) / "video.mp4").string();
+            video_ = std::make_unique<render::VideoEncoder>(videoPath_, sc_.capture.width, sc_.capture.height,
+                                                            sc_.capture.playbackFps > 0 ? sc_.capture.playbackFps
+                                                                                        : sc_.capture.fps);
+        }
+    }
 
     void drawLoop(const render::RenderOptions& ro) {
         std::unique_ptr<render::Renderer> renderer;
@@ -245,9 +255,10 @@ private:
     std::future<void> made_;
     render::PngWriter pngs_{8};  // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
-    render::Image frame_;  // the read-back of frames without a PNG, its buffer reused
-    render::Image read_;   // the frame read last, not yet handed off (drawing thread only)
-    int readIndex_ = -1;   // its index; -1: none
+    std::exception_ptr videoError_;  // from starting the video
+    render::Image frame_;            // the read-back of frames without a PNG, its buffer reused
+    render::Image read_;             // the frame read last, not yet handed off (drawing thread only)
+    int readIndex_ = -1;             // its index; -1: none
     std::string videoPath_;
     std::array<std::string, 3> info_;  // GL_VENDOR, GL_RENDERER, GL_VERSION
     int frames_ = 0;
@@ -265,11 +276,11 @@ private:
 }  // namespace
 #endif
 
-std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, bool pipelined) {
+std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, bool pipelined) {
 #ifdef CUTSIM_HAVE_RENDER
-    return std::make_unique<RenderSink>(scene, pipelined);
+    return std::make_unique<RenderSink>(scene, outDir, pipelined);
 #else
-    (void)scene, (void)pipelined;
+    (void)scene, (void)outDir, (void)pipelined;
     std::fprintf(stderr, "frames: this build has no renderer; running without frames\n");
     return nullptr;
 #endif

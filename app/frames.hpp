@@ -26,11 +26,10 @@ struct CaptureTimes {
 class FrameSink {
 public:
     virtual ~FrameSink() = default;
-    // The object to draw and the folder to write to, once the simulation is built; throws
-    // std::runtime_error when no GL context could be made (the run goes on without frames).
-    // surface, when given, is drawn instead of the mesh's boundary (an embedded object's fine
-    // surface; not owned).
-    virtual void begin(const std::string& outDir, const Model& model, const Eigen::VectorXd& elementDt, double dt,
+    // The object to draw, once the simulation is built; throws std::runtime_error when no GL
+    // context could be made (the run goes on without frames). surface, when given, is drawn
+    // instead of the mesh's boundary (an embedded object's fine surface; not owned).
+    virtual void begin(const Model& model, const Eigen::VectorXd& elementDt, double dt,
                        const EmbeddedSurface* surface) = 0;
     // Takes a frame of the state now; drawn later on the sink's own thread (pipelined) or before
     // this returns. Rethrows an error of an earlier frame.
@@ -46,10 +45,11 @@ public:
                                  double dt) = 0;
 };
 
-// A sink for the scene's capture settings, its drawing thread started (making the GL context and
-// compiling shaders while the simulation is built); nullptr with a message on stderr when this
-// build has no renderer. pipelined: frames are drawn while the caller steps on; false: each
-// frame() waits for its frame.
-std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, bool pipelined = true);
+// A sink for the scene's capture settings writing into outDir (frames/, video.mp4), its drawing
+// thread and the video encoder started (making the GL context, compiling shaders and starting
+// ffmpeg while the simulation is built); nullptr with a message on stderr when this build has no
+// renderer. pipelined: frames are drawn while the caller steps on; false: each frame() waits for
+// its frame.
+std::unique_ptr<FrameSink> makeFrameSink(const SceneDef& scene, const std::string& outDir, bool pipelined = true);
 
 }  // namespace cutsim::app

@@ -133,18 +133,18 @@ int runScene(const SceneDef& sc, const RunOptions& opt) {
     Simulation::Options so;
     so.threads = opt.threads;
     so.renderSurface = capturing || sc.capture.cutObj;
-    // the renderer is made on the drawing thread while the simulation is built
-    std::unique_ptr<FrameSink> sink = capturing ? makeFrameSink(sc, opt.pipelined) : nullptr;
+    // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
+    StagedFolder folder(opt.out);
+    const fs::path out = folder.staging();
+    // the renderer is made on the drawing thread, and ffmpeg started, while the simulation is built
+    std::unique_ptr<FrameSink> sink = capturing ? makeFrameSink(sc, out.string(), opt.pipelined) : nullptr;
     Simulation sim(sc, so);
     printWarnings(sim);
     // from here on a signal stops the run between steps and leaves its outputs whole
     const InterruptGuard interrupt;
 
-    // Outputs go to a staging folder that replaces --out at the end (output_folder.hpp).
-    StagedFolder folder(opt.out);
-    const fs::path out = folder.staging();
     if (sink) try {
-            sink->begin(out.string(), sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
+            sink->begin(sim.model(), sim.analyzer().estimates().r1r, sim.dt(), sim.surface());
         } catch (const std::exception& e) {
             std::fprintf(stderr, "frames: no rendering (%s); running without frames\n", e.what());
             sink.reset();
