@@ -49,14 +49,14 @@ public:
         ro.hud = sc.capture.hud;
         ro.samples = sc.capture.samples;
         dir_ = std::filesystem::path(outDir) / "frames";
-        made_ = ready_.get_future();
-        drawer_ = std::thread([this, ro] { drawLoop(ro); });
         // ffmpeg starts now: loading its libraries overlaps the simulation's set-up
         try {
             startVideo(outDir);
         } catch (...) {
             videoError_ = std::current_exception();  // begin throws it
         }
+        made_ = ready_.get_future();
+        drawer_ = std::thread([this, ro] { drawLoop(ro); });
     }
 
     void begin(const Model& model, const Eigen::VectorXd& elementDt, double dt,
@@ -157,6 +157,9 @@ private:
             return;
         }
         ready_.set_value();
+        // the frame buffers the first frames would otherwise allocate, made while the simulation is built
+        if (sc_.capture.pngEvery > 0) pngs_.reserve(kPngSpares, ro.width, ro.height);
+        if (video_) video_->reserve();
         std::unique_lock lock(mutex_);
         for (;;) {
             if (queue_.empty() && busy_) {  // nothing to draw: the frame read last goes out now
@@ -253,7 +256,8 @@ private:
     std::unique_ptr<SceneSnapshot> scene_;  // the caller's thread only
     std::promise<void> ready_;              // the renderer is made (or failed)
     std::future<void> made_;
-    render::PngWriter pngs_{8};  // one encoder thread per core
+    static constexpr std::size_t kPngSpares = 4;  // frames in flight to the PNG writers in real runs
+    render::PngWriter pngs_{8};                   // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     std::exception_ptr videoError_;  // from starting the video
     render::Image frame_;            // the read-back of frames without a PNG, its buffer reused

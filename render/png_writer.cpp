@@ -157,6 +157,16 @@ Image PngWriter::spare() {
     return img;
 }
 
+void PngWriter::reserve(std::size_t count, int width, int height) {
+    std::lock_guard lock(mutex_);
+    while (spare_.size() < std::min(count, capacity_)) {
+        Image& img = spare_.emplace_back();
+        img.width = width;
+        img.height = height;
+        img.rgba.resize(4 * static_cast<size_t>(width) * static_cast<size_t>(height));
+    }
+}
+
 std::size_t PngWriter::written() const {
     std::lock_guard lock(mutex_);
     return written_;

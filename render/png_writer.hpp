@@ -36,6 +36,9 @@ public:
     void push(std::string path, Image img);
     // A written frame, to be filled again (its buffer reused), or an empty one.
     Image spare();
+    // Makes `count` spare frames of this size now (at most the capacity), so that the first frames
+    // do not page-fault their buffers in.
+    void reserve(std::size_t count, int width, int height);
     void flush();  // waits until every queued frame is written
     std::size_t written() const;
 

@@ -104,7 +104,7 @@ void VideoEncoder::run() {
             ++frames_;
         else
             failed_ = true;
-        if (spare_.size() < 4) spare_.push_back(std::move(frame));
+        if (spare_.size() < kQueued + 2) spare_.push_back(std::move(frame));
         changed_.notify_all();
     }
 }
@@ -142,10 +142,17 @@ void VideoEncoder::addFrame(const Image& img) {
     }
     rgbaToYuv420(img, frame);
     std::unique_lock lock(mutex_);
-    changed_.wait(lock, [&] { return queue_.size() < 4 || failed_; });
+    changed_.wait(lock, [&] { return queue_.size() < kQueued || failed_; });
     if (failed_) throw std::runtime_error("ffmpeg stopped while writing " + path_);
     queue_.push_back(std::move(frame));
     changed_.notify_all();
+}
+
+void VideoEncoder::reserve() {
+    const size_t w = static_cast<size_t>(width_), h = static_cast<size_t>(height_);
+    std::lock_guard lock(mutex_);
+    // one being converted, kQueued waiting, one being written
+    while (spare_.size() < kQueued + 2) spare_.emplace_back(w * h + 2 * (w / 2) * (h / 2));
 }
 
 void VideoEncoder::finish() {

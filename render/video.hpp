@@ -39,12 +39,16 @@ public:
     // Converts a frame (rgbaToYuv420) and queues it (blocks while 4 wait); throws if the size
     // differs or ffmpeg stopped.
     void addFrame(const Image& img);
+    // Makes the buffers of the frames that can be in flight (converted, queued, written) now, so
+    // that the first frames do not page-fault them in.
+    void reserve();
     void finish();                          // waits for ffmpeg, renames; throws with its exit status
     int frames() const { return frames_; }  // frames written to ffmpeg
 
 private:
-    void run();         // writer thread
-    void stopWriter();  // lets the writer finish the queue and joins it
+    void run();                                // writer thread
+    void stopWriter();                         // lets the writer finish the queue and joins it
+    static constexpr std::size_t kQueued = 4;  // frames waiting for the writer at most
     std::string path_, tmp_;
     int width_, height_;
     std::atomic<int> frames_ = 0;

@@ -70,6 +70,19 @@ TEST(RenderOutput, BackgroundWriterWritesEveryFrame) {
         EXPECT_EQ(render::readPng(dir + "/f" + std::to_string(i) + ".png").rgba, pattern(40, 30, i).rgba);
 }
 
+// Reserved spares are frames of the size asked, as many as asked up to the writer's capacity.
+TEST(RenderOutput, BackgroundWriterReservesSpareFrames) {
+    render::PngWriter w(3);
+    w.reserve(5, 40, 30);
+    for (int i = 0; i < 3; ++i) {
+        const render::Image img = w.spare();
+        EXPECT_EQ(img.width, 40);
+        EXPECT_EQ(img.height, 30);
+        EXPECT_EQ(img.rgba.size(), 4u * 40 * 30);
+    }
+    EXPECT_TRUE(w.spare().rgba.empty());
+}
+
 TEST(RenderOutput, BackgroundWriterReportsErrors) {
     const std::string dir = test::tempDir();
     render::PngWriter w(2);
