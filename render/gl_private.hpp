@@ -16,6 +16,10 @@
 
 struct ImGuiContext;
 
+#ifndef GL_PACK_INVERT_MESA
+#define GL_PACK_INVERT_MESA 0x8758  // GL_MESA_pack_invert (not in glcorearb.h)
+#endif
+
 namespace cutsim::render {
 
 // Alpha blending that leaves the frame opaque: a frame read back with alpha under 1 shows lighter
@@ -28,6 +32,7 @@ struct Renderer::Gl {
     GLuint outFbo = 0, outColour = 0, outDepth = 0;  // read back; drawn into directly with one sample
     GLuint lineProg = 0;
     GLuint vao = 0;
+    bool packInvert = false;  // GL_MESA_pack_invert: glReadPixels can give the top row first
     // One buffer per draw of a frame, kept between frames: rewriting a buffer a pending draw reads
     // would wait for it, and new storage each draw is page faults.
     std::vector<GLuint> vbos;

@@ -75,6 +75,11 @@ Renderer::Renderer(const RenderOptions& opts, RenderTarget target)
     GLint maxSamples = 1;
     glGetIntegerv(GL_MAX_SAMPLES, &maxSamples);
     samples_ = std::clamp(opts_.samples, 1, std::max(1, static_cast<int>(maxSamples)));
+    GLint extensions = 0;
+    glGetIntegerv(GL_NUM_EXTENSIONS, &extensions);
+    for (GLint i = 0; i < extensions; ++i)
+        if (const auto* e = reinterpret_cast<const char*>(glGetStringi(GL_EXTENSIONS, static_cast<GLuint>(i))))
+            g.packInvert = g.packInvert || std::string(e) == "GL_MESA_pack_invert";
     glGenFramebuffers(1, &g.msFbo);
     glGenRenderbuffers(1, &g.msColour);
     glGenRenderbuffers(1, &g.msDepth);
@@ -567,9 +572,15 @@ void Renderer::read(Image& img) const {
     img.rgba.resize(4 * static_cast<size_t>(img.width) * static_cast<size_t>(img.height));
     glBindFramebuffer(GL_READ_FRAMEBUFFER, gl_->outFbo);
     glPixelStorei(GL_PACK_ALIGNMENT, 1);
+    // GL's first row is the bottom one: Mesa reads the rows top first as it copies them
+    // (MESA_pack_invert); elsewhere they are flipped in place (no second frame-sized buffer).
+    if (gl_->packInvert) glPixelStorei(GL_PACK_INVERT_MESA, GL_TRUE);
     glReadPixels(0, 0, img.width, img.height, GL_RGBA, GL_UNSIGNED_BYTE, img.rgba.data());
     glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
-    // GL's first row is the bottom one: flip in place (no second frame-sized buffer per frame).
+    if (gl_->packInvert) {
+        glPixelStorei(GL_PACK_INVERT_MESA, GL_FALSE);
+        return;
+    }
     const size_t row = 4 * static_cast<size_t>(img.width);
     for (int y = 0; y < img.height / 2; ++y)
         std::swap_ranges(img.rgba.begin() + static_cast<std::ptrdiff_t>(row * static_cast<size_t>(y)),
