@@ -37,7 +37,8 @@ namespace {
 // One frame waits while one is drawn; a third waits for the drawer (`waited`).
 class RenderSink final : public FrameSink {
 public:
-    // Starts the drawing thread, which makes the GL context and the renderer meanwhile.
+    // Starts the drawing thread, which makes the GL context and the renderer meanwhile, then starts
+    // the video encoder.
     RenderSink(const SceneDef& sc, const std::string& outDir, bool pipelined) : sc_(sc), pipelined_(pipelined) {
         times_.pipelined = pipelined;
         render::RenderOptions ro;
@@ -48,13 +49,8 @@ public:
         ro.floor = sc.capture.floor;
         ro.hud = sc.capture.hud;
         ro.samples = sc.capture.samples;
+        outDir_ = outDir;
         dir_ = std::filesystem::path(outDir) / "frames";
-        // ffmpeg starts now: loading its libraries overlaps the simulation's set-up
-        try {
-            startVideo(outDir);
-        } catch (...) {
-            videoError_ = std::current_exception();  // begin throws it
-        }
         made_ = ready_.get_future();
         drawer_ = std::thread([this, ro] { drawLoop(ro); });
     }
@@ -155,6 +151,13 @@ private:
         } catch (...) {
             ready_.set_exception(std::current_exception());
             return;
+        }
+        // ffmpeg starts now: loading its libraries overlaps the rest of the simulation's set-up
+        // (on the core the warm-up had), not the first frames
+        try {
+            startVideo(outDir_);
+        } catch (...) {
+            videoError_ = std::current_exception();  // begin throws it
         }
         ready_.set_value();
         // the frame buffers the first frames would otherwise allocate, made while the simulation is built
@@ -260,9 +263,10 @@ private:
     render::PngWriter pngs_{8};                   // one encoder thread per core
     std::unique_ptr<render::VideoEncoder> video_;
     std::exception_ptr videoError_;  // from starting the video
-    render::Image frame_;            // the read-back of frames without a PNG, its buffer reused
-    render::Image read_;             // the frame read last, not yet handed off (drawing thread only)
-    int readIndex_ = -1;             // its index; -1: none
+    std::string outDir_;
+    render::Image frame_;  // the read-back of frames without a PNG, its buffer reused
+    render::Image read_;   // the frame read last, not yet handed off (drawing thread only)
+    int readIndex_ = -1;   // its index; -1: none
     std::string videoPath_;
     std::array<std::string, 3> info_;  // GL_VENDOR, GL_RENDERER, GL_VERSION
     int frames_ = 0;
