@@ -124,6 +124,7 @@ void CutEngine::prepare(const Model& m) {
     std::sort(faces.begin(), faces.end());
     adj_ = Eigen::Matrix4Xi::Constant(4, ne, -1);
     children_.assign(static_cast<size_t>(ne), {});
+    ringPos_.assign(static_cast<size_t>(ne), -1);
     for (size_t i = 0; i + 1 < faces.size(); ++i)
         if (std::get<0>(faces[i]) == std::get<0>(faces[i + 1])) {
             adj_(std::get<2>(faces[i]), std::get<1>(faces[i])) = std::get<1>(faces[i + 1]);
@@ -690,6 +691,7 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             const int p = ring_[static_cast<size_t>(i)];
             const int c = localIndex(tets0_, p, N);
             slotStart.push_back(static_cast<int>(slots.size()));
+            ringPos_[static_cast<size_t>(p)] = i - ring0;
             for (int e : virtualsOf(p))
                 if (!marked(e, kFused)) slots.push_back({e, c, p});
         }
@@ -703,15 +705,16 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
             for (int k = 0; k < 4; ++k) {
                 const int q = adj_(k, a.parent);
                 if (q < 0 || k == a.corner) continue;
-                const int* ring = ring_.data();
-                const int r0 = static_cast<int>(std::find(ring + ring0, ring + ring1, q) - (ring + ring0));
-                if (r0 == ring1 - ring0) continue;
+                const int r0 = ringPos_[static_cast<size_t>(q)];
+                if (r0 < 0) continue;
                 for (int j = std::max(slotStart[r0], static_cast<int>(i) + 1); j < slotStart[r0 + 1]; ++j) {
                     if (uf.find(static_cast<int>(i)) == uf.find(j)) continue;
                     if (gluedOnce(a.elem, a.parent, k, slots[j].elem, q)) uf.join(static_cast<int>(i), j);
                 }
             }
         }
+
+        for (int i = ring0; i < ring1; ++i) ringPos_[static_cast<size_t>(ring_[static_cast<size_t>(i)])] = -1;
 
         // Components; the largest keep existing node ids, the others get new copies of N.
         // (comps keeps its inner vectors between nodes; only the first nComps are this node's.)

@@ -300,6 +300,7 @@ private:
     int visitStamp_ = 0;
     Eigen::Matrix4Xi adj_;                    // parent across the face opposite each corner, or -1 (4 x nParents)
     std::vector<int> ringStart_, ring_;       // original node -> parents (CSR)
+    std::vector<int> ringPos_;                // scratch of relink: each parent's place in a node's ring, or -1
     std::vector<int> parent_;                 // parent of each element (nElems)
     std::vector<int> origNode_;               // original node of each node (nNodes)
     std::unordered_map<int, Virtual> virt_;   // element -> its piece, for cut elements only
