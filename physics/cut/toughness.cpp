@@ -20,6 +20,12 @@ constexpr double kFrontSettled = 1e-9;
 // a sharp edge fails first (docs/method.md, "Tissue toughness").
 constexpr double kCrushedVolume = 0.5;
 
+// The front's account (docs/method.md, "Tissue toughness"): while the energy the ledger has
+// available (the blades' work less the stored, kinetic and damped energy) falls short of G_c
+// times the area cut by D, the force cap rises by D / kDebtLength, at most by G_c b: the debt is
+// paid back over that much of the edge's travel.
+constexpr double kDebtLength = 5e-4;  // [m]
+
 // Barycentric coordinates of p in the tet of nodes n at positions x; false for a flat tet.
 bool frontBarycentric(const Eigen::Matrix3Xd& x, const int* n, const Eigen::Vector3d& p, Eigen::Vector4d& w) {
     Eigen::Matrix3d D;
@@ -48,6 +54,7 @@ void BladeToughness::endStroke() {
     points_.clear();
     frontRest_.clear();
     advanced_ = false;
+    accountOpen_ = false;
     reaction_.setZero();
 }
 
@@ -178,7 +185,7 @@ void BladeToughness::reseed(const Model& m, const Eigen::Matrix3Xd& x, const Eig
 }
 
 void BladeToughness::project(const Model& m, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir,
-                             Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
+                             const std::function<double()>& stored, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v) {
     const Eigen::VectorXd& invMass = m.invMass;
     reaction_.setZero();
     stepArea_ = 0;
@@ -238,7 +245,16 @@ void BladeToughness::project(const Model& m, double dt, const BladeEdge& edge, c
     }
     double total = 0;
     for (Point& p : points_) total += p.lambda;
-    const double cap = gc_ * length * dt;  // impulse G_c b dt: the front's force at most G_c b
+    // impulse G_c b dt: the front's force at most G_c b (Griffith), more while the crack is in
+    // debt D > 0: G_c b + D / l
+    double cap = gc_ * length * dt;
+    if (total > cap) {
+        // the energy balance since the stroke's first rupture: the blades' work less the stored,
+        // kinetic and damped energy and G_c times the area cut
+        const double balance = work_ - damped_ - gc_ * area_ - stored();
+        if (!accountOpen_) accountOpen_ = true, accountStart_ = balance;
+        cap += std::clamp((accountStart_ - balance) / kDebtLength, 0.0, gc_ * length) * dt;
+    }
     if (total > cap || crushed) {
         // rupture or steady cutting: the capped impulse, the edge slides past the points, and the
         // area it slid over is cut (paid G_c each, or crushed)

@@ -58,8 +58,10 @@ public:
     // After the step's integration, before contact: the edge `edge` at the step's end presses the
     // front points (velocities, then positions, or the capped impulse and an advance); m the
     // model (masses, rest shapes); dt the step [s].
-    void project(const Model& m, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir, Eigen::Matrix3Xd& x,
-                 Eigen::Matrix3Xd& v);
+    // stored: the elastic, kinetic and gravitational energy now and the energy damping took in the
+    // step [J], asked only while the edge presses the front.
+    void project(const Model& m, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir,
+                 const std::function<double()>& stored, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
     // The force of the tissue on the blade through its front in the last step [N].
     const Eigen::Vector3d& reaction() const { return reaction_; }
     CutPhase phase() const { return phase_; }
@@ -102,7 +104,9 @@ private:
     bool advanced_ = false;                          // the last step slid: the engine owes the sweep front_ -> target_
     Eigen::Vector3d reaction_ = Eigen::Vector3d::Zero();
     CutPhase phase_ = CutPhase::Idle;
-    double stepArea_ = 0;  // area the last advance cut [m^2]
+    double stepArea_ = 0;       // area the last advance cut [m^2]
+    bool accountOpen_ = false;  // the stroke's edge has reached its front: accountStart_ is set
+    double accountStart_ = 0;   // the energy balance then [J]
     std::vector<double>
         sampleRest_;  // rest coordinate along dir of each edge sample's material at the last seed (NaN: none) [m]
     std::vector<double> frontRest_;  // the furthest each sample's front has reached [m]

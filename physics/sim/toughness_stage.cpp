@@ -59,14 +59,18 @@ void stepToughness(const SimSetup&, SimData& d) {
     State& st = d.state;
     d.toughDamped = 0;
     if (c > 0) d.toughDamped = kineticEnergy(d.model, st) * ((1 + c * h) * (1 + c * h) - 1);
+    const auto stored = [&d] {
+        return elasticEnergy(d.model, d.state) + kineticEnergy(d.model, d.state) + gravityEnergy(d.model, d.state) +
+               d.toughDamped;
+    };
     if (d.stroke < 0 || !d.tough->hasFront()) {
-        d.tough->project(d.model, h, BladeEdge{}, Eigen::Vector3d::Zero(), st.x, st.v);
+        d.tough->project(d.model, h, BladeEdge{}, Eigen::Vector3d::Zero(), stored, st.x, st.v);
         return;
     }
     const ToolDef& tool = d.contact->tools()[static_cast<size_t>(d.stroke)];
     BladeEdge e;
     bladeEdge(tool, st.time, e.a, e.b);
-    d.tough->project(d.model, h, e, toughCutDirection(tool, st.time), st.x, st.v);
+    d.tough->project(d.model, h, e, toughCutDirection(tool, st.time), stored, st.x, st.v);
 }
 
 // The step [t0, t0 + dt]'s blade work (every blade's contact reaction and the front's, along its
