@@ -1,7 +1,7 @@
 // material.toughness (cut/toughness.hpp): a slab of width b clamped at its base, cut straight down
 // by a blade wider than it, slowly and without friction. Griffith for a rigid edge on the crack
 // tip: the steady force is G_c b, whatever the mesh, and proportional to G_c; the blade's work
-// goes into elastic, kinetic and fracture energy and mass damping.
+// goes into elastic, kinetic and fracture energy.
 #include "sim/simulation.hpp"
 #include "snapshot/scene_snapshot.hpp"
 #include "test_support.hpp"
@@ -22,10 +22,13 @@ using json = nlohmann::json;
 constexpr double kSlabWidth = 0.02;  // b [m]: the slab is 2 x 2 x 2 cm, the blade 6 cm wide
 
 // The blade's edge enters the top at 0.067 s and moves down 16 mm at 3 cm/s; the base is clamped.
+// E = 100 kPa: G_c b is a small load for the ligament under the edge, whose relaxation as the cut
+// shortens it then feeds little of the crack, so the energy balance asks a force close to G_c b
+// (at 50 kPa and G_c = 100 J/m^2 it asks about 1.3 G_c b, which crushes the slab's top).
 json toughSlab(double gc, int cells, double damping) {
     return json{{"name", "tough-slab"},
                 {"object", {{"box", {{"size", {kSlabWidth, 0.02, 0.02}}, {"cells", {cells, cells, cells + 1}}}}}},
-                {"material", {{"E", 5e4}, {"nu", 0.3}, {"rho", 1000}, {"damping", damping}, {"toughness", gc}}},
+                {"material", {{"E", 1e5}, {"nu", 0.3}, {"rho", 1000}, {"damping", damping}, {"toughness", gc}}},
                 {"fixed", {{{"plane", {{"point", {0, 0, 0}}, {"normal", {0, 1, 0}}, {"distance", 1e-4}}}}}},
                 {"loads", {{"gravity", {0, 0, 0}}}},
                 {"tools",
@@ -43,8 +46,9 @@ struct ToughRun {
     double steady = 0;  // mean force along the cutting direction over 0.30-0.55 s [N]
 };
 
-ToughRun runToughSlab(double gc, int cells, double damping = 20) {
-    const SceneDef sc = parseScene(toughSlab(gc, cells, damping), "tough-slab.json");
+// Without mass damping: the ledger counts its share on velocities the projection then stops.
+ToughRun runToughSlab(double gc, int cells) {
+    const SceneDef sc = parseScene(toughSlab(gc, cells, 0), "tough-slab.json");
     Simulation sim(sc, SimulationOptions{1, false});
     sim.advance(sc.duration);
     sim.finish();
@@ -91,20 +95,21 @@ TEST(Toughness, SteadyForceIsProportionalToToughness) {
     EXPECT_NEAR(half.steady / full.steady, 0.5, 0.15 * 0.5);
 }
 
-// Without damping the work goes to elastic, kinetic and fracture energy; the ledger counts more
-// fracture than the blade paid (the rupture's crack, paid from the energy stored while pressing;
-// docs/method.md, "Tissue toughness"): 4.8% and 7.4% here.
+// The work goes to elastic, kinetic and fracture energy: the front's account makes the blade pay
+// also for the crack the relaxing ligament carries past its edge (docs/method.md, "Tissue
+// toughness"), which a cap of G_c b alone cuts unpaid.
 TEST(Toughness, EnergyBalanceOfTheCut) {
-    for (int cells : {4, 8}) {
-        const ToughRun r = runToughSlab(50, cells, 0);
-        const json& e = r.report["blade"]["toughness"]["energy"];
-        const double work = e["work"].get<double>();
-        EXPECT_GT(work, 0.5 * 50 * kSlabWidth * 0.012);  // at least half a 12 mm crack's worth
-        const double sum = e["elastic"].get<double>() + e["kinetic"].get<double>() + e["fracture"].get<double>() +
-                           e["damping"].get<double>();
-        EXPECT_NEAR(sum, work, 0.10 * work) << "cells " << cells << ": " << e.dump();
-        EXPECT_NEAR(e["residual"].get<double>(), work - sum, 1e-12);
-    }
+    for (int cells : {4, 8})
+        for (double gc : {50.0, 100.0}) {
+            const ToughRun r = runToughSlab(gc, cells);
+            const json& e = r.report["blade"]["toughness"]["energy"];
+            const double work = e["work"].get<double>();
+            EXPECT_GT(work, gc * kSlabWidth * 0.012);  // a 12 mm crack's worth at least
+            const double sum = e["elastic"].get<double>() + e["kinetic"].get<double>() + e["fracture"].get<double>() +
+                               e["damping"].get<double>();
+            EXPECT_NEAR(sum, work, 0.05 * work) << "cells " << cells << ", G_c " << gc << ": " << e.dump();
+            EXPECT_NEAR(e["residual"].get<double>(), work - sum, 1e-12);
+        }
 }
 
 // The HUD says what the edge does: pressing until the front pays, then cutting, over a frame's
