@@ -20,11 +20,13 @@ constexpr double kFrontSettled = 1e-9;
 // a sharp edge fails first (docs/method.md, "Tissue toughness").
 constexpr double kCrushedVolume = 0.5;
 
-// The front's account (docs/method.md, "Tissue toughness"): while the energy the ledger has
-// available (the blades' work less the stored, kinetic and damped energy) falls short of G_c
-// times the area cut by D, the force cap rises by D / kDebtLength, at most by G_c b: the debt is
-// paid back over that much of the edge's travel.
-constexpr double kDebtLength = 5e-4;  // [m]
+// The front's account (docs/method.md, "Tissue toughness"): while the energy the blades' work
+// left (less the stored, kinetic and damped energy) falls short of G_c times the area cut by D,
+// the force cap rises by D / kDebtLength, so the debt is paid back over about that much of the
+// edge's travel; by at most kDebtForce G_c b, a bound where the shortfall is not the front's
+// (contact, crushing).
+constexpr double kDebtLength = 2e-3;  // [m]
+constexpr double kDebtForce = 0.5;
 
 // Barycentric coordinates of p in the tet of nodes n at positions x; false for a flat tet.
 bool frontBarycentric(const Eigen::Matrix3Xd& x, const int* n, const Eigen::Vector3d& p, Eigen::Vector4d& w) {
@@ -253,7 +255,7 @@ void BladeToughness::project(const Model& m, double dt, const BladeEdge& edge, c
         // kinetic and damped energy and G_c times the area cut
         const double balance = work_ - damped_ - gc_ * area_ - stored();
         if (!accountOpen_) accountOpen_ = true, accountStart_ = balance;
-        cap += std::clamp((accountStart_ - balance) / kDebtLength, 0.0, gc_ * length) * dt;
+        cap += std::clamp((accountStart_ - balance) / kDebtLength, 0.0, kDebtForce * gc_ * length) * dt;
     }
     if (total > cap || crushed) {
         // rupture or steady cutting: the capped impulse, the edge slides past the points, and the
