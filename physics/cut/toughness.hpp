@@ -13,9 +13,12 @@
 // the cut engine then sweeps the area from the old front to the new one. Griffith's criterion for
 // a rigid edge pressing the crack tip of a body whose deformation travels with the tip: the energy
 // released per unit of crack advance at a fixed edge is the force on the edge (load-point
-// compliance argument), so G = F / b and the crack grows when F >= G_c b. The force cap makes this
-// an energy balance step by step: the blade does F dx, the tissue receives F dx_tissue, and the
-// difference, F times the edge's slide past the material, is G_c times the area cut.
+// compliance argument), so G = F / b and the crack grows when F >= G_c b. Where the compliance
+// falls as the crack grows (a ligament under the edge relaxing as the cut shortens it), material
+// comes up to the edge faster than the edge moves and G_c b does not pay for its crack: the front
+// keeps an account of the energy balance over the stroke (the blades' work less the stored,
+// kinetic and damped energy, against G_c times the area cut) and raises the cap while it is in
+// debt.
 #pragma once
 
 #include "cut/xfem.hpp"
