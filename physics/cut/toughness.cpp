@@ -27,6 +27,7 @@ constexpr double kCrushedVolume = 0.5;
 // (contact, crushing).
 constexpr double kDebtLength = 2e-3;  // [m]
 constexpr double kDebtForce = 0.5;
+constexpr long kAccountSteps = 4;
 
 // Barycentric coordinates of p in the tet of nodes n at positions x; false for a flat tet.
 bool frontBarycentric(const Eigen::Matrix3Xd& x, const int* n, const Eigen::Vector3d& p, Eigen::Vector4d& w) {
@@ -57,6 +58,8 @@ void BladeToughness::endStroke() {
     frontRest_.clear();
     advanced_ = false;
     accountOpen_ = false;
+    accountAge_ = 0;
+    debt_ = 0;
     reaction_.setZero();
 }
 
@@ -252,10 +255,14 @@ void BladeToughness::project(const Model& m, double dt, const BladeEdge& edge, c
     double cap = gc_ * length * dt;
     if (total > cap) {
         // the energy balance since the stroke's first rupture: the blades' work less the stored,
-        // kinetic and damped energy and G_c times the area cut
-        const double balance = work_ - damped_ - gc_ * area_ - stored();
-        if (!accountOpen_) accountOpen_ = true, accountStart_ = balance;
-        cap += std::clamp((accountStart_ - balance) / kDebtLength, 0.0, kDebtForce * gc_ * length) * dt;
+        // kinetic and damped energy and G_c times the area cut (a pass over the elements, so
+        // every kAccountSteps such steps; the debt changes little over them)
+        if (accountAge_++ % kAccountSteps == 0) {
+            const double balance = work_ - damped_ - gc_ * area_ - stored();
+            if (!accountOpen_) accountOpen_ = true, accountStart_ = balance;
+            debt_ = accountStart_ - balance;
+        }
+        cap += std::clamp(debt_ / kDebtLength, 0.0, kDebtForce * gc_ * length) * dt;
     }
     if (total > cap || crushed) {
         // rupture or steady cutting: the capped impulse, the edge slides past the points, and the

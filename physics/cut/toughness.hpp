@@ -110,6 +110,8 @@ private:
     double stepArea_ = 0;       // area the last advance cut [m^2]
     bool accountOpen_ = false;  // the stroke's edge has reached its front: accountStart_ is set
     double accountStart_ = 0;   // the energy balance then [J]
+    double debt_ = 0;           // G_c times the area cut less the energy the balance left for it [J]
+    long accountAge_ = 0;       // steps whose front force reached G_c b since the account opened
     std::vector<double>
         sampleRest_;  // rest coordinate along dir of each edge sample's material at the last seed (NaN: none) [m]
     std::vector<double> frontRest_;  // the furthest each sample's front has reached [m]
