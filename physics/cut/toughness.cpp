@@ -24,9 +24,9 @@ constexpr double kCrushedVolume = 0.5;
 // left (less the stored, kinetic and damped energy) falls short of G_c times the area cut by D,
 // the force cap rises by D / kDebtLength, so the debt is paid back over about that much of the
 // edge's travel; by at most kDebtForce G_c b, a bound where the shortfall is not the front's
-// (contact, crushing).
+// (contact, crushing) or asks more force than the tissue under the edge bears.
 constexpr double kDebtLength = 2e-3;  // [m]
-constexpr double kDebtForce = 0.5;
+constexpr double kDebtForce = 0.25;
 constexpr long kAccountSteps = 4;
 
 // Barycentric coordinates of p in the tet of nodes n at positions x; false for a flat tet.
