@@ -62,7 +62,7 @@ public:
     // front points (velocities, then positions, or the capped impulse and an advance); m the
     // model (masses, rest shapes); dt the step [s].
     // stored: the elastic, kinetic and gravitational energy now and the energy damping took in the
-    // step [J], asked only while the edge presses the front.
+    // step [J], asked only in some of the steps whose front force reaches G_c b.
     void project(const Model& m, double dt, const BladeEdge& edge, const Eigen::Vector3d& dir,
                  const std::function<double()>& stored, Eigen::Matrix3Xd& x, Eigen::Matrix3Xd& v);
     // The force of the tissue on the blade through its front in the last step [N].

@@ -24,7 +24,8 @@ constexpr double kSlabWidth = 0.02;  // b [m]: the slab is 2 x 2 x 2 cm, the bla
 // The blade's edge enters the top at 0.067 s and moves down 16 mm at 3 cm/s; the base is clamped.
 // E = 100 kPa: G_c b is a small load for the ligament under the edge, whose relaxation as the cut
 // shortens it then feeds little of the crack, so the energy balance asks a force close to G_c b
-// (at 50 kPa and G_c = 100 J/m^2 it asks about 1.3 G_c b, which crushes the slab's top).
+// (at 50 kPa and G_c = 100 J/m^2 it asks more than the account may raise the cap, and the edge
+// crushes the slab's top).
 json toughSlab(double gc, int cells, double damping) {
     return json{{"name", "tough-slab"},
                 {"object", {{"box", {{"size", {kSlabWidth, 0.02, 0.02}}, {"cells", {cells, cells, cells + 1}}}}}},
