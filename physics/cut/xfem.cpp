@@ -669,17 +669,19 @@ void CutEngine::relink(Model& m, State& s, const std::vector<int>& parents, CutR
     UnionFind uf;
     std::vector<std::vector<int>> comps;
     std::vector<int> rootComp, used, ids, slotStart;
-    // A face holds three nodes, so each pair of virtual elements across it is asked about up to
-    // three times: remember the answer (glued depends only on virt_, fixed during the relink).
-    std::unordered_map<std::uint64_t, bool>& gluedSeen = gluedSeen_;
-    gluedSeen.clear();
-
+    // A face holds three nodes, and a blade step relinks the rings its earlier steps relinked:
+    // each pair of elements across a face is asked about again and again. Whether they are glued
+    // depends only on their sides, so the answer is kept, beside the first element, until either
+    // element is split again. Two uncut elements are one body (gluedAcross).
+    if (gluedOf_.size() < static_cast<size_t>(m.elements())) gluedOf_.resize(static_cast<size_t>(m.elements()));
     auto gluedOnce = [&](int e, int p, int k, int g, int q) {
-        const std::uint64_t key =
-            (static_cast<std::uint64_t>(static_cast<std::uint32_t>(e)) << 32) | static_cast<std::uint32_t>(g);
-        const auto [it, added] = gluedSeen.try_emplace(key, false);
-        if (added) it->second = gluedAcross(e, p, k, g, q, sides);
-        return it->second;
+        if (!marked(e, kVirtual) && !marked(g, kVirtual)) return true;
+        const std::uint32_t ve = virtVersion(e), vg = virtVersion(g);
+        std::vector<Glued>& kept = gluedOf_[static_cast<size_t>(e)];
+        auto it = std::find_if(kept.begin(), kept.end(), [g](const Glued& x) { return x.other == g; });
+        if (it == kept.end()) it = kept.insert(kept.end(), Glued{g, 0, 0, false});
+        if (it->versionE != ve || it->versionG != vg) *it = {g, ve, vg, gluedAcross(e, p, k, g, q, sides)};
+        return it->glued;
     };
 
     int nextNode = m.nodes();

@@ -306,11 +306,16 @@ private:
     std::unordered_map<int, Virtual> virt_;   // element -> its piece, for cut elements only
     std::vector<std::vector<int>> children_;  // parent -> its elements, for cut parents only (nParents)
     Stroke stroke_;
-    mutable std::vector<int> single_;                    // scratch for virtualsOf on an uncut parent
-    std::unordered_map<std::uint64_t, bool> gluedSeen_;  // scratch of relink: (element, element) -> glued
-    std::vector<int> pieceMark_;            // scratch of mergeDebris: exploration that reached each element
-    int pieceStamp_ = 0;                    // last stamp mergeDebris put in pieceMark_
-    std::unordered_map<int, int> fusedTo_;  // fused debris element -> the sibling whose nodes it uses
+    mutable std::vector<int> single_;  // scratch for virtualsOf on an uncut parent
+    struct Glued {                     // relink's answer about the element across a face, at both elements' versions
+        int other = -1;
+        std::uint32_t versionE = 0, versionG = 0;  // 0: never cut
+        bool glued = false;
+    };
+    std::vector<std::vector<Glued>> gluedOf_;  // by element
+    std::vector<int> pieceMark_;               // scratch of mergeDebris: exploration that reached each element
+    int pieceStamp_ = 0;                       // last stamp mergeDebris put in pieceMark_
+    std::unordered_map<int, int> fusedTo_;     // fused debris element -> the sibling whose nodes it uses
     // Which elements the three maps above hold, flat: most elements a blade step visits are in
     // none, and a hash lookup each (a cache miss at 100k elements) was most of the visit's time.
     enum : std::uint8_t { kVirtual = 1, kFused = 2, kChildren = 4 };
@@ -347,10 +352,19 @@ private:
         VirtualIndex& operator=(VirtualIndex&&) = default;
     };
     VirtualIndex virtOf_;
+    // How often each element's sides were set (0: never cut): a kept answer about it is stale
+    // once this moved on.
+    std::vector<std::uint32_t> virtVersion_;
+    std::uint32_t virtVersion(int e) const {
+        return static_cast<size_t>(e) < virtVersion_.size() ? virtVersion_[static_cast<size_t>(e)] : 0;
+    }
     Virtual& addVirtual(int e) {
         Virtual& v = virt_[e];
-        if (static_cast<size_t>(e) >= virtOf_.at.size()) virtOf_.at.resize(static_cast<size_t>(e) + 1, nullptr);
-        virtOf_.at[static_cast<size_t>(e)] = &v;
+        const auto k = static_cast<size_t>(e);
+        if (k >= virtOf_.at.size()) virtOf_.at.resize(k + 1, nullptr);
+        if (k >= virtVersion_.size()) virtVersion_.resize(k + 1, 0);
+        virtOf_.at[k] = &v;
+        ++virtVersion_[k];
         setMark(e, kVirtual);
         return v;
     }
