@@ -146,7 +146,7 @@ struct CutEngine::SplitCache {
 
 CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurface& original) const {
     constexpr size_t kKept = 4;  // surfaces an engine serves: an MI object's own and a visual one
-    auto& caches = split_.caches;
+    auto& caches = split_.items;
     for (auto& k : caches)
         if (k->original == &original && k->vertices == original.vertices() && k->faces == original.faces()) return *k;
     if (caches.size() >= kKept) caches.erase(caches.begin());

@@ -273,18 +273,21 @@ private:
     // winding tree, triangle parts per parent and the winding numbers sampled so far. All of the
     // uncut rest configuration, so never stale; a copy of the engine starts without them. Keyed
     // by the original's address: it must stay the same object while the engine serves it.
-    struct SplitSlot {
-        std::vector<std::shared_ptr<SplitCache>> caches;  // one per original surface (touched, drawn)
-        SplitSlot() = default;
-        SplitSlot(const SplitSlot&) {}
-        SplitSlot& operator=(const SplitSlot&) {
-            caches.clear();
+    // A vector a copy of the engine starts without (moves keep it).
+    template <class T>
+    struct NotCopied {
+        std::vector<T> items;
+        NotCopied() = default;
+        NotCopied(const NotCopied&) {}
+        NotCopied& operator=(const NotCopied&) {
+            items.clear();
             return *this;
         }
-        SplitSlot(SplitSlot&&) = default;
-        SplitSlot& operator=(SplitSlot&&) = default;
-        ~SplitSlot() = default;
+        NotCopied(NotCopied&&) = default;
+        NotCopied& operator=(NotCopied&&) = default;
+        ~NotCopied() = default;
     };
+    using SplitSlot = NotCopied<std::shared_ptr<SplitCache>>;  // one cache per original surface (touched, drawn)
     SplitCache& splitCache(const Model& m, const EmbeddedSurface& original) const;
 
     CutOptions opts_;
@@ -340,18 +343,7 @@ private:
     // virt_'s entries by element, flat (an unordered_map's entries keep their address). A copy
     // of the engine starts without them, its source's would point into the source: lookups of
     // the elements it has no pointer for go to virt_.
-    struct VirtualIndex {
-        std::vector<Virtual*> at;
-        VirtualIndex() = default;
-        VirtualIndex(const VirtualIndex&) {}
-        VirtualIndex& operator=(const VirtualIndex&) {
-            at.clear();
-            return *this;
-        }
-        VirtualIndex(VirtualIndex&&) = default;
-        VirtualIndex& operator=(VirtualIndex&&) = default;
-    };
-    VirtualIndex virtOf_;
+    NotCopied<Virtual*> virtOf_;
     // How often each element's sides were set (0: never cut): a kept answer about it is stale
     // once this moved on.
     std::vector<std::uint32_t> virtVersion_;
@@ -361,17 +353,17 @@ private:
     Virtual& addVirtual(int e) {
         Virtual& v = virt_[e];
         const auto k = static_cast<size_t>(e);
-        if (k >= virtOf_.at.size()) virtOf_.at.resize(k + 1, nullptr);
+        if (k >= virtOf_.items.size()) virtOf_.items.resize(k + 1, nullptr);
         if (k >= virtVersion_.size()) virtVersion_.resize(k + 1, 0);
-        virtOf_.at[k] = &v;
+        virtOf_.items[k] = &v;
         ++virtVersion_[k];
         setMark(e, kVirtual);
         return v;
     }
     const Virtual* findVirtual(int e) const {
         if (!marked(e, kVirtual)) return nullptr;
-        if (static_cast<size_t>(e) < virtOf_.at.size() && virtOf_.at[static_cast<size_t>(e)])
-            return virtOf_.at[static_cast<size_t>(e)];
+        if (static_cast<size_t>(e) < virtOf_.items.size() && virtOf_.items[static_cast<size_t>(e)])
+            return virtOf_.items[static_cast<size_t>(e)];
         return &virt_.find(e)->second;
     }
     std::vector<Sliver> slivers_;  // dropped sides, drawn by surface() on their side
