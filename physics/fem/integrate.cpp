@@ -257,7 +257,7 @@ const double* Stepper::forceFactors(const Model& m, const double* alpha) {
 // The stretch bound of partial elements, or 0 when none is held apart (StepOptions::holdPartial).
 double Stepper::partialStretch(const Model& m, const StepOptions& opt) const {
     if (!opt.holdPartial || !(opt.minStretch > 0) || !(opt.minStretch < kPartialMinStretch)) return 0;
-    return m.fraction.size() && m.fraction.minCoeff() < 1 ? kPartialMinStretch : 0;
+    return anyPartial(m) ? kPartialMinStretch : 0;
 }
 
 void Stepper::limit(const Model& m, State& s, const StepOptions& opt, int nearFlat) {

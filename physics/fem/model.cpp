@@ -232,8 +232,14 @@ std::vector<double> pieceVolumes(const Model& m) {
     return volumes;
 }
 
+bool anyPartial(const Model& m) {
+    for (Eigen::Index e = m.fraction.size() - 1; e >= 0; --e)
+        if (m.fraction(e) < 1) return true;
+    return false;
+}
+
 std::vector<std::uint8_t> partialNodes(const Model& m) {
-    if (!(m.fraction.size() && m.fraction.minCoeff() < 1)) return {};
+    if (!anyPartial(m)) return {};
     std::vector<std::uint8_t> partial(static_cast<size_t>(m.nodes()), 1);
     std::vector<std::uint8_t> used(static_cast<size_t>(m.nodes()), 0);
     for (int e = 0; e < m.elements(); ++e)

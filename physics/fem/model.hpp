@@ -139,5 +139,8 @@ TetMesh restMesh(const Model& model);
 // nodes and an MI lattice's outside nodes (nNodes, 1 = such a node). Empty when every element is
 // whole.
 std::vector<std::uint8_t> partialNodes(const Model& model);
+// Whether any element holds less than its whole tet (fraction < 1). Searched from the end, where a
+// cut appends its virtual elements, so a cut model answers at once instead of in a pass.
+bool anyPartial(const Model& model);
 
 }  // namespace cutsim
