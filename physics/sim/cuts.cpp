@@ -199,7 +199,13 @@ void refreshSurface(const SimSetup& s, SimData& d) {
 }
 
 void settleExact(const SimSetup& s, SimData& d) {
-    if (!d.response.owed()) return;
+    if (!d.response.owed()) {
+        if (d.analyzer.ownPending()) {
+            const StageTimer t(d.record.stages, Stage::Timestep);
+            d.analyzer.refreshOwn(d.model);
+        }
+        return;
+    }
     const CutResponseResult res = [&] {
         const StageTimer t(d.record.stages, Stage::Timestep);
         return d.response.settle(d.model, d.analyzer);

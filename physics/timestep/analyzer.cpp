@@ -12,6 +12,7 @@ namespace {
 // scheduler slice for its other thread, which costs more than a small update in one. Threads only
 // for milliseconds of work (as forces.cpp's kParallelElements).
 constexpr int kParallelUpdate = 2048;
+constexpr int kChunk = 64;  // elements per task: the estimators run 8 at a time on vector lanes
 
 double minOf(const Eigen::VectorXd& v) { return v.size() ? v.minCoeff() : std::numeric_limits<double>::infinity(); }
 }  // namespace
@@ -39,17 +40,20 @@ void TimestepAnalyzer::compute(const Model& m) {
     for (int i = 0; i < m.nodes(); ++i) free_[i] = m.invMass(i) > 0;
     elems_.clear();
     nodes_.clear();
+    ownPending_.clear();
+    ownMark_.assign(m.elements(), 0);
     stats_ = {true, m.nodes(), m.elements(), m.nodes(), secondsSince(t0)};
 }
 
 void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedElements,
-                              const std::vector<int>& changedNodes) {
+                              const std::vector<int>& changedNodes, bool deferOwn) {
     const int oldNodes = static_cast<int>(rows_.nbr.size()), oldElems = static_cast<int>(est_.r1r.size());
     if (m.nodes() < oldNodes || m.elements() < oldElems || oldElems == 0) {
         compute(m);
         return;
     }
     const auto t0 = WallClock::now();
+    const bool waitOwn = deferOwn || ownPending();
     // Appended nodes and elements.
     if (m.nodes() > oldNodes) {
         rows_.nbr.resize(m.nodes());
@@ -60,12 +64,10 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
         free_.resize(m.nodes(), 0);
     }
     if (m.elements() > oldElems) {
-        for (Eigen::VectorXd* v : {&est_.r1r, &est_.hs, &est_.hp, &est_.le, &est_.element, &shapes_.volumeLength,
-                                   &shapes_.harmonicVolumeLength, &shapes_.minSineDihedral, &shapes_.radiusRatio,
-                                   &shapes_.meanRatio, &shapes_.charLength})
-            v->conservativeResize(m.elements());
+        for (Eigen::VectorXd* v : {&est_.r1r, &est_.hs, &est_.hp}) v->conservativeResize(m.elements());
         elemStamp_.resize(m.elements(), 0);
         geomStamp_.resize(m.elements(), 0);
+        ownMark_.resize(m.elements(), 0);
     }
     if (++stamp_ == 0) {  // wrapped: clear the stamps
         std::fill(nodeStamp_.begin(), nodeStamp_.end(), 0);
@@ -114,20 +116,15 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
             if (flipped) markGeom(e);
         }
     }
-    const int nElems = static_cast<int>(elems.size()), nGeom = static_cast<int>(geom.size());
-    // In chunks of 64 elements: the estimators run 8 at a time on vector lanes.
-    constexpr int chunk = 64;
+    const int nElems = static_cast<int>(elems.size());
 #pragma omp parallel for schedule(static) if (nElems > kParallelUpdate)
-    for (int b = 0; b < nElems; b += chunk)
-        estimateOneRing(m, rows_, diag_, elems.data() + b, std::min(chunk, nElems - b), est_);
-        // Le, the isolated element estimate and the shape measures see only the element itself (rest
-        // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
-#pragma omp parallel for schedule(static) if (nGeom > kParallelUpdate)
-    for (int b = 0; b < nGeom; b += chunk) {
-        const int count = std::min(chunk, nGeom - b);
-        estimateOwn(m, geom.data() + b, count, est_);
-        for (int k = b; k < b + count; ++k) shapes_.set(geom[k], elementShape(m, geom[k]));
-    }
+    for (int b = 0; b < nElems; b += kChunk)
+        estimateOneRing(m, rows_, diag_, elems.data() + b, std::min(kChunk, nElems - b), est_);
+    // Le, the isolated element estimate and the shape measures see only the element itself (rest
+    // positions, volume, DmInv, fixed nodes): the one-ring around it does not change them.
+    for (int e : geom)
+        if (!ownMark_[static_cast<size_t>(e)]) ownMark_[static_cast<size_t>(e)] = 1, ownPending_.push_back(e);
+    if (!waitOwn) refreshOwn(m);
     // Gershgorin rows that see a changed block or mass: the nodes of those elements, plus N.
     for (int e : elems)
         for (int a = 0; a < 4; ++a) markNode(m.tets(a, e));
@@ -136,6 +133,24 @@ void TimestepAnalyzer::update(const Model& m, const std::vector<int>& changedEle
     for (int k = 0; k < nBounds; ++k) nodeBound_(nodes[k]) = gershgorinNodeBound(m, rows_, nodes[k]);
     maxBound_ = nodeBound_.size() ? nodeBound_.maxCoeff() : 0.0;
     stats_ = {false, nChanged, nElems, nBounds, secondsSince(t0)};
+}
+
+void TimestepAnalyzer::refreshOwn(const Model& m) {
+    if (est_.le.size() < m.elements()) {
+        for (Eigen::VectorXd* v :
+             {&est_.le, &est_.element, &shapes_.volumeLength, &shapes_.harmonicVolumeLength, &shapes_.minSineDihedral,
+              &shapes_.radiusRatio, &shapes_.meanRatio, &shapes_.charLength})
+            v->conservativeResize(m.elements());
+    }
+    const int n = static_cast<int>(ownPending_.size());
+#pragma omp parallel for schedule(static) if (n > kParallelUpdate)
+    for (int b = 0; b < n; b += kChunk) {
+        const int count = std::min(kChunk, n - b);
+        estimateOwn(m, ownPending_.data() + b, count, est_);
+        for (int k = b; k < b + count; ++k) shapes_.set(ownPending_[k], elementShape(m, ownPending_[k]));
+    }
+    for (int e : ownPending_) ownMark_[static_cast<size_t>(e)] = 0;
+    ownPending_.clear();
 }
 
 void TimestepAnalyzer::updateMovedNodes(const Model& m, const std::vector<int>& movedNodes) {

@@ -34,13 +34,23 @@ public:
     // changedNodes: nodes whose mass or incident elements changed without being in a changed
     // element (e.g. a node an element was re-pointed away from, a node newly fixed).
     // Fewer nodes or elements than before means renumbering: falls back to compute().
-    void update(const Model& m, const std::vector<int>& changedElements, const std::vector<int>& changedNodes = {});
+    // With deferOwn, what sees only the element itself (Le, the isolated element estimate and the
+    // shape measures, which no step depends on) waits for refreshOwn(): a blade step then grows
+    // and fills three per-element arrays, not eleven. It waits too while earlier updates left some.
+    void update(const Model& m, const std::vector<int>& changedElements, const std::vector<int>& changedNodes = {},
+                bool deferOwn = false);
+    // Brings Le, the isolated element estimate and the shape measures of the elements updates
+    // left waiting up to date (sized to the model's elements).
+    void refreshOwn(const Model& m);
+    bool ownPending() const { return !ownPending_.empty() || est_.le.size() < est_.r1r.size(); }
     // Nodes moved (rest positions, DmInv and volumes updated by the caller): their elements changed.
     void updateMovedNodes(const Model& m, const std::vector<int>& movedNodes);
 
     // Exact global value from the current rows (Lanczos; throws EigenSolveError).
     ExactResult exact(const Model& m, const ExactOptions& opts = {}) const { return exactCriticalDt(m, rows_, opts); }
 
+    // r1r, hs and hp are always current; le, element and shapes() after refreshOwn() when an
+    // update left some waiting (ownPending()).
     const ElementEstimates& estimates() const { return est_; }
     const ShapeMeasures& shapes() const { return shapes_; }
     const StiffnessRows& rows() const { return rows_; }
@@ -84,6 +94,8 @@ private:
     unsigned stamp_ = 0;
     std::vector<std::uint8_t> free_;              // invMass > 0 when last analysed (nNodes)
     std::vector<int> nodes_, elems_, geomElems_;  // scratch lists, kept to avoid allocating per update
+    std::vector<int> ownPending_;                 // elements whose own estimates wait (refreshOwn)
+    std::vector<std::uint8_t> ownMark_;           // 1: in ownPending_
 };
 
 }  // namespace cutsim

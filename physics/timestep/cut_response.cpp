@@ -10,9 +10,10 @@ CutResponseResult CutResponse::apply(Model& m, TimestepAnalyzer& ta, const std::
                                      const std::vector<int>& changedNodes, bool defer) {
     Stopwatch sw;
     CutResponseResult r;
-    ta.update(m, changedElements, changedNodes);
-    // the rows the change may have raised (the floor and the hybrid below only lower rows)
     const bool solveNow = o_.exact && !defer;
+    // a deferred change leaves the estimates no step reads for settle()
+    ta.update(m, changedElements, changedNodes, defer);
+    // the rows the change may have raised (the floor and the hybrid below only lower rows)
     if (!solveNow && !o_.hybrid && o_.dtCertified > 0) raised_ = ta.lastNodes();
     const bool holdFloor = !o_.hybrid && o_.dtFloor > 0 && std::isfinite(o_.dtFloor);
     if (holdFloor && o_.floorHybrid)
@@ -32,6 +33,7 @@ CutResponseResult CutResponse::apply(Model& m, TimestepAnalyzer& ta, const std::
 }
 
 CutResponseResult CutResponse::settle(Model& m, TimestepAnalyzer& ta) {
+    if (ta.ownPending()) ta.refreshOwn(m);
     if (!owed_) return {};
     return solve(m, ta, {});
 }

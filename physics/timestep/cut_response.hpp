@@ -59,7 +59,8 @@ public:
     CutResponseResult apply(Model& m, TimestepAnalyzer& ta, const std::vector<int>& changedElements,
                             const std::vector<int>& changedNodes, bool defer = false);
     // The exact solve owed by deferred changes, with the floor's top-up or the hybrid's
-    // certification; an empty result (exact NaN) when nothing is owed.
+    // certification; an empty result (exact NaN) when nothing is owed. Brings the estimates
+    // deferred changes left waiting up to date (TimestepAnalyzer::refreshOwn) either way.
     CutResponseResult settle(Model& m, TimestepAnalyzer& ta);
     bool owed() const { return owed_; }
 
