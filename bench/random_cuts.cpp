@@ -8,6 +8,8 @@
 #include "timestep/hybrid.hpp"
 #include "util/stopwatch.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -161,6 +163,28 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
         stepper.reset();
     }
     return out;
+}
+
+nlohmann::json randomCutStatsJson(const RandomCutStats& st) {
+    return {{"runs", st.runs},
+            {"cuts", st.cuts},
+            {"steps", st.steps},
+            {"failures", st.failures},
+            {"inverted_runs", st.invertedRuns},
+            {"inverted_at_end", st.invertedAtEnd},
+            {"limited_runs", st.limitedRuns},
+            {"limited_steps", st.limitedSteps},
+            {"max_speed", st.maxSpeed},
+            {"min_dt_ratio", st.minDtRatio},
+            {"max_volume_error", st.maxVolumeError},
+            {"max_mass_error", st.maxMassError},
+            {"cuts_below_floor", st.cutsBelowFloor},
+            {"cuts_topped_up", st.toppedUp},
+            {"max_matched_share", st.maxMatchedShare},
+            {"max_added_mass", st.maxAddedMass},
+            {"mean_floor_seconds", st.cuts ? st.floorSeconds / st.cuts : 0.0},
+            {"max_floor_seconds", st.maxFloorSeconds},
+            {"first_failure", st.firstFailure}};
 }
 
 std::string describeRun(int run, const RandomCutRun& r) {

@@ -8,6 +8,8 @@
 #include "fem/model.hpp"
 #include "mesh/mesh.hpp"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <cstdint>
 #include <random>
 #include <string>
@@ -104,6 +106,12 @@ RandomCutRun runRandomCutSequence(const Model& base, double dt0, unsigned seed, 
 
 // One line for a run that blew up, inverted or was limited.
 std::string describeRun(int run, const RandomCutRun& r);
+
+// The counts as the results of `cutsim bench stability` and the stress test write them:
+// {runs, cuts, steps, failures, inverted_runs, inverted_at_end, limited_runs, limited_steps, max_speed,
+// min_dt_ratio, max_volume_error, max_mass_error, cuts_below_floor, cuts_topped_up, max_matched_share,
+// max_added_mass, mean_floor_seconds, max_floor_seconds, first_failure}.
+nlohmann::json randomCutStatsJson(const RandomCutStats& st);
 
 // Runs 0 .. runs-1 of runRandomCutSequence; `log`, when given, gets describeRun of each run that
 // blew up, inverted or was limited.

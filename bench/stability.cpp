@@ -258,29 +258,9 @@ void randomCutSequences(const StabilityArgs& a, json& j) {
                                            : Floor::Local;
             const auto t0 = WallClock::now();
             const RandomCutStats st = runRandomCuts(model, a.cutRuns, a.cutSteps, seed, ro);
-            j["random_cuts"].push_back({{"object", name},
-                                        {"min_stretch", limit},
-                                        {"floor", v.floor},
-                                        {"cuts_below_floor", st.cutsBelowFloor},
-                                        {"cuts_topped_up", st.toppedUp},
-                                        {"max_matched_share", st.maxMatchedShare},
-                                        {"max_added_mass", st.maxAddedMass},
-                                        {"max_floor_seconds", st.maxFloorSeconds},
-                                        {"mean_floor_seconds", st.cuts ? st.floorSeconds / st.cuts : 0.0},
-                                        {"runs", st.runs},
-                                        {"cuts", st.cuts},
-                                        {"steps", st.steps},
-                                        {"failures", st.failures},
-                                        {"inverted_runs", st.invertedRuns},
-                                        {"inverted_at_end", st.invertedAtEnd},
-                                        {"limited_runs", st.limitedRuns},
-                                        {"limited_steps", st.limitedSteps},
-                                        {"max_speed", st.maxSpeed},
-                                        {"min_dt_ratio", st.minDtRatio},
-                                        {"max_volume_error", st.maxVolumeError},
-                                        {"max_mass_error", st.maxMassError},
-                                        {"first_failure", st.firstFailure},
-                                        {"seconds", secondsSince(t0)}});
+            json row = randomCutStatsJson(st);
+            row.update({{"object", name}, {"min_stretch", limit}, {"floor", v.floor}, {"seconds", secondsSince(t0)}});
+            j["random_cuts"].push_back(row);
             char matched[48] = "";
             if (ro.floor == Floor::HybridCertified)
                 std::snprintf(matched, sizeof matched, "  matched <= %.1f%%", 100 * st.maxMatchedShare);

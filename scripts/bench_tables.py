@@ -275,6 +275,19 @@ def stability_floor():
                  rows) + ran_on(j)
 
 
+def stability_500():
+    """The step floor through 500 random sequences per object (the stress test), per object and floor."""
+    j = load("random_cuts_500.json")
+    rows = []
+    for obj in ("liver", "bar"):
+        for fl in ("certified", "hybrid"):
+            r = next(r for r in j["runs"] if r["object"] == obj and r["floor"] == fl)
+            mass = percent(r["max_added_mass"])
+            rows.append([obj, fl, str(r["cuts"]), decimals(r["min_dt_ratio"], 3),
+                         f"**{mass}**" if fl == "hybrid" else mass, str(r["cuts_topped_up"])])
+    return table(["object", "floor", "cuts", "min dt ratio", "max mass added", "topped up"], rows) + ran_on(j)
+
+
 # ---- bench improve: docs/bench/improve.json ----
 
 
@@ -470,6 +483,7 @@ TABLES = {
     "stability-sweeps": stability_sweeps,
     "stability-after-cuts": stability_after_cuts,
     "stability-floor": stability_floor,
+    "stability-500": stability_500,
     "improve": improve_table,
     "improve-time": improve_time,
     "cutstep": cutstep,

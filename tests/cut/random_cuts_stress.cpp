@@ -7,6 +7,12 @@
 // first inverted element and the piece holding it.
 #include "random_cuts.hpp"
 
+#include "bench/machine.hpp"
+#include "util/atomic_file.hpp"
+#include "util/json_text.hpp"
+
+#include <cstdlib>
+
 namespace cutsim {
 namespace {
 
@@ -41,14 +47,25 @@ TEST(RandomCutsStress, Bar250Limited) {
 // The step floor, certified, through 500 sequences per object (the scenes' stretch limiting), with
 // mass alone and with the elements under the floor matched first (cutting.floor_method "hybrid"):
 // no cut leaves the exact step under 0.95 of the uncut one, nothing blows up or inverts; with
-// matching, no sequence adds more than 0.5% of the object's mass.
+// matching, no sequence adds more than 0.5% of the object's mass. With CUTSIM_STRESS_JSON set, the
+// counts go to that file (BENCHMARKS.md's table of the 500 sequences is drawn from it).
 TEST(RandomCutsStress, FloorHolds500) {
+    constexpr int kRuns = 500, kSteps = 300;
+    nlohmann::json j = {{"test", "RandomCutsStress.FloorHolds500"},
+                        {"sequences", kRuns},
+                        {"steps_between_cuts", kSteps},
+                        {"dt_factor", 0.9},
+                        {"min_stretch", kLimit},
+                        {"step_floor", 0.95},
+                        {"machine", machineJson()},
+                        {"runs", nlohmann::json::array()}};
     for (const bool hybrid : {false, true})
         for (const bool liver : {true, false}) {
             RandomCutOptions ro{MassLumping::Enrichment, 0.9, kLimit};
             ro.stepFloor = 0.95;
             ro.floor = hybrid ? RandomCutOptions::Floor::HybridCertified : RandomCutOptions::Floor::Certified;
-            const auto st = test::runRandomCuts(liver, 500, 300, liver ? 13 : 14, ro);
+            const unsigned seed = liver ? 13 : 14;
+            const auto st = test::runRandomCuts(liver, kRuns, kSteps, seed, ro);
             test::printRandomCuts(liver ? (hybrid ? "liver, hybrid floor" : "liver, floor")
                                         : (hybrid ? "bar, hybrid floor" : "bar, floor"),
                                   st);
@@ -62,7 +79,15 @@ TEST(RandomCutsStress, FloorHolds500) {
             if (hybrid) {
                 EXPECT_LE(st.maxAddedMass, 0.005);
             }
+            nlohmann::json row = randomCutStatsJson(st);
+            row.update(
+                {{"object", liver ? "liver" : "bar"}, {"floor", hybrid ? "hybrid" : "certified"}, {"seed", seed}});
+            j["runs"].push_back(row);
         }
+    if (const char* out = std::getenv("CUTSIM_STRESS_JSON")) {
+        j["machine"]["load_average_end"] = loadAverage();
+        writeFileAtomic(out, jsonText(j));
+    }
 }
 
 }  // namespace
