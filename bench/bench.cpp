@@ -45,6 +45,7 @@ void registerBenchExtensions() {
     addImproveBench();        // improve.cpp: mesh improvement against TetGen and Gmsh
     addCutStepBench();        // cutstep.cpp: Tables 5.5 and 5.6, the step through cuts
     addScaleBench();          // scale.cpp: how cost grows with the mesh
+    addThreadsBench();        // threads.cpp: the thread count a run picks, idle and busy
     addCutAccuracyConfigs();  // cuts.cpp: MI, lumping after cuts, the liver
 }
 

@@ -201,6 +201,7 @@ void addCaptureBench();    // capture.cpp
 void addImproveBench();    // improve.cpp
 void addCutStepBench();    // cutstep.cpp
 void addScaleBench();      // scale.cpp
+void addThreadsBench();    // threads.cpp
 
 // Runs a bench subcommand: InputError exits 2, any other failure 1, each with "error: " on stderr.
 int benchGuarded(const std::function<int()>& f);

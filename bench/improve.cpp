@@ -18,7 +18,11 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "util/input_error.hpp"
+
+#include <algorithm>
 #include <cerrno>
+#include <optional>
 #include <climits>
 #include <cstring>
 #include <map>
@@ -39,6 +43,11 @@ struct ImproveBenchArgs {
     bool json = false, tiny = false;
     double seconds = 10;  // longest run of the gain-against-time table [s]
     std::string plot;
+    // --speed: the improver's time at its defaults instead, per mesh and thread count
+    bool speed = false;
+    std::vector<std::string> speedMeshes{"armadillo", "knight"};
+    std::vector<int> threads{1, 2};
+    int rounds = 3, busyRounds = 1;
 };
 
 // The tet meshes of the data folder at the scales the project uses them (the .gmsh22 copies are
@@ -230,7 +239,75 @@ void drawPlot(const std::string& out, const json& timing) {
     runGnuplot(dir, "set terminal pngcairo size 900,560", g.str(), out);
 }
 
+const MeshCase& meshCase(const std::string& name) {
+    for (const MeshCase& c : kCases)
+        if (name == c.name) return c;
+    std::string known;
+    for (const MeshCase& c : kCases) known += std::string(known.empty() ? "" : ", ") + c.name;
+    throw InputError("--speed-meshes: no mesh '" + name + "' (known: " + known + ")");
+}
+
+// --speed: cutsim's improver at its defaults (as `cutsim improve MESH --scale S --threads K`), its
+// seconds.total per mesh and thread count; the runs take turns (meshes and counts, the order
+// reversed every other round), `rounds` of them idle, then `busyRounds` with another core busy.
+int runImproveSpeed(const ImproveBenchArgs& a) {
+    const json machine = machineJson();
+    const Material mat;
+    std::vector<const MeshCase*> cases;
+    for (const std::string& name : a.speedMeshes) cases.push_back(&meshCase(name));
+    if (a.threads.empty()) throw InputError("--threads: no thread count");
+    std::vector<std::pair<size_t, int>> order;  // (case, threads)
+    for (size_t k = 0; k < cases.size(); ++k)
+        for (int th : a.threads) order.emplace_back(k, th);
+    std::vector<TetMesh> meshes;
+    for (const MeshCase* c : cases) {
+        ReadOptions ro;
+        ro.scale = c->scale;
+        meshes.push_back(readTetMesh(std::string(CUTSIM_DATA_DIR) + "/" + c->file, ro));
+    }
+    json runs = json::array();
+    if (!a.json)
+        std::printf("%-10s %6s %7s %5s %5s %9s %8s %6s\n", "mesh", "tets", "threads", "load", "round", "seconds",
+                    "gain", "load1");
+    for (int r = 0; r < a.rounds + a.busyRounds; ++r) {
+        const bool busy = r >= a.rounds;
+        std::optional<BusyCore> spin;
+        if (busy) spin.emplace();
+        std::vector<std::pair<size_t, int>> turn = order;
+        if (r % 2) std::reverse(turn.begin(), turn.end());
+        for (const auto& [k, th] : turn) {
+            const MeshCase* c = cases[k];
+            const TetMesh& input = meshes[k];
+            TetMesh m = input;
+            ImproveOptions o;
+            o.material = mat;
+            o.threads = th;
+            const json load = loadAverage();
+            const ImproveReport rep = improveMesh(m, o);
+            double total = 0;
+            for (const auto& [stage, v] : rep.seconds)
+                if (stage == "total") total = v;
+            json row = {{"mesh", c->name},
+                        {"tets", input.elements()},
+                        {"threads", th},
+                        {"load", busy ? "busy" : "idle"},
+                        {"round", busy ? r - a.rounds : r},
+                        {"seconds", total},
+                        {"gain", rep.after.dtExact / rep.before.dtExact},
+                        {"load_average", load.empty() ? json(nullptr) : load[0]}};
+            if (!a.json)
+                std::printf("%-10s %6d %7d %5s %5d %9.3f %8.3f %6.2f\n", c->name, input.elements(), th,
+                            busy ? "busy" : "idle", row["round"].get<int>(), total, row["gain"].get<double>(),
+                            load.empty() ? -1.0 : load[0].get<double>());
+            runs.push_back(row);
+        }
+    }
+    if (a.json) printResult(json{{"rounds", a.rounds}, {"busy_rounds", a.busyRounds}, {"runs", runs}}, machine);
+    return 0;
+}
+
 int runImproveBench(const ImproveBenchArgs& a) {
+    if (a.speed) return runImproveSpeed(a);
     const json machine = machineJson();
     const Material mat;
     const bool quiet = a.json;
@@ -344,6 +421,23 @@ void improveOptions(CLI::App& c, ImproveBenchArgs& a) {
     tinyFlag(c, a.tiny, "the liver only, short runs");
     c.add_option("--seconds", a.seconds, "Longest run of the gain-against-time table [s]")->capture_default_str();
     plotOption(c, a.plot, "the gain against time");
+    c.add_flag("--speed", a.speed,
+               "Instead: the improver's seconds at its defaults per mesh and thread count, the runs taking turns, "
+               "idle and with another core busy (JSON: {rounds, busy_rounds, runs: [{mesh, tets, threads, load, "
+               "round, seconds, gain, load_average}]})");
+    c.add_option("--speed-meshes", a.speedMeshes,
+                 "--speed: the data meshes to time (liver, liver2, armadillo, "
+                 "knight, octopus)")
+        ->delimiter(',')
+        ->capture_default_str();
+    c.add_option("--threads", a.threads, "--speed: the improver's thread counts")
+        ->delimiter(',')
+        ->check(CLI::Range(1, 1024))
+        ->capture_default_str();
+    c.add_option("--rounds", a.rounds, "--speed: rounds idle")->check(CLI::Range(1, 1000))->capture_default_str();
+    c.add_option("--busy-rounds", a.busyRounds, "--speed: rounds after them with another core busy")
+        ->check(CLI::Range(0, 1000))
+        ->capture_default_str();
 }
 
 }  // namespace

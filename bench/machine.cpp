@@ -2,10 +2,16 @@
 
 #include <nlohmann/json.hpp>
 
+#include <csignal>
 #include <cstdlib>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
+
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace cutsim {
 
@@ -35,6 +41,25 @@ nlohmann::json loadAverage() {
 
 nlohmann::json machineJson() {
     return {{"cpu", cpuModel()}, {"cores", std::thread::hardware_concurrency()}, {"load_average", loadAverage()}};
+}
+
+BusyCore::BusyCore() {
+    const pid_t parent = ::getpid();
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("cannot start a busy process (fork failed)");
+    if (pid_ == 0) {
+        // the child: killed with its parent, however the parent ends
+        ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+        if (::getppid() != parent) ::_exit(0);
+        volatile unsigned long spin = 0;
+        for (;;) spin = spin + 1;
+    }
+}
+
+BusyCore::~BusyCore() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
 }
 
 }  // namespace cutsim

@@ -1,14 +1,21 @@
 // `cutsim bench`: each subcommand at test size, its JSON contract and a value derivable by hand.
 #include "test_support.hpp"
 
+#include "bench/machine.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <unistd.h>
@@ -478,6 +485,100 @@ TEST(BenchHaptic, TinyRunContract) {
         EXPECT_GT(r["final_force"].get<double>(), 0);
     }
     EXPECT_EQ(j["runs"][0]["steps"], j["runs"][1]["steps"]);
+}
+
+// `bench threads`: per round, each count once idle and once with another core busy, the order
+// reversed every other round; counts 1 and 2 are what the run ends on, the measured one is one of
+// them; every count ends in the same state; the runs' step and set-up times make up their wall.
+TEST(BenchThreads, RoundsTakeTurnsAndEndInOneState) {
+    const std::string dir = workDir("threads");
+    const json j = runJson("bench threads " + test::source("assets/scenes/bar_sag.json") +
+                           " --set duration=0.02 --rounds 2 --busy --json --csv " + dir + "/runs.csv");
+    const auto& runs = j["runs"];
+    ASSERT_EQ(runs.size(), 12u);  // 2 rounds x (idle, busy) x (1, 2, 0)
+    const int asked[] = {1, 2, 0, 1, 2, 0, 0, 2, 1, 0, 2, 1};
+    for (size_t k = 0; k < runs.size(); ++k) {
+        const json& r = runs[k];
+        EXPECT_EQ(r["threads"].get<int>(), asked[k]) << k;
+        EXPECT_EQ(r["round"].get<int>(), static_cast<int>(k / 6)) << k;
+        EXPECT_EQ(r["load"], (k / 3) % 2 ? "busy" : "idle") << k;
+        const int chosen = r["threads_chosen"].get<int>();
+        if (asked[k] > 0) {
+            EXPECT_EQ(chosen, asked[k]) << k;
+        }
+        EXPECT_TRUE(chosen == 1 || chosen == 2) << k;
+        EXPECT_EQ(r["status"], "ok");
+        EXPECT_EQ(r["state_hash"], runs[0]["state_hash"]) << k;
+        EXPECT_EQ(r["steps"], runs[0]["steps"]);
+        EXPECT_GT(r["step_seconds"].get<double>(), 0);
+        EXPECT_GT(r["setup_seconds"].get<double>(), 0);
+        EXPECT_NEAR(r["step_seconds"].get<double>() + r["setup_seconds"].get<double>(), r["wall_seconds"].get<double>(),
+                    1e-9);
+    }
+    EXPECT_EQ(j["sets"], json::array({"duration=0.02"}));
+    EXPECT_TRUE(j["machine"].contains("load_average_end"));
+    EXPECT_EQ(test::readText(dir + "/runs.csv").substr(0, 22), "scene,name,round,load,");
+}
+
+TEST(BenchThreads, BadOptionsExitTwo) {
+    const std::string scene = test::source("assets/scenes/bar_sag.json");
+    for (const std::string& args : std::vector<std::string>{
+             "bench threads " + scene + " --rounds 0", "bench threads " + scene + " --threads -1", "bench threads",
+             "bench threads no_such_scene.json", "bench threads " + scene + " --set no_such_key=1"}) {
+        std::string err;
+        EXPECT_EQ(test::runCutsim(args, nullptr, &err), 2) << args << "\n" << err;
+    }
+}
+
+// The busy process spins (its CPU time grows) and is gone once the object is.
+TEST(BenchMachine, BusyCoreSpinsUntilDestroyed) {
+    auto cpuTicks = [](int pid) {
+        std::ifstream f("/proc/" + std::to_string(pid) + "/stat");
+        std::string stat;
+        std::getline(f, stat);
+        // fields after the command's closing parenthesis: state is field 3, utime 14, stime 15
+        std::istringstream rest(stat.substr(stat.rfind(')') + 2));
+        std::vector<std::string> v;
+        for (std::string x; rest >> x;) v.push_back(x);
+        return v.size() > 12 ? std::stol(v[11]) + std::stol(v[12]) : -1L;
+    };
+    int pid = 0;
+    {
+        const BusyCore busy;
+        pid = busy.pid();
+        ASSERT_GT(pid, 0);
+        long ticks = 0;
+        for (int k = 0; k < 100 && ticks <= 0; ++k) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+            ticks = cpuTicks(pid);
+        }
+        EXPECT_GT(ticks, 0);
+    }
+    EXPECT_EQ(::kill(pid, 0), -1);  // reaped: no such process
+    EXPECT_EQ(errno, ESRCH);
+}
+
+// `bench improve --speed`: each mesh and count once a round, idle rounds first; the improver's
+// result at a count is the one `cutsim improve --threads K` gives.
+TEST(BenchImprove, SpeedRunsTakeTurns) {
+    const json j =
+        runJson("bench improve --speed --speed-meshes liver --threads 1,2 --rounds 1 --busy-rounds 1 --json");
+    const auto& runs = j["runs"];
+    ASSERT_EQ(runs.size(), 4u);
+    const int threads[] = {1, 2, 2, 1};
+    for (size_t k = 0; k < 4; ++k) {
+        EXPECT_EQ(runs[k]["mesh"], "liver");
+        EXPECT_EQ(runs[k]["tets"].get<int>(), 596);
+        EXPECT_EQ(runs[k]["threads"].get<int>(), threads[k]);
+        EXPECT_EQ(runs[k]["load"], k < 2 ? "idle" : "busy");
+        EXPECT_GT(runs[k]["seconds"].get<double>(), 0);
+    }
+    const json one = runJson("improve " + test::data("tet/sofa_liver.msh") + " --scale 0.0254 --threads 1 --json");
+    EXPECT_DOUBLE_EQ(runs[0]["gain"].get<double>(), one["gain"].get<double>());
+    EXPECT_DOUBLE_EQ(runs[3]["gain"].get<double>(), one["gain"].get<double>());
+    std::string err;
+    EXPECT_EQ(test::runCutsim("bench improve --speed --speed-meshes spleen", nullptr, &err), 2);
+    EXPECT_NE(err.find("known: liver"), std::string::npos) << err;
 }
 
 TEST(BenchStep, TinyRunContract) {
