@@ -3,7 +3,8 @@
 # tables drawn from them (scripts/bench_tables.py).
 #   scripts/bench.sh               the short benchmarks (about 15 minutes on 2 cores)
 #   scripts/bench.sh --accuracy    and the default accuracy run (about 3 minutes more)
-#   scripts/bench.sh --long        and the two 1% accuracy runs (about 2 hours more)
+#   scripts/bench.sh --long        and the two 1% accuracy runs, the 500 random cut sequences and
+#                                  the thread count on a 40k-tet liver (about 2.5 hours more)
 # Needs a Release build with the benchmarks (scripts/build.sh, or CUTSIM_BUILD=DIR for another
 # build folder). Run it on an otherwise idle machine: every number is a wall time.
 set -euo pipefail
@@ -28,6 +29,9 @@ cmake --build "$B" --target cutsim cutsim_bench cutsim_bullet_bench -j"$(nproc)"
 "$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 5 --json > "$D/bullet_step.json"
 "$B/bench/cutsim_bullet_bench" --seconds 1 --rounds 3 --unrotated --json > "$D/bullet_step_unrotated.json"
 gnuplot -e "in='$D/bullet_step.json'; out='$D/bullet_step.png'" scripts/bench_plot.gp
+# the thread count a run picks: 1, 2 and measured, taking turns, then with a loop on the other core
+"$B/cutsim" bench threads assets/scenes/bar_sag.json --set 'object.box.cells=[36,8,6]' --set duration=1.0 \
+  --rounds 3 --busy --json --csv "$D/threads.csv" > "$D/threads.json"
 
 # stable steps: Table 4.3 (liver and armadillo), stability sweeps and random cuts
 { "$B/cutsim" dt assets/meshes/liver.msh --scale 0.0254 --worst 5
@@ -38,6 +42,7 @@ gnuplot -e "in='$D/bullet_step.json'; out='$D/bullet_step.png'" scripts/bench_pl
 
 # mesh improvement against TetGen's and Gmsh's optimisers (thesis Table 5.1)
 "$B/cutsim" bench improve --plot "$D/improve.png" --json > "$D/improve.json"
+"$B/cutsim" bench improve --speed --json > "$D/improve_speed.json"
 
 # Table 6.1 (mesh intersection against conforming cuts), and the cut moved through its cell
 "$B/cutsim" bench mi-bar > "$D/mi_bar.txt"
@@ -93,6 +98,18 @@ if [ "$long" = 1 ]; then
   "$B/cutsim" bench accuracy --res 12 --implicit-max-res 0 --cg-max-res 12 --ref-levels 8,12,16 --only cantilever \
     --json --csv "$D/accuracy_1pct_paired.csv" > "$D/accuracy_1pct_paired.json"
   "$B/cutsim" bench accuracy --from "$D/accuracy_1pct_paired.csv" > "$D/accuracy_1pct_paired.txt"
+  # the step floor through 500 random cut sequences per object (the stress test, about 4 minutes)
+  cmake --build "$B" --target stress_cut -j"$(nproc)"
+  CUTSIM_STRESS_JSON="$D/random_cuts_500.json" "$B/tests/stress_cut" --gtest_filter=RandomCutsStress.FloorHolds500
+  # the thread count on the improved 39,630-tet TetGen liver under the probe (about 15 minutes; tetgen on PATH)
+  awk '/^v /{v[++n]=$2" "$3" "$4} /^f /{f[++m]="3 "$2-1" "$3-1" "$4-1}
+       END{print "OFF"; print n" "m" 0"; for(i=1;i<=n;i++) print v[i]; for(i=1;i<=m;i++) print f[i]}' \
+    assets/meshes/sofa_liver.obj > captures/sofa_liver.off
+  tetgen -pq1.4a0.004 -Q captures/sofa_liver.off
+  "$B/cutsim" improve captures/sofa_liver.1.node --out captures/liver_0.004.msh --quiet > /dev/null
+  "$B/cutsim" bench threads assets/scenes/probe.json --rounds 2 --busy \
+    --set 'object={"mesh": "../../captures/liver_0.004.msh", "scale": 0.0254, "visual": "../meshes/sofa_liver-smooth.obj"}' \
+    --json --csv "$D/threads_liver.csv" > "$D/threads_liver.json"
 fi
 # BENCHMARKS.md's tables drawn from the JSON results
 python3 scripts/bench_tables.py

@@ -331,6 +331,36 @@ def improve_time():
     return table(["mesh", "0.1 s", "1 s", "10 s"], rows)
 
 
+def improve_speed():
+    """The improver's seconds at its defaults per mesh and thread count (medians of the rounds), as
+    found and with a loop on the other core, and per 10,000 input elements; the fastest as found per
+    mesh in bold."""
+    j = load("improve_speed.json")
+    by = {}
+    for r in j["runs"]:
+        by.setdefault(r["mesh"], {}).setdefault(r["threads"], {}).setdefault(r["load"], []).append(r)
+    rows = []
+    for mesh, counts in by.items():
+        tets = next(iter(counts.values()))["idle"][0]["tets"]
+
+        def med(runs):
+            return statistics.median(r["seconds"] for r in runs) if runs else None
+
+        fastest = min(med(c["idle"]) for c in counts.values())
+        for k, (threads, c) in enumerate(sorted(counts.items())):
+            cells = [f"{mesh} ({tets} tets)" if k == 0 else mesh, str(threads)]
+            for kind in ("idle", "busy"):
+                t = med(c.get(kind, []))
+                if t is None:
+                    cells += ["", ""]
+                    continue
+                per = f"{t * 1e4 / tets:.2f} s"
+                cells += [f"{t:.3f} s", f"**{per}**" if kind == "idle" and t == fastest else per]
+            rows.append(cells)
+    return table(["mesh", "threads", "as found", "per 10k tets", "a loop on the other core", "per 10k tets"], rows) + \
+        ran_on(j)
+
+
 # ---- bench cutstep: docs/bench/cutstep.json ----
 
 
@@ -460,6 +490,47 @@ def haptic():
                   "simulated s per wall s"], rows) + ran_on(j)
 
 
+# ---- bench threads: docs/bench/threads.json, threads_liver.json ----
+
+
+THREADS_LOADS = [("idle", "as found"), ("busy", "a loop on the other core")]
+
+
+def threads_rows(j, key, ratio):
+    """Per load of a bench threads result: key's value per round on 1 and 2 threads and on the
+    measured count (with the count each run ended on), and with ratio the measured over 1 thread."""
+    by = {}
+    for r in sorted(j["runs"], key=lambda r: r["round"]):
+        by.setdefault((r["load"], r["threads"]), []).append((r[key], r["threads_chosen"]))
+    rows = []
+    for kind, label in THREADS_LOADS:
+        if (kind, 1) not in by:
+            continue
+        one, choice = by[(kind, 1)], by.get((kind, 0), [])
+        cells = [label, ", ".join(decimals(v, 2) for v, _ in one),
+                 ", ".join(decimals(v, 2) for v, _ in by.get((kind, 2), [])),
+                 ", ".join(f"{v:.2f} ({c})" for v, c in choice)]
+        if ratio:
+            cells.append(", ".join(decimals(v / w, 2) for (v, _), (w, _) in zip(choice, one)))
+        rows.append(cells)
+    return rows
+
+
+def threads_box():
+    """bar_sag.json as a 10,368-tet box: seconds in the steps on 1 and 2 threads and the measured
+    choice, per round, as found and with a loop on the other core."""
+    j = load("threads.json")
+    return table(["machine", "1 thread", "2 threads", "measured choice (threads it ended on)"],
+                 threads_rows(j, "step_seconds", False)) + ran_on(j)
+
+
+def threads_liver():
+    """The improved 40k-tet liver under probe.json's probe: wall seconds of the whole run, the same."""
+    j = load("threads_liver.json")
+    return table(["machine", "1 thread", "2 threads", "measured choice (`--threads 0`; threads it ended on)",
+                  "choice / 1 thread"], threads_rows(j, "wall_seconds", True)) + ran_on(j)
+
+
 # ---- bench cost: docs/bench/cost.json ----
 
 
@@ -486,6 +557,7 @@ TABLES = {
     "stability-500": stability_500,
     "improve": improve_table,
     "improve-time": improve_time,
+    "improve-speed": improve_speed,
     "cutstep": cutstep,
     "cutstep-budget": cutstep_budget,
     "contact-projection": contact_projection,
@@ -493,6 +565,8 @@ TABLES = {
     "contact-scenes": contact_scenes,
     "haptic": haptic,
     "cost": cost,
+    "threads-box": threads_box,
+    "threads-liver": threads_liver,
 }
 
 
