@@ -38,6 +38,8 @@ gnuplot -e "in='$D/bullet_step.json'; out='$D/bullet_step.png'" scripts/bench_pl
   echo
   bin=$(cd "$B" && pwd)/cutsim  # run from the data folder, so the output names the mesh only
   (cd "$data/tet" && "$bin" dt sofa_Armadillo_Tetra_4406.gmsh22.msh --scale 0.01 --worst 5); } > "$D/dt_table43.txt"
+"$B/cutsim" dt assets/meshes/liver.msh --scale 0.0254 --json > "$D/dt_liver.json"
+(cd "$data/tet" && "$bin" dt sofa_Armadillo_Tetra_4406.gmsh22.msh --scale 0.01 --json) > "$D/dt_armadillo.json"
 "$B/cutsim" bench stability --json > "$D/stability.json"
 
 # mesh improvement against TetGen's and Gmsh's optimisers (thesis Table 5.1)

@@ -288,6 +288,28 @@ def stability_500():
     return table(["object", "floor", "cuts", "min dt ratio", "max mass added", "topped up"], rows) + ran_on(j)
 
 
+# ---- cutsim dt --json: docs/bench/dt_liver.json, dt_armadillo.json ----
+
+# Thesis Table 4.3, the values it prints for each mesh: exact, R1R, Hp, Hs, Le / c_p [ms].
+THESIS_TABLE_43 = {"liver": "0.4510, 0.4514, 0.4189, 0.4838, 0.1630",
+                   "armadillo": "0.0642, 0.0642, 0.0879, 0.1025, 0.0061"}
+
+
+def dt_table43():
+    """Table 4.3: each estimator's smallest step over the elements against the exact step, per mesh."""
+    rows = []
+    for name in THESIS_TABLE_43:
+        j = load(f"dt_{name}.json")
+
+        def v(key):
+            return f"{1e3 * j[key]:.4f}"
+
+        rows.append([f"{name}, {j['tets']} tets", v("dt_exact") + " ms", v("dt_certified") + " ms", v("dt_r1r"),
+                     v("dt_hp"), v("dt_hs"), v("dt_le"), THESIS_TABLE_43[name]])
+    return table(["mesh", "exact (Lanczos)", "certified (Gershgorin)", "R1R", "Hp", "Hs", "Le / c_p",
+                  "thesis Table 4.3"], rows)
+
+
 # ---- bench improve: docs/bench/improve.json ----
 
 
@@ -555,6 +577,7 @@ TABLES = {
     "stability-after-cuts": stability_after_cuts,
     "stability-floor": stability_floor,
     "stability-500": stability_500,
+    "dt-table43": dt_table43,
     "improve": improve_table,
     "improve-time": improve_time,
     "improve-speed": improve_speed,
