@@ -51,6 +51,10 @@ gnuplot -e "in='$D/bullet_step.json'; out='$D/bullet_step.png'" scripts/bench_pl
 "$B/cutsim" bench mi-bar --json > "$D/mi_bar.json"
 "$B/cutsim" bench mi-bar --sweep 12 > "$D/mi_bar_sweep.txt"
 
+# the thesis's four liver cuts: the exact step after each, XFEM against the baselines (report.json compare)
+"$B/cutsim" run assets/scenes/liver_cuts.json --out captures/liver_cuts --no-render --quiet
+cp captures/liver_cuts/report.json "$D/liver_cuts.json"
+
 # the step through four plane cuts per cutting method (thesis Tables 5.5 and 5.6)
 "$B/cutsim" bench cutstep --json > "$D/cutstep.json"
 # subdivision+improve's budget against its step: three runs of each setting and of the unbudgeted one

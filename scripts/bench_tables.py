@@ -415,6 +415,17 @@ def cutstep():
 
 
 
+LIVER_CUTS_METHODS = [("xfem", "XFEM virtual elements"), ("subdivision", "conforming subdivision"),
+                      ("subdivision_improve", "conforming subdivision + improve"), ("remesh", "TetGen remesh")]
+
+
+def liver_cuts():
+    """liver_cuts.json's report `compare`: the exact step after each cut over the uncut one, per method."""
+    c = load("liver_cuts.json")["compare"]
+    rows = [[label] + [decimals(r, 4) for r in c[key]["dt_ratio"]] for key, label in LIVER_CUTS_METHODS if key in c]
+    return table(["method", "cut 1", "cut 2", "cut 3", "cut 4"], rows)
+
+
 def cutstep_budget():
     """subdivision+improve's budget against its step: the step after cuts 1 and 4, and its improvement's
     time per cut (the median over the four cuts of each cut's median over the runs of a setting)."""
@@ -581,6 +592,7 @@ TABLES = {
     "improve": improve_table,
     "improve-time": improve_time,
     "improve-speed": improve_speed,
+    "liver-cuts": liver_cuts,
     "cutstep": cutstep,
     "cutstep-budget": cutstep_budget,
     "contact-projection": contact_projection,
