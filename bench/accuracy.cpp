@@ -2,6 +2,7 @@
 // Pareto front of each, and the cost at 1% error explicit against implicit. Results are described
 // in BENCHMARKS.md.
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "sim/simulation.hpp"
@@ -759,6 +760,7 @@ int runAccuracy(const AccuracyArgs& a) {
         std::fprintf(stderr, "error: --plot needs gnuplot, which is not installed (Debian package gnuplot-nox)\n");
         return 2;
     }
+    const json machine = machineJson();
     std::vector<ImplicitProjection> proj;
     std::vector<PairedComparison> paired;
     json refs = json::object();
@@ -775,7 +777,10 @@ int runAccuracy(const AccuracyArgs& a) {
     if (!a.csv.empty()) writeFileAtomic(a.csv, pointsCsv(pts));
     if (!a.plot.empty()) plotPoints(pts, a.plot);
     if (a.json) {
-        printJson(j);
+        if (a.from.empty())
+            printResult(j, machine);  // measured here: the machine and its load with the times
+        else
+            printJson(j);
         return 0;
     }
     printAccuracy(pts, proj, paired, j["summary"]);
@@ -790,7 +795,8 @@ void accuracyOptions(CLI::App& c, AccuracyArgs& a) {
              "paired: [{implicit, implicit_cost, slices, explicit: [{config, cost, ratio, ...}]}] (the explicit "
              "runs that took turns with the CG runs on the finest bar), references}; error is null for a run "
              "that diverged or gave no frequency, "
-             "a cost is null when no point reaches the error");
+             "a cost is null when no point reaches the error; with a run (not --from)",
+             true);
     csvOption(c, a.csv, "points");
     plotOption(c, a.plot, "error against cost with the Pareto front");
     c.add_option("--from", a.from,

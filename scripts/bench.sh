@@ -92,6 +92,8 @@ PYTHONPATH="$B/python" /usr/bin/python3 scripts/bench_python.py --cutsim "$B/cut
   --benchmark_report_aggregates_only=true > "$D/cutsim_bench.txt"
 
 if [ "$accuracy" = 1 ]; then
+  # what each route after a cut costs in accuracy: the notched cantilever alone
+  "$B/cutsim" bench accuracy --only notch-lumping --json > "$D/accuracy_notch.json"
   "$B/cutsim" bench accuracy --json --csv "$D/accuracy.csv" --plot "$D/accuracy.png" > "$D/accuracy.json"
   "$B/cutsim" bench accuracy --from "$D/accuracy.csv" > "$D/accuracy.txt"
 fi

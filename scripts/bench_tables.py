@@ -17,6 +17,7 @@ result file. scripts/bench.sh runs it after the benchmarks; the test Format.Benc
 import argparse
 import difflib
 import json
+import math
 import re
 import statistics
 import sys
@@ -137,6 +138,39 @@ def accuracy_paired():
     rows.append(["backward Euler, CG", microseconds(dt[implicit]), percent(c["implicit_error"]),
                  decimals(c["implicit_cost"], 1), "1"])
     return table(["", "dt", "error", "wall / sim s", "CG / this"], rows)
+
+
+NOTCH_ROUTES = {"xfem row_sum": "XFEM, row sum", "xfem weighted_diagonal": "XFEM, weighted diagonal",
+                "xfem enrichment": "XFEM, enrichment", "xfem enrichment+floor": "XFEM + floor",
+                "xfem enrichment+hybrid": "XFEM + hybrid", "subdivision": "subdivision",
+                "subdivision+improve": "subdivision + improve (budgeted)",
+                "subdivision+improve-full": "subdivision + improve (full)", "subdivision+hybrid": "subdivision + hybrid"}
+
+
+def accuracy_notch():
+    """The notched cantilever per route: elements, the exact step over the uncut bar's, the static
+    tip and frequency errors against the converged conforming notch, ms per cut; the conforming
+    notch meshes last (boxes of cubes in 6 tets each)."""
+    j = load("accuracy_notch.json")
+    err = {(p["problem"], p["config"]): p["error"] for p in j["points"]}
+    refs = j["references"]["cantilever_notch_static"]
+    rows = []
+    for r in refs["xfem"] + refs["subdivision"]:
+        route, mesh, f = r["config"].rsplit(" ", 2)
+        label = NOTCH_ROUTES[route] + (f" ({r['matched']} matched)" if route.endswith("hybrid") else "")
+        rows.append([mesh, label, str(r["tets"]), decimals(r["dt_ratio"], 4),
+                     decimals(err[("cantilever_notch_static", r["config"])], 5),
+                     decimals(err[("cantilever_notch_frequency", r["config"])], 5), decimals(1e3 * r["cut_seconds"], 2)])
+    rows.sort(key=lambda c: [int(x) for x in c[0].split("x")])  # by mesh, each mesh's routes in run order
+    conforming = sorted({p["config"] for p in j["points"] if p["config"].startswith("conforming notch")},
+                        key=lambda c: int(c.split()[2].split("x")[0]))
+    meshes = [c.split()[2] for c in conforming]
+    rows.append([" / ".join(meshes), "conforming notch",
+                 " / ".join(str(6 * math.prod(int(x) for x in m.split("x"))) for m in meshes), "(reference meshes)",
+                 " / ".join(decimals(err[("cantilever_notch_static", c)], 5) for c in conforming),
+                 " / ".join(decimals(err[("cantilever_notch_frequency", c)], 5) for c in conforming), "-"])
+    return table(["mesh", "route", "tets", "step ratio", "static tip error", "frequency error", "ms per cut"], rows) + \
+        ran_on(j)
 
 
 # ---- bench mi-bar: docs/bench/mi_bar.json ----
@@ -581,6 +615,7 @@ TABLES = {
     "scale-step": scale_step,
     "scale-exponents": scale_exponents,
     "accuracy-paired": accuracy_paired,
+    "accuracy-notch": accuracy_notch,
     "mi-bar": mi_bar,
     "step-bullet": step_bullet,
     "step-threads": step_threads,

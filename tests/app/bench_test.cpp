@@ -55,6 +55,7 @@ TEST(BenchAccuracy, ParetoFrontAndSummaryOfHandMadePoints) {
                                             "q,g,0.5,100,1e-3,implicit\n");  // alone on its problem's front
     const json j = runJson("bench accuracy --from " + csv + " --json --csv " + dir + "/out.csv");
     ASSERT_EQ(j["points"].size(), 7u);
+    EXPECT_FALSE(j.contains("machine"));  // nothing measured here
     const std::string expected = "TTFFTTT";
     for (size_t k = 0; k < 7; ++k) EXPECT_EQ(j["points"][k]["pareto"].get<bool>(), expected[k] == 'T') << "point " << k;
     EXPECT_DOUBLE_EQ(j["summary"]["p"]["best_explicit_cost_at_1pct"].get<double>(), 8.0);
@@ -229,6 +230,7 @@ TEST(BenchAccuracy, TinyRunContract) {
     const std::string dir = workDir("tiny");
     const json j = runJson("bench accuracy --tiny --json --csv " + dir + "/p.csv");
     ASSERT_TRUE(j.contains("points") && j.contains("summary"));
+    EXPECT_TRUE(j["machine"].contains("load_average_end"));  // measured here, so the machine is named
     int explicitPts = 0, implicitPts = 0;
     for (const auto& p : j["points"]) {
         for (const char* k : {"problem", "config", "error", "wall_per_sim_second", "dt", "pareto"})
