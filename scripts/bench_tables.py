@@ -417,6 +417,50 @@ def improve_speed():
         ran_on(j)
 
 
+# ---- cutsim_bench (Google Benchmark, console output): docs/bench/cutsim_bench.txt ----
+
+TIME_UNITS = {"ns": 1e-9, "us": 1e-6, "ms": 1e-3, "s": 1.0}
+COUNTER = re.compile(r"(-?[0-9.]+(?:e[-+]?[0-9]+)?)([kMG]?)")
+
+
+def google_benchmark(name):
+    """A Google Benchmark console output: ({benchmark name: (real time [s], {counter: value})}, the
+    1-minute load average its header gives)."""
+    rows, load_avg = {}, None
+    for line in (DATA / name).read_text(encoding="utf-8").splitlines():
+        if line.startswith("Load Average:"):
+            load_avg = float(line.split(":")[1].split(",")[0])
+        f = line.split()
+        if len(f) >= 6 and f[0].startswith("BM_") and f[2] in TIME_UNITS:
+            counters = {}
+            for c in f[6:]:
+                k, _, v = c.partition("=")
+                m = COUNTER.match(v)
+                if m:  # "1.37701k", "23.65k/s" (a rate), "0.00%" (a coefficient of variation)
+                    counters[k] = float(m.group(1)) * {"k": 1e3, "M": 1e6, "G": 1e9}.get(m.group(2), 1)
+            rows[f[0]] = (float(f[1]) * TIME_UNITS[f[2]], counters)
+    return rows, load_avg
+
+
+def cut_latency():
+    """One blade step on the SOFA liver: elements re-estimated, wall, the local update's share, and the
+    exact step solve after it (medians of 5)."""
+    rows, load_avg = google_benchmark("cutsim_bench.txt")
+    out = []
+    for label, bench, exact in [("10 elements", "BM_CutBladeStep/10/repeats:5/manual_time_median", None),
+                                ("25 elements", "BM_CutBladeStep/25/repeats:5/manual_time_median", None),
+                                ("50 elements", "BM_CutBladeStep/50/repeats:5/manual_time_median",
+                                 "BM_CutExactDt/0/repeats:5_median"),
+                                ("a plane through 91 elements", "BM_CutPlane/repeats:5/manual_time_median",
+                                 "BM_CutExactDt/1/repeats:5_median")]:
+        wall, c = rows[bench]
+        cell = f"{1e3 * wall:.2f} ms"
+        out.append([label, f"{c['est_elems']:.0f}", f"**{cell}**" if label == "50 elements" else cell,
+                    f"{1e-3 * c['update_us']:.2f} ms", f"{1e3 * rows[exact][0]:.2f} ms" if exact else ""])
+    return table(["blade step crossing", "re-estimated", "wall", "of which the update",
+                  "exact dt afterwards (Lanczos)"], out) + f"\nLoad average {load_avg:.1f} as the run started.\n"
+
+
 # ---- bench cutstep: docs/bench/cutstep.json ----
 
 
@@ -627,6 +671,7 @@ TABLES = {
     "improve": improve_table,
     "improve-time": improve_time,
     "improve-speed": improve_speed,
+    "cut-latency": cut_latency,
     "liver-cuts": liver_cuts,
     "cutstep": cutstep,
     "cutstep-budget": cutstep_budget,
