@@ -642,6 +642,38 @@ def threads_liver():
                   "choice / 1 thread"], threads_rows(j, "wall_seconds", True)) + ran_on(j)
 
 
+# ---- scripts/bench_python.py: docs/bench/python_step.txt ----
+
+PYTHON_SIDES = [("cli", "`cutsim run`"), ("python sim.step(1000)", "`sim.step(1000)`"),
+                ("python loop", "Python loop: `sim.step()`, `sim.tool_force(0)`")]
+
+
+def python_step():
+    """Each side's median per run of the script (one value when all agree to 0.1 ms) and its
+    difference from the CLI's, over the runs the file holds; their loads beneath."""
+    medians, over, loads = {}, {}, []
+    for line in (DATA / "python_step.txt").read_text(encoding="utf-8").splitlines():
+        if "load average:" in line:
+            loads.append(float(line.split("load average:")[1].split(",")[0]))
+        for key, _ in PYTHON_SIDES:
+            if line.strip().startswith(key):
+                f = line.split("ms")[0].split()[-1], line.split("ms")[1].split()[0]
+                medians.setdefault(key, []).append(float(f[0]))
+                over.setdefault(key, []).append(f[1])
+
+    def span(values):
+        lo, hi = f"{min(values):.1f}", f"{max(values):.1f}"
+        return lo if lo == hi else f"{lo}-{hi}"
+
+    rows = []
+    for key, label in PYTHON_SIDES:
+        pct = sorted(over[key], key=lambda v: float(v.rstrip("%")))
+        rows.append([label, span(medians[key]),
+                     "" if key == "cli" else (pct[0] if pct[0] == pct[-1] else f"{pct[0]} to {pct[-1]}")])
+    return table(["side", "median [ms]", "over the CLI"], rows) + \
+        f"\n{len(loads)} runs, load average {span(loads)} as they started.\n"
+
+
 # ---- bench cost: docs/bench/cost.json ----
 
 
@@ -680,6 +712,7 @@ TABLES = {
     "contact-scenes": contact_scenes,
     "haptic": haptic,
     "cost": cost,
+    "python-step": python_step,
     "threads-box": threads_box,
     "threads-liver": threads_liver,
 }
