@@ -93,12 +93,12 @@ int CutEngine::carrierOnSide(const Model& m, int p, const std::vector<const Half
                 for (int b = 0; b < 4; ++b) shared += tets0_(a, q) == tets0_(b, p);
             for (int g : virtualsOf(q)) {
                 if (shared < bestShared || (shared == bestShared && g >= best)) continue;
-                const auto gv = virt_.find(g);
+                const Virtual* gv = findVirtual(g);
                 Eigen::Vector4d mid = Eigen::Vector4d::Constant(0.25);  // an uncut element: its parent's centre
-                if (gv != virt_.end()) {
+                if (gv) {
                     mid.setZero();
-                    for (const auto& xi : gv->second.piece.xi) mid += weightsOf(xi);
-                    mid /= static_cast<double>(gv->second.piece.xi.size());
+                    for (const auto& xi : gv->piece.xi) mid += weightsOf(xi);
+                    mid /= static_cast<double>(gv->piece.xi.size());
                 }
                 if (!sameSide(inP(restOf(m, q, mid)))) continue;
                 best = g;
@@ -142,6 +142,49 @@ struct CutEngine::SplitCache {
     // Cap samples and rim crossings: a parent's pieces change only when it is cut again.
     std::unordered_map<Key<4>, double, KeyHash> winding;   // winding number at a point
     std::unordered_map<Key<8>, double, KeyHash> crossing;  // where the surface crosses a segment [0, 1]
+
+    // What one original triangle, or one cut parent's cut faces, drew at the last surface(): the
+    // vertices in the order they were asked for (not welded across: that is the output's) and
+    // triangles on them. It reads only the parents sharing a corner with the parents the triangle
+    // lies over (with the cut parent), so it is kept until one of those changes (SurfaceBuild::state).
+    struct Drawn {
+        std::vector<int> elem;  // the element a vertex rides, or -1 - v: original vertex v kept as it is
+        std::vector<Eigen::Vector4d> w;
+        std::vector<VertexKey> key;
+        std::vector<std::array<int, 4>> tris;  // three vertices and the cut that made it (-1: none)
+        // two elements asked whether they are in one piece (a whole-model property), and the answer
+        std::vector<std::array<int, 3>> joined;
+        bool valid = false;
+        void clear() {
+            elem.clear();
+            w.clear();
+            key.clear();
+            tris.clear();
+            joined.clear();
+            valid = false;
+        }
+        int add(int e, const Eigen::Vector4d& weights, const VertexKey& k) {
+            elem.push_back(e);
+            w.push_back(weights);
+            key.push_back(k);
+            return static_cast<int>(elem.size()) - 1;
+        }
+    };
+    std::vector<Drawn> drawnTri;         // by original triangle
+    std::vector<Drawn> drawnCap;         // by parent, for cut parents
+    int drawnLevels = -1;                // the capLevels drawnCap was drawn with
+    std::vector<int> overStart, over;    // parent -> the original triangles with a vertex or a part in it (CSR)
+    std::vector<int> stateStart, state;  // each parent's elements and slivers as the last surface() read them
+    // the output's welding, kept for its buckets
+    std::unordered_map<VertexKey, int, VertexKeyHash> welded;
+    // splitPastBoundary's marks, by parent and by original node and plane, current at `stamp`
+    struct Scratch {
+        size_t nodes = 0;
+        int stamp = 0;
+        std::vector<int> firstMark, lastMark, first, last;
+        std::vector<std::vector<int>> nodeStamp;
+        std::vector<std::vector<signed char>> nodeSign;
+    } scratch;
 };
 
 CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurface& original) const {
@@ -227,6 +270,27 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
         }
         c->partStart.push_back(static_cast<int>(c->parts.size()));
     }
+    // Each parent's triangles: those with a vertex or a part in it.
+    std::vector<std::pair<int, int>> pairs;  // (parent, triangle)
+    std::vector<int> ps;
+    for (int t = 0; t < original.faces(); ++t) {
+        ps.clear();
+        for (int i = 0; i < 3; ++i) ps.push_back(original.element[static_cast<size_t>(original.triangles(i, t))]);
+        for (int k = c->partStart[static_cast<size_t>(t)]; k < c->partStart[static_cast<size_t>(t) + 1]; ++k)
+            ps.push_back(c->parts[static_cast<size_t>(k)].first);
+        std::sort(ps.begin(), ps.end());
+        ps.erase(std::unique(ps.begin(), ps.end()), ps.end());
+        for (int q : ps) pairs.emplace_back(q, t);
+    }
+    std::sort(pairs.begin(), pairs.end());
+    c->overStart.assign(static_cast<size_t>(nParents) + 1, 0);
+    for (const auto& [q, t] : pairs) ++c->overStart[static_cast<size_t>(q) + 1];
+    for (size_t q = 0; q < static_cast<size_t>(nParents); ++q) c->overStart[q + 1] += c->overStart[q];
+    c->over.reserve(pairs.size());
+    for (const auto& [q, t] : pairs) c->over.push_back(t);
+    c->scratch.nodes = static_cast<size_t>(tets0_.maxCoeff()) + 1;
+    c->drawnTri.resize(static_cast<size_t>(original.faces()));
+    c->drawnCap.resize(static_cast<size_t>(nParents));
     return *c;
 }
 
@@ -235,12 +299,24 @@ CutEngine::SplitCache& CutEngine::splitCache(const Model& m, const EmbeddedSurfa
 struct CutEngine::PastBoundarySplit {
     struct Plane {
         int cut, parent;
-        Eigen::Vector4d s;                         // signed distance at the parent's corners [m]
-        std::vector<std::pair<int, double>> node;  // ... at the corners of the cut parents near [m]
+        Eigen::Vector4d s;  // signed distance at the parent's corners [m]
     };
     const CutEngine& eng;
     const Model& m;
+    SplitCache::Scratch& ws;
     std::vector<Plane> planes;
+    mutable std::vector<std::pair<int, std::uint32_t>> sides;  // sidesOf's answers so far, by element
+
+    // The sign of plane c's signed distance at the corners of the cut parents near: the last
+    // nonzero one given for each original node (ws.nodeSign[c], current where ws.nodeStamp[c] is ws.stamp).
+    void setNode(size_t c, int n, double d) {
+        if (d == 0) return;
+        ws.nodeStamp[c][static_cast<size_t>(n)] = ws.stamp;
+        ws.nodeSign[c][static_cast<size_t>(n)] = d > 0 ? 1 : -1;
+    }
+    int nodeSign(size_t c, int n) const {
+        return ws.nodeStamp[c][static_cast<size_t>(n)] == ws.stamp ? ws.nodeSign[c][static_cast<size_t>(n)] : 0;
+    }
 
     Eigen::Vector4d inP(int p, const Eigen::Vector3d& y) const {
         const auto& t = eng.tets0_;
@@ -254,14 +330,44 @@ struct CutEngine::PastBoundarySplit {
                 f(eng.ring_[static_cast<size_t>(i)]);
         }
     }
-    void addPlanesOf(int q) {
-        if (!eng.virt_.count(q)) return;
-        for (int g : eng.virtualsOf(q))
-            for (const Halfspace& h : eng.virt_.at(g).hs) {
-                auto pl = std::find_if(planes.begin(), planes.end(), [&](const Plane& x) { return x.cut == h.cut; });
-                if (pl == planes.end()) pl = planes.insert(planes.end(), {h.cut, q, h.s, {}});
-                for (int a = 0; a < 4; ++a) pl->node.emplace_back(eng.tets0_(a, q), h.s[a]);
-            }
+    // The planes of the cut parents in `asked` (in that order, with repeats): one per cut, from
+    // the first parent that has it, and the signed distances each parent gives its corners, the
+    // last one asked winning. A parent asked again gives what it gave before, so only its last
+    // time counts for those and its first for the planes.
+    void addPlanesOf(const std::vector<int>& asked) {
+        const size_t nParents = static_cast<size_t>(eng.tets0_.cols()), nNodes = ws.nodes;
+        if (ws.firstMark.size() < nParents) ws.firstMark.assign(nParents, 0), ws.lastMark.assign(nParents, 0);
+        ++ws.stamp;
+        std::vector<int>& first = ws.first;
+        std::vector<int>& last = ws.last;
+        first.clear();
+        last.clear();
+        for (int q : asked)
+            if (std::exchange(ws.firstMark[static_cast<size_t>(q)], ws.stamp) != ws.stamp) first.push_back(q);
+        for (size_t i = asked.size(); i-- > 0;)
+            if (std::exchange(ws.lastMark[static_cast<size_t>(asked[i])], ws.stamp) != ws.stamp)
+                last.push_back(asked[i]);
+        auto planeOf = [&](int cut) {
+            return static_cast<size_t>(
+                std::find_if(planes.begin(), planes.end(), [&](const Plane& x) { return x.cut == cut; }) -
+                planes.begin());
+        };
+        for (int q : first)
+            for (int g : eng.virtualsOf(q))
+                for (const Halfspace& h : eng.findVirtual(g)->hs)
+                    if (planeOf(h.cut) == planes.size()) planes.push_back({h.cut, q, h.s});
+        while (ws.nodeStamp.size() < planes.size()) {
+            ws.nodeStamp.emplace_back(nNodes, 0);
+            ws.nodeSign.emplace_back(nNodes, 0);
+        }
+        for (size_t i = last.size(); i-- > 0;) {
+            const int q = last[i];
+            for (int g : eng.virtualsOf(q))
+                for (const Halfspace& h : eng.findVirtual(g)->hs) {
+                    const size_t c = planeOf(h.cut);
+                    for (int a = 0; a < 4; ++a) setNode(c, eng.tets0_(a, q), h.s[a]);
+                }
+        }
     }
     double level(const Plane& pl, const Eigen::Vector3d& x) const { return pl.s.dot(inP(pl.parent, x)); }
     std::uint32_t sideOf(const Eigen::Vector3d& x) const {
@@ -271,30 +377,30 @@ struct CutEngine::PastBoundarySplit {
     }
     // The rest centre of element g of parent q: its piece's, or the parent's when uncut.
     Eigen::Vector3d centre(int q, int g) const {
-        const auto gv = eng.virt_.find(g);
-        if (gv == eng.virt_.end() || gv->second.piece.xi.empty())
-            return eng.restOf(m, q, Eigen::Vector4d::Constant(0.25));
+        const Virtual* gv = eng.findVirtual(g);
+        if (!gv || gv->piece.xi.empty()) return eng.restOf(m, q, Eigen::Vector4d::Constant(0.25));
         Eigen::Vector4d w = Eigen::Vector4d::Zero();
-        for (const auto& xi : gv->second.piece.xi) w += weightsOf(xi);
-        return eng.restOf(m, q, w / static_cast<double>(gv->second.piece.xi.size()));
+        for (const auto& xi : gv->piece.xi) w += weightsOf(xi);
+        return eng.restOf(m, q, w / static_cast<double>(gv->piece.xi.size()));
     }
     // Sides of element g of parent q: its own halfspace of each cut, else the sign its corners
     // have where a cut parent near gives them (the cut was made in the deformed shape: its rest
     // level set bends, so a plane far from where it was taken may put an element on the wrong
     // side), else its centre's.
     std::uint32_t sidesOf(int q, int g) const {
+        for (const auto& [e, sig] : sides)
+            if (e == g) return sig;
         std::uint32_t sig = sideOf(centre(q, g));
-        const auto gv = eng.virt_.find(g);
+        const Virtual* gv = eng.findVirtual(g);
         for (size_t c = 0; c < planes.size() && c < 32; ++c) {
             int known = 0;
-            if (gv != eng.virt_.end())
-                for (const Halfspace& h : gv->second.hs)
+            if (gv)
+                for (const Halfspace& h : gv->hs)
                     if (h.cut == planes[c].cut) known = h.positive ? 1 : -1;
-            for (int a = 0; a < 4 && known == 0; ++a)
-                for (const auto& [n, d] : planes[c].node)
-                    if (n == eng.tets0_(a, q) && d != 0) known = d > 0 ? 1 : -1;
+            for (int a = 0; a < 4 && known == 0; ++a) known = nodeSign(c, eng.tets0_(a, q));
             if (known != 0) sig = (sig & ~(std::uint32_t(1) << c)) | (std::uint32_t(known > 0) << c);
         }
+        sides.emplace_back(g, sig);
         return sig;
     }
     // An element on side sig: of p, else of a parent sharing the most corners with p; {-1, -1}
@@ -344,8 +450,8 @@ struct CutEngine::PastBoundarySplit {
     }
 };
 
-void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
-                                  const std::vector<int>& piece,
+void CutEngine::splitPastBoundary(const Model& m, SplitCache& cache, const EmbeddedSurface& original, int t,
+                                  const std::function<bool(int, int)>& samePiece,
                                   const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
                                   const std::function<void(int, int, int)>& addTriangle) const {
     // Past the boundary no partition by parents is continuous (neighbours' extrapolations agree
@@ -359,11 +465,16 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
         parent[i] = original.element[static_cast<size_t>(v)];
         y[i] = cache.rest.V.col(v);
     }
-    PastBoundarySplit split{*this, m, {}};
-    for (int q : parent) split.addPlanesOf(q);
+    PastBoundarySplit split{*this, m, cache.scratch, {}, {}};
+    std::vector<int> asked;  // the cut parents whose planes count: the corners', the parts', those around the corners
+    auto ask = [&](int q) {
+        if (findVirtual(q)) asked.push_back(q);
+    };
+    for (int q : parent) ask(q);
     for (int k = cache.partStart[static_cast<size_t>(t)]; k < cache.partStart[static_cast<size_t>(t) + 1]; ++k)
-        split.addPlanesOf(cache.parts[static_cast<size_t>(k)].first);
-    for (int q : parent) split.forRing(q, [&](int r) { split.addPlanesOf(r); });
+        ask(cache.parts[static_cast<size_t>(k)].first);
+    for (int q : parent) split.forRing(q, ask);
+    split.addPlanesOf(asked);
     std::vector<int> ids;
     std::vector<std::pair<int, int>> rides;  // (element, parent) of each cell corner
     for (const Poly& c : split.cells(y)) {
@@ -392,11 +503,10 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
         }
         // One piece per cell: a corner riding an element the cuts have parted from the anchor's
         // would stretch the cell across the opening as a spike; it rides the anchor's instead.
-        const int home = piece[static_cast<size_t>(rides[anchor].first)];
         ids.clear();
         for (size_t k = 0; k < c.size(); ++k) {
             auto ride = rides[k];
-            if (piece[static_cast<size_t>(ride.first)] != home) ride = rides[anchor];
+            if (!samePiece(ride.first, rides[anchor].first)) ride = rides[anchor];
             ids.push_back(addVertex(ride.first, split.inP(ride.second, c[k].head<3>())));
         }
         for (size_t k = 1; k + 1 < ids.size(); ++k)
@@ -405,8 +515,11 @@ void CutEngine::splitPastBoundary(const Model& m, const SplitCache& cache, const
     }
 }
 
-// surface(m, original)'s work: the drawn surface as it is built, and its two phases.
+// surface(m, original)'s work: the drawn surface as it is built, and its two phases. Each
+// original triangle and each cut parent's cut faces is drawn into its SplitCache::Drawn, or kept
+// from the last call when the parents it reads are as they were then; the output welds them in order.
 struct CutEngine::SurfaceBuild {
+    using Drawn = SplitCache::Drawn;
     const CutEngine& eng;
     const Model& m;
     const EmbeddedSurface& original;
@@ -415,10 +528,11 @@ struct CutEngine::SurfaceBuild {
     std::vector<Eigen::Vector4d> weights;
     std::vector<Eigen::Vector3i> tris;
     std::vector<int> cutId;
-    std::vector<int> kept;  // output index of an original vertex kept as is
-    // New vertices at one place on the same nodes are one (cut/vertex_key.hpp): shared across
-    // elements, so a piece's cut face is connected and shades smoothly.
-    std::unordered_map<VertexKey, int, VertexKeyHash> welded;
+    std::vector<int> kept;              // output index of an original vertex kept as is
+    Drawn* into = nullptr;              // what is being drawn
+    std::vector<int> ids;               // scratch of append: a Drawn's vertices in the output
+    std::vector<int> piece;             // connected piece of each element, once asked for
+    std::vector<char> nearChanged;      // parent shares a corner with one changed since the last call
     std::vector<Eigen::Vector4d> grid;  // scratch of cap: sample weights and winding numbers - 1/2
     std::vector<double> wind;
 
@@ -434,7 +548,7 @@ struct CutEngine::SurfaceBuild {
         return 0.5 * a.norm();
     }
     // A crossed parent has a piece even when one side was merged (it then has no other virtual element).
-    bool isCut(int p) const { return eng.virt_.count(p) > 0; }
+    bool isCut(int p) const { return eng.findVirtual(p) != nullptr; }
     // `poly` (weights in p) in the weights of parent q, extrapolated.
     Poly inParent(int p, const Poly& poly, int q) const {
         const auto& t = eng.tets0_;
@@ -444,15 +558,50 @@ struct CutEngine::SurfaceBuild {
                 barycentric(rest(p, w), m.X.col(t(0, q)), m.X.col(t(1, q)), m.X.col(t(2, q)), m.X.col(t(3, q))));
         return out;
     }
-    int keepOriginal(int v) {
-        int& k = kept[static_cast<size_t>(v)];
-        if (k < 0) {
-            k = static_cast<int>(elem.size());
-            elem.push_back(original.element[static_cast<size_t>(v)]);
-            weights.push_back(original.weights.col(v));
-        }
-        return k;
+    bool samePiece(int a, int b) {
+        if (piece.empty()) piece = pieceLabels(m);
+        return piece[static_cast<size_t>(a)] == piece[static_cast<size_t>(b)];
     }
+    // Slivers by parent (CSR), for their cut faces.
+    std::vector<int> sliverStart, sliverOf;
+    void indexSlivers();
+    // The parents whose elements or slivers changed since the last call: those sharing a corner
+    // with them are marked in nearChanged (all at the first call).
+    void findChanged();
+    // Drawn d into the output: its vertices welded to those before (cut/vertex_key.hpp: new
+    // vertices at one place on the same nodes are one, shared across elements, so a piece's cut
+    // face is connected and shades smoothly), its triangles without those welding collapsed.
+    void append(const Drawn& d) {
+        ids.resize(d.elem.size());
+        for (size_t i = 0; i < d.elem.size(); ++i) {
+            if (d.elem[i] < 0) {
+                const int v = -1 - d.elem[i];
+                int& k = kept[static_cast<size_t>(v)];
+                if (k < 0) {
+                    k = static_cast<int>(elem.size());
+                    elem.push_back(original.element[static_cast<size_t>(v)]);
+                    weights.push_back(original.weights.col(v));
+                }
+                ids[i] = k;
+                continue;
+            }
+            auto [it, added] = cache.welded.emplace(d.key[i], static_cast<int>(elem.size()));
+            if (added) {
+                elem.push_back(d.elem[i]);
+                weights.push_back(d.w[i]);
+            }
+            ids[i] = it->second;
+        }
+        for (const auto& t : d.tris) {
+            const int a = ids[static_cast<size_t>(t[0])], b = ids[static_cast<size_t>(t[1])],
+                      c = ids[static_cast<size_t>(t[2])];
+            // an original triangle is kept as it is; a new one may collapse
+            if (d.elem[static_cast<size_t>(t[0])] >= 0 && (a == b || b == c || a == c)) continue;
+            tris.emplace_back(a, b, c);
+            cutId.push_back(t[3]);
+        }
+    }
+    int keepOriginal(int v) { return into->add(-1 - v, Eigen::Vector4d::Zero(), {}); }
     int vertex(int p, int e, const Eigen::Vector4d& w, bool inside) {
         // Clipped to the parent's inner faces: only round-off is negative there; beyond a boundary
         // face a visual surface's weights are extrapolated, as are a carrier's (inside false).
@@ -460,26 +609,30 @@ struct CutEngine::SurfaceBuild {
         if (inside)
             for (int a = 0; a < 4; ++a)
                 if (eng.adj_(a, p) >= 0) c[a] = std::max(c[a], 0.0);
-        auto [it, added] = welded.emplace(vertexKey(m.tets, e, c), static_cast<int>(elem.size()));
-        if (added) {
-            elem.push_back(e);
-            weights.push_back(c);
-        }
-        return it->second;
+        return into->add(e, c, vertexKey(m.tets, e, c));
+    }
+    // A vertex of element e at weights w, one per key in what is being drawn (splitPastBoundary
+    // compares them).
+    int vertexOnce(int e, const Eigen::Vector4d& w) {
+        const VertexKey k = vertexKey(m.tets, e, w);
+        for (size_t i = 0; i < into->key.size(); ++i)
+            if (into->elem[i] >= 0 && into->key[i] == k) return static_cast<int>(i);
+        return into->add(e, w, k);
     }
     // cut: the cut making it, or -1. inside: the polygon's weights lie in e's parent (else
-    // extrapolated from it).
+    // extrapolated from it). Collapsed triangles are dropped in append.
     void emit(int p, int e, const Poly& poly, int cut, bool inside = true) {
         if (poly.size() < 3 || area(p, poly) <= cache.tinyArea) return;
         const int v0 = vertex(p, e, poly[0], inside);
+        int v1 = vertex(p, e, poly[1], inside);
         for (size_t k = 1; k + 1 < poly.size(); ++k) {
-            const int v1 = vertex(p, e, poly[k], inside), v2 = vertex(p, e, poly[k + 1], inside);
-            if (v0 == v1 || v1 == v2 || v0 == v2) continue;
-            tris.emplace_back(v0, v1, v2);
-            cutId.push_back(cut);
+            const int v2 = vertex(p, e, poly[k + 1], inside);
+            into->tris.push_back({v0, v1, v2, cut});
+            v1 = v2;
         }
     }
     void emitInCutParent(int p, const Poly& poly);
+    void drawTriangle(int t, const std::vector<char>& near);
     void drawOriginal();
     // The cut faces
     bool cornerOutside(int p) const;
@@ -495,7 +648,7 @@ struct CutEngine::SurfaceBuild {
     }
     void cap(int p, bool inside, const Poly& poly, int e, int q, int cut, int capLevels);
     void drawCutFaces(int capLevels);
-    void drawCutFacesOf(int p, const std::unordered_multimap<int, const Sliver*>& sliversIn, int capLevels);
+    void drawCutFacesOf(int p, int capLevels);
 };
 
 // A polygon in cut parent p: split by each cut of p, each cell to the virtual element whose
@@ -504,7 +657,7 @@ void CutEngine::SurfaceBuild::emitInCutParent(int p, const Poly& poly) {
     const std::vector<int> ves = eng.virtualsOf(p);  // copy: virtualsOf reuses scratch
     std::vector<const Halfspace*> planes;            // one per cut
     for (int e : ves)
-        for (const Halfspace& h : eng.virt_.at(e).hs)
+        for (const Halfspace& h : eng.findVirtual(e)->hs)
             if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
                 planes.push_back(&h);
     std::vector<Poly> cells{poly}, next;
@@ -525,7 +678,7 @@ void CutEngine::SurfaceBuild::emitInCutParent(int p, const Poly& poly) {
         int best = ves[0], fewest = 1 << 30;
         for (int e : ves) {
             int bad = 0;
-            for (const Halfspace& h : eng.virt_.at(e).hs) bad += (mid.dot(h.s) >= 0) != h.positive;
+            for (const Halfspace& h : eng.findVirtual(e)->hs) bad += (mid.dot(h.s) >= 0) != h.positive;
             if (bad < fewest) {
                 fewest = bad;
                 best = e;
@@ -546,59 +699,84 @@ void CutEngine::SurfaceBuild::emitInCutParent(int p, const Poly& poly) {
 
 // 1. The original triangles. One whose parents are all uncut stays as it is; one past the
 // boundary is split by the cuts near it (splitPastBoundary); any other is split by the cuts of
-// each parent it crosses.
+// each parent it crosses. Each is drawn again only when a parent sharing a corner with one it
+// lies over changed, or when the pieces it asked about were parted or joined.
 void CutEngine::SurfaceBuild::drawOriginal() {
     // Parents sharing a corner with a cut parent: a triangle past the boundary near them may be
     // crossed by a cut beyond the parents it lies over.
-    std::vector<char> near(static_cast<size_t>(parents()), 0);
-    if (cache.outside)
-        for (const auto& kv : eng.virt_) {
-            if (kv.first >= parents()) continue;
-            for (int a = 0; a < 4; ++a) {
-                const int o = eng.tets0_(a, kv.first);
-                for (int i = eng.ringStart_[static_cast<size_t>(o)]; i < eng.ringStart_[static_cast<size_t>(o) + 1];
-                     ++i)
-                    near[static_cast<size_t>(eng.ring_[static_cast<size_t>(i)])] = 1;
-            }
-        }
-    std::vector<int> piece;  // connected piece of each element, when a triangle past the boundary needs it
-    auto nearCut = [&](const std::array<int, 3>& v) {
-        return std::any_of(v.begin(), v.end(),
-                           [&](int i) { return near[static_cast<size_t>(original.element[static_cast<size_t>(i)])]; });
-    };
+    std::vector<char> near;
     for (int t = 0; t < original.faces(); ++t) {
-        std::array<int, 3> v{};
-        bool touchesCut = false;
-        for (size_t i = 0; i < 3; ++i) {
-            v[i] = original.triangles(static_cast<int>(i), t);
-            touchesCut = touchesCut || isCut(original.element[static_cast<size_t>(v[i])]);
+        Drawn& d = cache.drawnTri[static_cast<size_t>(t)];
+        bool keep = d.valid;
+        for (int k = cache.partStart[static_cast<size_t>(t)]; k < cache.partStart[static_cast<size_t>(t) + 1] && keep;
+             ++k)
+            keep = !nearChanged[static_cast<size_t>(cache.parts[static_cast<size_t>(k)].first)];
+        for (int i = 0; i < 3 && keep; ++i)
+            keep = !nearChanged[static_cast<size_t>(original.element[static_cast<size_t>(original.triangles(i, t))])];
+        for (size_t k = 0; k < d.joined.size() && keep; ++k)
+            keep = samePiece(d.joined[k][0], d.joined[k][1]) == (d.joined[k][2] != 0);
+        if (!keep) {
+            if (near.empty() && cache.outside) {
+                near.assign(static_cast<size_t>(parents()), 0);
+                for (int p = 0; p < parents(); ++p) {
+                    if (!isCut(p)) continue;
+                    for (int a = 0; a < 4; ++a) {
+                        const int o = eng.tets0_(a, p);
+                        for (int i = eng.ringStart_[static_cast<size_t>(o)];
+                             i < eng.ringStart_[static_cast<size_t>(o) + 1]; ++i)
+                            near[static_cast<size_t>(eng.ring_[static_cast<size_t>(i)])] = 1;
+                    }
+                }
+            }
+            d.clear();
+            into = &d;
+            drawTriangle(t, near);
+            d.valid = true;
         }
-        const int b = cache.partStart[static_cast<size_t>(t)], e = cache.partStart[static_cast<size_t>(t) + 1];
-        for (int k = b; k < e && !touchesCut; ++k) touchesCut = isCut(cache.parts[static_cast<size_t>(k)].first);
-        const bool past = cache.pastVertex[static_cast<size_t>(v[0])] || cache.pastVertex[static_cast<size_t>(v[1])] ||
-                          cache.pastVertex[static_cast<size_t>(v[2])];
-        if (past && (touchesCut || nearCut(v))) {
-            if (piece.empty()) piece = pieceLabels(m);
-            eng.splitPastBoundary(
-                m, cache, original, t, piece, [&](int g, const Eigen::Vector4d& w) { return vertex(0, g, w, false); },
-                [&](int a, int b2, int c2) {
-                    tris.emplace_back(a, b2, c2);
-                    cutId.push_back(-1);
-                });
-            continue;
-        }
-        if (!touchesCut) {
-            tris.emplace_back(keepOriginal(v[0]), keepOriginal(v[1]), keepOriginal(v[2]));
-            cutId.push_back(-1);
-            continue;
-        }
-        for (int k = b; k < e; ++k) {
-            const auto& [q, poly] = cache.parts[static_cast<size_t>(k)];
-            if (isCut(q))
-                emitInCutParent(q, poly);
-            else
-                emit(q, q, poly, -1);
-        }
+        append(d);
+    }
+}
+
+void CutEngine::SurfaceBuild::drawTriangle(int t, const std::vector<char>& near) {
+    std::array<int, 3> v{};
+    bool touchesCut = false;
+    for (size_t i = 0; i < 3; ++i) {
+        v[i] = original.triangles(static_cast<int>(i), t);
+        touchesCut = touchesCut || isCut(original.element[static_cast<size_t>(v[i])]);
+    }
+    const int b = cache.partStart[static_cast<size_t>(t)], e = cache.partStart[static_cast<size_t>(t) + 1];
+    for (int k = b; k < e && !touchesCut; ++k) touchesCut = isCut(cache.parts[static_cast<size_t>(k)].first);
+    const bool past = cache.pastVertex[static_cast<size_t>(v[0])] || cache.pastVertex[static_cast<size_t>(v[1])] ||
+                      cache.pastVertex[static_cast<size_t>(v[2])];
+    const bool nearCut = past && std::any_of(v.begin(), v.end(), [&](int i) {
+                             return near[static_cast<size_t>(original.element[static_cast<size_t>(i)])] != 0;
+                         });
+    if (past && (touchesCut || nearCut)) {
+        eng.splitPastBoundary(
+            m, cache, original, t,
+            [&](int g, int h) {
+                const bool same = samePiece(g, h);
+                into->joined.push_back({g, h, same ? 1 : 0});
+                return same;
+            },
+            [&](int g, const Eigen::Vector4d& w) { return vertexOnce(g, w); },
+            [&](int a, int b2, int c2) {
+                into->tris.push_back({a, b2, c2, -1});
+            });
+        return;
+    }
+    if (!touchesCut) {
+        // numbered from the last corner, as the output always was
+        const int c2 = keepOriginal(v[2]), b2 = keepOriginal(v[1]), a = keepOriginal(v[0]);
+        into->tris.push_back({a, b2, c2, -1});
+        return;
+    }
+    for (int k = b; k < e; ++k) {
+        const auto& [q, poly] = cache.parts[static_cast<size_t>(k)];
+        if (isCut(q))
+            emitInCutParent(q, poly);
+        else
+            emit(q, q, poly, -1);
     }
 }
 
@@ -739,30 +917,88 @@ void CutEngine::SurfaceBuild::cap(int p, bool inside, const Poly& poly, int e, i
     }
 }
 
-// 2. The cut faces of each cut parent, in parent order (deterministic output).
-void CutEngine::SurfaceBuild::drawCutFaces(int capLevels) {
-    std::vector<int> cutParents;
-    for (const auto& kv : eng.virt_)
-        if (kv.first < parents()) cutParents.push_back(kv.first);
-    std::sort(cutParents.begin(), cutParents.end());
-    // Slivers by parent: their cut faces are drawn on their side (a hole there otherwise, with
-    // the inside of the surface in view through it).
-    std::unordered_multimap<int, const Sliver*> sliversIn;
+// Slivers by parent, newest first.
+void CutEngine::SurfaceBuild::indexSlivers() {
+    sliverStart.assign(static_cast<size_t>(parents()) + 1, 0);
+    auto parentOf = [&](const Sliver& sl) {
+        return sl.element >= 0 && sl.element < m.elements() ? eng.parent_[static_cast<size_t>(sl.element)] : -1;
+    };
     for (const Sliver& sl : eng.slivers_)
-        if (sl.element >= 0 && sl.element < m.elements())
-            sliversIn.emplace(eng.parent_[static_cast<size_t>(sl.element)], &sl);
-    for (int p : cutParents) drawCutFacesOf(p, sliversIn, capLevels);
+        if (const int p = parentOf(sl); p >= 0) ++sliverStart[static_cast<size_t>(p) + 1];
+    for (size_t p = 0; p < static_cast<size_t>(parents()); ++p) sliverStart[p + 1] += sliverStart[p];
+    sliverOf.resize(static_cast<size_t>(sliverStart.back()));
+    std::vector<int> fill(sliverStart.begin() + 1, sliverStart.end());
+    for (size_t i = 0; i < eng.slivers_.size(); ++i)
+        if (const int p = parentOf(eng.slivers_[i]); p >= 0)
+            sliverOf[static_cast<size_t>(--fill[static_cast<size_t>(p)])] = static_cast<int>(i);
 }
 
-void CutEngine::SurfaceBuild::drawCutFacesOf(int p, const std::unordered_multimap<int, const Sliver*>& sliversIn,
-                                             int capLevels) {
+// What surface() reads of a parent: its elements, the sides set on each (virtVersion), their
+// nodes, and its slivers. A triangle or cut face reads those of the parents sharing a corner
+// with the parents it lies over.
+void CutEngine::SurfaceBuild::findChanged() {
+    const int np = parents();
+    std::vector<int> start{0}, state;
+    start.reserve(static_cast<size_t>(np) + 1);
+    for (int p = 0; p < np; ++p) {
+        const std::vector<int>& ves = eng.virtualsOf(p);
+        state.push_back(static_cast<int>(ves.size()));
+        for (int g : ves) {
+            state.push_back(g);
+            state.push_back(static_cast<int>(eng.virtVersion(g)));
+            for (int a = 0; a < 4; ++a) state.push_back(m.tets(a, g));
+        }
+        state.insert(state.end(), sliverOf.begin() + sliverStart[static_cast<size_t>(p)],
+                     sliverOf.begin() + sliverStart[static_cast<size_t>(p) + 1]);
+        start.push_back(static_cast<int>(state.size()));
+    }
+    const bool first = cache.stateStart.size() != start.size();
+    nearChanged.assign(static_cast<size_t>(np), first ? 1 : 0);
+    for (int p = 0; p < np && !first; ++p) {
+        const auto was = cache.state.begin() + cache.stateStart[static_cast<size_t>(p)];
+        const auto wasEnd = cache.state.begin() + cache.stateStart[static_cast<size_t>(p) + 1];
+        if (std::equal(was, wasEnd, state.begin() + start[static_cast<size_t>(p)],
+                       state.begin() + start[static_cast<size_t>(p) + 1]))
+            continue;
+        for (int a = 0; a < 4; ++a) {
+            const int o = eng.tets0_(a, p);
+            for (int i = eng.ringStart_[static_cast<size_t>(o)]; i < eng.ringStart_[static_cast<size_t>(o) + 1]; ++i)
+                nearChanged[static_cast<size_t>(eng.ring_[static_cast<size_t>(i)])] = 1;
+        }
+    }
+    cache.stateStart = std::move(start);
+    cache.state = std::move(state);
+}
+
+// 2. The cut faces of each cut parent, in parent order (deterministic output); drawn again when a
+// parent sharing a corner with it changed.
+void CutEngine::SurfaceBuild::drawCutFaces(int capLevels) {
+    if (cache.drawnLevels != capLevels)
+        for (Drawn& d : cache.drawnCap) d.valid = false;
+    cache.drawnLevels = capLevels;
+    for (int p = 0; p < parents(); ++p) {
+        if (!isCut(p)) continue;
+        Drawn& d = cache.drawnCap[static_cast<size_t>(p)];
+        if (!d.valid || nearChanged[static_cast<size_t>(p)]) {
+            d.clear();
+            into = &d;
+            drawCutFacesOf(p, capLevels);
+            d.valid = true;
+        }
+        append(d);
+    }
+}
+
+// The cut faces of the pieces of p, and of its slivers on their side (a hole there otherwise,
+// with the inside of the surface in view through it).
+void CutEngine::SurfaceBuild::drawCutFacesOf(int p, int capLevels) {
     const bool inside =
         original.vertices() == 0 ||
         (eng.fraction0_[p] >= 1.0 && !cache.holdsVertex[static_cast<size_t>(p)] && !atBoundary(p) && !cornerOutside(p));
     const std::vector<int> ves = eng.virtualsOf(p);  // copy: virtualsOf reuses scratch
     std::vector<const Halfspace*> planes;            // p's cut planes, for carriers
     for (int e : ves) {
-        const Virtual& ve = eng.virt_.at(e);
+        const Virtual& ve = *eng.findVirtual(e);
         for (const Halfspace& h : ve.hs)
             if (std::none_of(planes.begin(), planes.end(), [&](const Halfspace* g) { return g->cut == h.cut; }))
                 planes.push_back(&h);
@@ -774,9 +1010,8 @@ void CutEngine::SurfaceBuild::drawCutFacesOf(int p, const std::unordered_multima
             cap(p, inside, poly, e, p, f.tag - 4, capLevels);
         }
     }
-    const auto range = sliversIn.equal_range(p);
-    for (auto it = range.first; it != range.second; ++it) {
-        const Sliver& sl = *it->second;
+    for (int i = sliverStart[static_cast<size_t>(p)]; i < sliverStart[static_cast<size_t>(p) + 1]; ++i) {
+        const Sliver& sl = eng.slivers_[static_cast<size_t>(sliverOf[static_cast<size_t>(i)])];
         Eigen::Vector4d mid = Eigen::Vector4d::Zero();
         for (const auto& xi : sl.piece.xi) mid += weightsOf(xi);
         mid /= static_cast<double>(std::max<size_t>(1, sl.piece.xi.size()));
@@ -795,6 +1030,9 @@ void CutEngine::SurfaceBuild::drawCutFacesOf(int p, const std::unordered_multima
 EmbeddedSurface CutEngine::surface(const Model& m, const EmbeddedSurface& original, int capLevels) const {
     if (!prepared_) return original;
     SurfaceBuild b(*this, m, original, splitCache(m, original));
+    b.cache.welded.clear();
+    b.indexSlivers();
+    b.findChanged();
     b.drawOriginal();
     b.drawCutFaces(capLevels);
     return makeEmbeddedSurface(std::move(b.elem), b.weights, b.tris, std::move(b.cutId));

@@ -257,15 +257,15 @@ private:
     int carrierOnSide(const Model& m, int p, const std::vector<const Halfspace*>& planes, const Eigen::Vector4d& at,
                       int& carrierParent) const;
     // Triangle t of a surface with corners past the tet boundary (a visual one), split by the cuts
-    // near it; each cell corner rides an element on the cell's side and in one piece (piece: a
-    // label per element, equal within a connected piece). addVertex(element, weights in
-    // its parent) gives a vertex index, addTriangle(a, b, c) draws.
+    // near it; each cell corner rides an element on the cell's side and in one piece (samePiece(a,
+    // b): elements a and b are joined). addVertex(element, weights in its parent) gives a vertex
+    // index, addTriangle(a, b, c) draws.
     struct SplitCache;
     struct PastBoundarySplit;  // the cuts near one such triangle and their sides
     struct SurfaceBuild;       // surface(m, original)'s output and phases (cut/embedded_cut.cpp)
     struct MeshSurfaceBuild;   // surface(m)'s (cut/cut_surface.cpp)
-    void splitPastBoundary(const Model& m, const SplitCache& cache, const EmbeddedSurface& original, int t,
-                           const std::vector<int>& piece,
+    void splitPastBoundary(const Model& m, SplitCache& cache, const EmbeddedSurface& original, int t,
+                           const std::function<bool(int, int)>& samePiece,
                            const std::function<int(int, const Eigen::Vector4d&)>& addVertex,
                            const std::function<void(int, int, int)>& addTriangle) const;
 
