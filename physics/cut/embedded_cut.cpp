@@ -145,8 +145,10 @@ struct CutEngine::SplitCache {
 
     // What one original triangle, or one cut parent's cut faces, drew at the last surface(): the
     // vertices in the order they were asked for (not welded across: that is the output's) and
-    // triangles on them. It reads only the parents sharing a corner with the parents the triangle
-    // lies over (with the cut parent), so it is kept until one of those changes (SurfaceBuild::state).
+    // triangles on them. Where they go reads only the sides of the elements of the parents sharing
+    // a corner with the parents the triangle lies over (with the cut parent), so it is kept until
+    // one of those is cut (SurfaceBuild::findChanged); the nodes of the elements the vertices ride
+    // only name them (their keys), so a relinked element's are named again.
     struct Drawn {
         std::vector<int> elem;  // the element a vertex rides, or -1 - v: original vertex v kept as it is
         std::vector<Eigen::Vector4d> w;
@@ -154,6 +156,10 @@ struct CutEngine::SplitCache {
         std::vector<std::array<int, 4>> tris;  // three vertices and the cut that made it (-1: none)
         // two elements asked whether they are in one piece (a whole-model property), and the answer
         std::vector<std::array<int, 3>> joined;
+        // vertices were made one by their keys here (splitPastBoundary's): the elements of those
+        // given a vertex already there
+        bool welds = false;
+        std::vector<int> alsoRide;
         bool valid = false;
         void clear() {
             elem.clear();
@@ -161,6 +167,8 @@ struct CutEngine::SplitCache {
             key.clear();
             tris.clear();
             joined.clear();
+            alsoRide.clear();
+            welds = false;
             valid = false;
         }
         int add(int e, const Eigen::Vector4d& weights, const VertexKey& k) {
@@ -175,6 +183,7 @@ struct CutEngine::SplitCache {
     int drawnLevels = -1;                // the capLevels drawnCap was drawn with
     std::vector<int> overStart, over;    // parent -> the original triangles with a vertex or a part in it (CSR)
     std::vector<int> stateStart, state;  // each parent's elements and slivers as the last surface() read them
+    Eigen::Matrix4Xi tets;               // the elements' nodes then
     // the output's welding, kept for its buckets
     std::unordered_map<VertexKey, int, VertexKeyHash> welded;
     // splitPastBoundary's marks, by parent and by original node and plane, current at `stamp`
@@ -533,6 +542,7 @@ struct CutEngine::SurfaceBuild {
     std::vector<int> ids;               // scratch of append: a Drawn's vertices in the output
     std::vector<int> piece;             // connected piece of each element, once asked for
     std::vector<char> nearChanged;      // parent shares a corner with one changed since the last call
+    std::vector<char> moved;            // element's nodes changed since the last call (none: empty)
     std::vector<Eigen::Vector4d> grid;  // scratch of cap: sample weights and winding numbers - 1/2
     std::vector<double> wind;
 
@@ -614,10 +624,29 @@ struct CutEngine::SurfaceBuild {
     // A vertex of element e at weights w, one per key in what is being drawn (splitPastBoundary
     // compares them).
     int vertexOnce(int e, const Eigen::Vector4d& w) {
+        into->welds = true;
         const VertexKey k = vertexKey(m.tets, e, w);
         for (size_t i = 0; i < into->key.size(); ++i)
-            if (into->elem[i] >= 0 && into->key[i] == k) return static_cast<int>(i);
+            if (into->elem[i] >= 0 && into->key[i] == k) {
+                if (into->elem[i] != e) into->alsoRide.push_back(e);
+                return static_cast<int>(i);
+            }
         return into->add(e, w, k);
+    }
+    // Drawn d as it would be drawn now, its keys named again for the elements relinked since: false
+    // when it must be drawn again (vertices made one by keys that changed).
+    bool current(Drawn& d) const {
+        if (!d.valid) return false;
+        if (moved.empty()) return true;
+        for (int e : d.alsoRide)
+            if (moved[static_cast<size_t>(e)]) return false;
+        for (size_t i = 0; i < d.elem.size(); ++i) {
+            const int e = d.elem[i];
+            if (e < 0 || !moved[static_cast<size_t>(e)]) continue;
+            if (d.welds) return false;
+            d.key[i] = vertexKey(m.tets, e, d.w[i]);
+        }
+        return true;
     }
     // cut: the cut making it, or -1. inside: the polygon's weights lie in e's parent (else
     // extrapolated from it). Collapsed triangles are dropped in append.
@@ -715,7 +744,7 @@ void CutEngine::SurfaceBuild::drawOriginal() {
             keep = !nearChanged[static_cast<size_t>(original.element[static_cast<size_t>(original.triangles(i, t))])];
         for (size_t k = 0; k < d.joined.size() && keep; ++k)
             keep = samePiece(d.joined[k][0], d.joined[k][1]) == (d.joined[k][2] != 0);
-        if (!keep) {
+        if (!keep || !current(d)) {
             if (near.empty() && cache.outside) {
                 near.assign(static_cast<size_t>(parents()), 0);
                 for (int p = 0; p < parents(); ++p) {
@@ -933,9 +962,9 @@ void CutEngine::SurfaceBuild::indexSlivers() {
             sliverOf[static_cast<size_t>(--fill[static_cast<size_t>(p)])] = static_cast<int>(i);
 }
 
-// What surface() reads of a parent: its elements, the sides set on each (virtVersion), their
-// nodes, and its slivers. A triangle or cut face reads those of the parents sharing a corner
-// with the parents it lies over.
+// What surface() reads of a parent: its elements, the sides set on each (virtVersion), and its
+// slivers. A triangle or cut face reads those of the parents sharing a corner with the parents
+// it lies over. The elements' nodes only name the vertices (Drawn): `moved` marks those changed.
 void CutEngine::SurfaceBuild::findChanged() {
     const int np = parents();
     std::vector<int> start{0}, state;
@@ -946,7 +975,6 @@ void CutEngine::SurfaceBuild::findChanged() {
         for (int g : ves) {
             state.push_back(g);
             state.push_back(static_cast<int>(eng.virtVersion(g)));
-            for (int a = 0; a < 4; ++a) state.push_back(m.tets(a, g));
         }
         state.insert(state.end(), sliverOf.begin() + sliverStart[static_cast<size_t>(p)],
                      sliverOf.begin() + sliverStart[static_cast<size_t>(p) + 1]);
@@ -968,6 +996,15 @@ void CutEngine::SurfaceBuild::findChanged() {
     }
     cache.stateStart = std::move(start);
     cache.state = std::move(state);
+    // elements made since the last call are in no Drawn kept
+    const Eigen::Index kept = first ? 0 : std::min(cache.tets.cols(), m.tets.cols());
+    moved.clear();
+    for (Eigen::Index e = 0; e < kept; ++e)
+        if (cache.tets.col(e) != m.tets.col(e)) {
+            if (moved.empty()) moved.assign(static_cast<size_t>(m.elements()), 0);
+            moved[static_cast<size_t>(e)] = 1;
+        }
+    cache.tets = m.tets;
 }
 
 // 2. The cut faces of each cut parent, in parent order (deterministic output); drawn again when a
@@ -979,7 +1016,7 @@ void CutEngine::SurfaceBuild::drawCutFaces(int capLevels) {
     for (int p = 0; p < parents(); ++p) {
         if (!isCut(p)) continue;
         Drawn& d = cache.drawnCap[static_cast<size_t>(p)];
-        if (!d.valid || nearChanged[static_cast<size_t>(p)]) {
+        if (!d.valid || nearChanged[static_cast<size_t>(p)] || !current(d)) {
             d.clear();
             into = &d;
             drawCutFacesOf(p, capLevels);
