@@ -150,7 +150,7 @@ struct CutEngine::SplitCache {
     // one of those is cut (SurfaceBuild::findChanged); the nodes of the elements the vertices ride
     // only name them (their keys), so a relinked element's are named again.
     struct Drawn {
-        std::vector<int> elem;  // the element a vertex rides, or -1 - v: original vertex v kept as it is
+        std::vector<int> elem;  // the element a vertex rides
         std::vector<Eigen::Vector4d> w;
         std::vector<VertexKey> key;
         std::vector<std::array<int, 4>> tris;  // three vertices and the cut that made it (-1: none)
@@ -160,6 +160,7 @@ struct CutEngine::SplitCache {
         // given a vertex already there
         bool welds = false;
         std::vector<int> alsoRide;
+        bool whole = false;  // the original triangle as it is (none of the above)
         bool valid = false;
         void clear() {
             elem.clear();
@@ -168,8 +169,7 @@ struct CutEngine::SplitCache {
             tris.clear();
             joined.clear();
             alsoRide.clear();
-            welds = false;
-            valid = false;
+            welds = whole = valid = false;
         }
         int add(int e, const Eigen::Vector4d& weights, const VertexKey& k) {
             elem.push_back(e);
@@ -581,20 +581,24 @@ struct CutEngine::SurfaceBuild {
     // Drawn d into the output: its vertices welded to those before (cut/vertex_key.hpp: new
     // vertices at one place on the same nodes are one, shared across elements, so a piece's cut
     // face is connected and shades smoothly), its triangles without those welding collapsed.
-    void append(const Drawn& d) {
+    int keptVertex(int v) {
+        int& k = kept[static_cast<size_t>(v)];
+        if (k < 0) {
+            k = static_cast<int>(elem.size());
+            elem.push_back(original.element[static_cast<size_t>(v)]);
+            weights.push_back(original.weights.col(v));
+        }
+        return k;
+    }
+    void append(const Drawn& d, int t = -1) {
+        if (d.whole) {  // numbered from the last corner, as the output always was
+            const int c = keptVertex(original.triangles(2, t)), b = keptVertex(original.triangles(1, t));
+            tris.emplace_back(keptVertex(original.triangles(0, t)), b, c);
+            cutId.push_back(-1);
+            return;
+        }
         ids.resize(d.elem.size());
         for (size_t i = 0; i < d.elem.size(); ++i) {
-            if (d.elem[i] < 0) {
-                const int v = -1 - d.elem[i];
-                int& k = kept[static_cast<size_t>(v)];
-                if (k < 0) {
-                    k = static_cast<int>(elem.size());
-                    elem.push_back(original.element[static_cast<size_t>(v)]);
-                    weights.push_back(original.weights.col(v));
-                }
-                ids[i] = k;
-                continue;
-            }
             auto [it, added] = cache.welded.emplace(d.key[i], static_cast<int>(elem.size()));
             if (added) {
                 elem.push_back(d.elem[i]);
@@ -602,16 +606,14 @@ struct CutEngine::SurfaceBuild {
             }
             ids[i] = it->second;
         }
-        for (const auto& t : d.tris) {
-            const int a = ids[static_cast<size_t>(t[0])], b = ids[static_cast<size_t>(t[1])],
-                      c = ids[static_cast<size_t>(t[2])];
-            // an original triangle is kept as it is; a new one may collapse
-            if (d.elem[static_cast<size_t>(t[0])] >= 0 && (a == b || b == c || a == c)) continue;
+        for (const auto& tri : d.tris) {
+            const int a = ids[static_cast<size_t>(tri[0])], b = ids[static_cast<size_t>(tri[1])],
+                      c = ids[static_cast<size_t>(tri[2])];
+            if (a == b || b == c || a == c) continue;
             tris.emplace_back(a, b, c);
-            cutId.push_back(t[3]);
+            cutId.push_back(tri[3]);
         }
     }
-    int keepOriginal(int v) { return into->add(-1 - v, Eigen::Vector4d::Zero(), {}); }
     int vertex(int p, int e, const Eigen::Vector4d& w, bool inside) {
         // Clipped to the parent's inner faces: only round-off is negative there; beyond a boundary
         // face a visual surface's weights are extrapolated, as are a carrier's (inside false).
@@ -627,7 +629,7 @@ struct CutEngine::SurfaceBuild {
         into->welds = true;
         const VertexKey k = vertexKey(m.tets, e, w);
         for (size_t i = 0; i < into->key.size(); ++i)
-            if (into->elem[i] >= 0 && into->key[i] == k) {
+            if (into->key[i] == k) {
                 if (into->elem[i] != e) into->alsoRide.push_back(e);
                 return static_cast<int>(i);
             }
@@ -642,7 +644,7 @@ struct CutEngine::SurfaceBuild {
             if (moved[static_cast<size_t>(e)]) return false;
         for (size_t i = 0; i < d.elem.size(); ++i) {
             const int e = d.elem[i];
-            if (e < 0 || !moved[static_cast<size_t>(e)]) continue;
+            if (!moved[static_cast<size_t>(e)]) continue;
             if (d.welds) return false;
             d.key[i] = vertexKey(m.tets, e, d.w[i]);
         }
@@ -762,7 +764,7 @@ void CutEngine::SurfaceBuild::drawOriginal() {
             drawTriangle(t, near);
             d.valid = true;
         }
-        append(d);
+        append(d, t);
     }
 }
 
@@ -795,9 +797,7 @@ void CutEngine::SurfaceBuild::drawTriangle(int t, const std::vector<char>& near)
         return;
     }
     if (!touchesCut) {
-        // numbered from the last corner, as the output always was
-        const int c2 = keepOriginal(v[2]), b2 = keepOriginal(v[1]), a = keepOriginal(v[0]);
-        into->tris.push_back({a, b2, c2, -1});
+        into->whole = true;
         return;
     }
     for (int k = b; k < e; ++k) {
@@ -997,9 +997,9 @@ void CutEngine::SurfaceBuild::findChanged() {
     cache.stateStart = std::move(start);
     cache.state = std::move(state);
     // elements made since the last call are in no Drawn kept
-    const Eigen::Index kept = first ? 0 : std::min(cache.tets.cols(), m.tets.cols());
+    const Eigen::Index before = first ? 0 : std::min(cache.tets.cols(), m.tets.cols());
     moved.clear();
-    for (Eigen::Index e = 0; e < kept; ++e)
+    for (Eigen::Index e = 0; e < before; ++e)
         if (cache.tets.col(e) != m.tets.col(e)) {
             if (moved.empty()) moved.assign(static_cast<size_t>(m.elements()), 0);
             moved[static_cast<size_t>(e)] = 1;
