@@ -674,13 +674,16 @@ RUN_STAGES = [("forces", "forces"), ("integrate", "integrate"), ("contact", "con
 
 
 def liver_hires():
-    """The high-resolution scene's run: its result, elements at load and at the end, wall time, and stages."""
+    """The high-resolution scene's run: its result and pieces, elements at load and at the end, wall time, and
+    stages."""
     j = load("liver_hires.json")
     st = j["stages"]
-    result = j["status"] + (f", {j['pieces']} pieces" if j["status"] == "ok" else f" at t = {j['sim_time']:.3f} s")
-    return table(["scene", "result", "elements at load / at the end", "frames", f"wall [s] for {j['sim_time']:.1f} s",
-                  "per simulated second [s]", " / ".join(label for _, label in RUN_STAGES) + " [s]"],
-                 [[f"{j['name']}.json", result,
+    result = j["status"] if j["status"] == "ok" else f"{j['status']} at t = {j['sim_time']:.3f} s"
+    pieces = ", ".join(f"{1e6 * v:.0f}" for v in sorted(j["piece_volumes"], reverse=True))
+    return table(["scene", "result", "pieces [cm^3]", "elements at load / at the end", "frames",
+                  f"wall [s] for {j['sim_time']:.1f} s", "per simulated second [s]",
+                  " / ".join(label for _, label in RUN_STAGES) + " [s]"],
+                 [[f"{j['name']}.json", result, pieces,
                    f"{j['mesh']['elements']:,} / {j['mesh']['elements_final']:,}", str(j["frames"]),
                    decimals(j["wall_time"], 1), f"{j['wall_time'] / j['sim_time']:.0f}",
                    " / ".join(decimals(st[k], 1) for k, _ in RUN_STAGES)]]) + ran_on(j)
