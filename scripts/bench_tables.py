@@ -637,18 +637,24 @@ def capture():
                      each(lambda r: decimals(r["wall_over_max"], 2)),
                      each(lambda r: f"{r['cpu_ms_per_frame']:.1f} + {r['ffmpeg_cpu_ms_per_frame']:.1f}")])
     what = f"{j['width']}x{j['height']}" + (", HUD" if j["hud"] else "") + (", video" if j["video"] else "") + ", PNGs"
-    table_ = table([what, "wall [s]", "physics [s]", "(render + encode) / frame",
-                    "of which draw / read-back / hand-off [ms]", "wall / max(physics, render + encode)",
-                    "CPU / frame, cutsim + ffmpeg [ms]"], rows)
     runs = j["runs"]
+    cores = j["machine"]["cores"]
     cpu = [r["cpu_ms_per_frame"] + r["ffmpeg_cpu_ms_per_frame"] for r in runs]
-    frame = min(r["capture_ms_per_frame"] for r in runs) > 1e3 / 60
-    return table_ + ran_on(j) + (
-        f"\n{'Not reached' if frame else 'Reached'}: 1/60 s a frame. The wall time is {span([r['wall_over_max'] for r in runs], lambda v: decimals(v, 2))} times the larger "
-        f"of the physics and the capture (set-up, {span([r['setup_s'] for r in runs], lambda v: decimals(v, 2))} s, "
-        f"counts in neither); the capture's CPU, cutsim's and ffmpeg's, is "
-        f"{span(cpu, lambda v: decimals(v, 0))} ms a frame: on {j['machine']['cores']} cores about "
-        f"{span([c / j['machine']['cores'] for c in cpu], lambda v: decimals(v, 0))} ms a frame at best.\n")
+    reached = "Not reached" if min(r["capture_ms_per_frame"] for r in runs) > 1e3 / 60 else "Reached"
+
+    def hundredths(v):
+        return decimals(v, 2)
+
+    def whole(v):
+        return decimals(v, 0)
+
+    return table([what, "wall [s]", "physics [s]", "(render + encode) / frame",
+                  "of which draw / read-back / hand-off [ms]", "wall / max(physics, render + encode)",
+                  "CPU / frame, cutsim + ffmpeg [ms]"], rows) + ran_on(j) + (
+        f"\n{reached}: 1/60 s a frame. The wall time is {span([r['wall_over_max'] for r in runs], hundredths)} "
+        f"times the larger of the physics and the capture (set-up, {span([r['setup_s'] for r in runs], hundredths)} "
+        f"s, counts in neither); the capture's CPU, cutsim's and ffmpeg's, is {span(cpu, whole)} ms a frame: on "
+        f"{cores} cores about {span([c / cores for c in cpu], whole)} ms a frame at best.\n")
 
 
 # ---- scripts/bench_runs.py: docs/bench/tetra_heldout.json, liver_hires.json ----
@@ -888,9 +894,10 @@ def summary_random_cuts():
     j = load("random_cuts_500.json")
     hybrid = [r for r in j["runs"] if r["floor"] == "hybrid"]
     ok = all(r["failures"] == 0 and r["inverted_runs"] == 0 for r in hybrid)
+    mass = percent(max(r["max_added_mass"] for r in hybrid))
     return (f"with the floor ({j['step_floor']:g} of the uncut step) and matching first, {j['sequences']} random "
-            f"sequences hold it on the liver and a bar for at most **{percent(max(r['max_added_mass'] for r in hybrid))}"
-            "** of the mass" + (", no blow-up, no inverted element" if ok else ""))
+            f"sequences hold it on the liver and a bar for at most **{mass}** of the mass" +
+            (", no blow-up, no inverted element" if ok else ""))
 
 
 def summary_contact():
