@@ -5,6 +5,7 @@
 // PNG and video writers, their drain at the end), the physics stages, and how much of the two the
 // pipeline hid: wall time against their sum and against the larger of them.
 #include "bench/bench.hpp"
+#include "bench/machine.hpp"
 #include "bench/options.hpp"
 #include "app/commands.hpp"
 #include "app/run.hpp"
@@ -38,10 +39,39 @@ struct CaptureArgs {
     bool hud = true;
     bool video = true;
     bool serial = false;
+    bool json = false;
     int runs = 1;
     int threads = 0;
     std::string keep;  // keep the last run's output folder here
+    std::string csv;   // the runs as CSV
 };
+
+// A run's columns, in the CSV's order: times in s, per-frame times in ms, load = the 1-minute load
+// average as the run started.
+const std::vector<std::string> kColumns = {"scene",
+                                           "run",
+                                           "mode",
+                                           "width",
+                                           "height",
+                                           "frames",
+                                           "wall_s",
+                                           "setup_s",
+                                           "physics_s",
+                                           "render_s",
+                                           "encode_s",
+                                           "snapshot_ms",
+                                           "draw_ms",
+                                           "read_ms",
+                                           "handoff_ms",
+                                           "finish_ms",
+                                           "capture_ms_per_frame",
+                                           "waited_s",
+                                           "wall_over_max",
+                                           "wall_over_sum",
+                                           "cpu_ms_per_frame",
+                                           "ffmpeg_cpu_ms_per_frame",
+                                           "load",
+                                           "status"};
 
 // CPU time of this process's threads or of its waited-for children (ffmpeg) [s].
 double cpuSeconds(int who) {
@@ -51,17 +81,60 @@ double cpuSeconds(int who) {
     return s(u.ru_utime) + s(u.ru_stime);
 }
 
-double loadAverage() {
-    double l[1] = {0};
-    return getloadavg(l, 1) == 1 ? l[0] : -1;
+// One run of a scene: the capture's parts per frame and the physics from its report.json, the CPU
+// time of this process and of ffmpeg over the run; status is the run's ("ok" or why it stopped).
+json captureRun(const SceneDef& sc, const CaptureArgs& a, int r, const std::string& out, int& code) {
+    app::RunOptions ro;
+    ro.out = out;
+    ro.quiet = true;
+    ro.threads = a.threads;
+    ro.pipelined = !a.serial;
+    const json load = loadAverage();
+    const double cpu0 = cpuSeconds(RUSAGE_SELF), child0 = cpuSeconds(RUSAGE_CHILDREN);
+    code = app::runScene(sc, ro);
+    const double cpu = cpuSeconds(RUSAGE_SELF) - cpu0, child = cpuSeconds(RUSAGE_CHILDREN) - child0;
+    std::ifstream in(std::filesystem::path(out) / "report.json");
+    const json rep = json::parse(in);
+    json row = {{"scene", sc.name}, {"run", r},           {"mode", a.serial ? "serial" : "pipelined"},
+                {"width", a.width}, {"height", a.height}, {"status", rep.value("status", "?")}};
+    if (!load.empty()) row["load"] = load[0];
+    if (code != 0 || !rep.contains("capture")) return row;
+    const json& st = rep["stages"];
+    const json& c = rep["capture"];
+    double physics = 0;
+    for (const char* k : {"loads", "contact", "cut", "forces", "integrate", "checks", "timestep"})
+        physics += st.value(k, 0.0);
+    const double render = st.value("render", 0.0), encode = st.value("encode", 0.0);
+    const double wall = rep.value("wall_time", 0.0);
+    const int n = std::max(1, c.value("frames", 0));
+    auto ms = [&](const char* k) { return 1e3 * c.value(k, 0.0) / n; };
+    row.update({{"frames", n},
+                {"wall_s", wall},
+                {"setup_s", c.value("setup_seconds", 0.0)},
+                {"physics_s", physics},
+                {"render_s", render},
+                {"encode_s", encode},
+                {"snapshot_ms", ms("snapshot_seconds")},
+                {"draw_ms", ms("draw_seconds")},
+                {"read_ms", ms("read_seconds")},
+                {"handoff_ms", ms("handoff_seconds")},
+                {"finish_ms", ms("finish_seconds")},
+                {"capture_ms_per_frame", 1e3 * (render + encode) / n},
+                {"waited_s", c.value("waited_seconds", 0.0)},
+                {"wall_over_max", wall / std::max(physics, render + encode)},
+                {"wall_over_sum", wall / (physics + render + encode)},
+                {"cpu_ms_per_frame", 1e3 * cpu / n},
+                {"ffmpeg_cpu_ms_per_frame", 1e3 * child / n}});
+    return row;
 }
 
 int runCapture(const CaptureArgs& a) {
     namespace fs = std::filesystem;
+    const json machine = machineJson();
     const fs::path tmp = fs::temp_directory_path() / ("cutsim_bench_capture_" + std::to_string(::getpid()));
-    std::printf("scene,run,mode,width,height,frames,wall_s,setup_s,physics_s,render_s,encode_s,snapshot_ms,draw_ms,"
-                "read_ms,handoff_ms,finish_ms,capture_ms_per_frame,waited_s,wall_over_max,wall_over_sum,"
-                "cpu_ms_per_frame,ffmpeg_cpu_ms_per_frame,load\n");
+    // without --json the runs go to stdout as CSV lines, each as its run ends
+    if (!a.json) std::printf("%s", csvText(json::array(), kColumns).c_str());
+    json runs = json::array();
     int status = 0;
     for (const std::string& file : a.scenes) {
         std::vector<std::string> sets = a.sets;
@@ -72,48 +145,38 @@ int runCapture(const CaptureArgs& a) {
         const SceneDef sc = loadScene(file, sets);
         if (!sc.capture.enabled) throw InputError(file + ": capture is off; nothing to measure");
         for (int r = 0; r < a.runs; ++r) {
-            app::RunOptions ro;
-            ro.out = (tmp / "out").string();
-            ro.quiet = true;
-            ro.threads = a.threads;
-            ro.pipelined = !a.serial;
-            const double load = loadAverage();
-            const double cpu0 = cpuSeconds(RUSAGE_SELF), child0 = cpuSeconds(RUSAGE_CHILDREN);
-            const int code = app::runScene(sc, ro);
-            const double cpu = cpuSeconds(RUSAGE_SELF) - cpu0, child = cpuSeconds(RUSAGE_CHILDREN) - child0;
-            std::ifstream in(fs::path(ro.out) / "report.json");
-            const json rep = json::parse(in);
-            if (code != 0 || !rep.contains("capture")) {
-                std::fprintf(stderr, "%s: %s (exit %d)\n", file.c_str(), rep.value("status", "?").c_str(), code);
+            const std::string out = (tmp / "out").string();
+            int code = 0;
+            const json row = captureRun(sc, a, r, out, code);
+            runs.push_back(row);
+            if (row["status"] != "ok" || !row.contains("frames")) {
+                std::fprintf(stderr, "%s: %s (exit %d)\n", file.c_str(), row["status"].get<std::string>().c_str(),
+                             code);
                 status = code ? code : 1;
-                continue;
             }
-            const json& st = rep["stages"];
-            const json& c = rep["capture"];
-            double physics = 0;
-            for (const char* k : {"loads", "contact", "cut", "forces", "integrate", "checks", "timestep"})
-                physics += st.value(k, 0.0);
-            const double render = st.value("render", 0.0), encode = st.value("encode", 0.0);
-            const double wall = rep.value("wall_time", 0.0), setup = c.value("setup_seconds", 0.0);
-            const int n = std::max(1, c.value("frames", 0));
-            auto ms = [&](const char* k) { return 1e3 * c.value(k, 0.0) / n; };
-            std::printf("%s,%d,%s,%d,%d,%d,%.3f,%.3f,%.3f,%.3f,%.3f,%.2f,%.2f,%.2f,%.2f,%.2f,%.2f,%.3f,%.3f,%.3f,%.1f,"
-                        "%.1f,%.2f\n",
-                        sc.name.c_str(), r, a.serial ? "serial" : "pipelined", a.width, a.height, n, wall, setup,
-                        physics, render, encode, ms("snapshot_seconds"), ms("draw_seconds"), ms("read_seconds"),
-                        ms("handoff_seconds"), ms("finish_seconds"), 1e3 * (render + encode) / n,
-                        c.value("waited_seconds", 0.0), wall / std::max(physics, render + encode),
-                        wall / (physics + render + encode), 1e3 * cpu / n, 1e3 * child / n, load);
-            std::fflush(stdout);
+            if (!a.json) {
+                std::printf("%s", csvText(json::array({row}), kColumns, false).c_str());
+                std::fflush(stdout);
+            }
             if (!a.keep.empty() && r + 1 == a.runs) {
                 fs::remove_all(a.keep);
                 fs::create_directories(fs::path(a.keep).parent_path().empty() ? fs::path(".")
                                                                               : fs::path(a.keep).parent_path());
-                fs::rename(ro.out, a.keep);
+                fs::rename(out, a.keep);
             }
         }
     }
     fs::remove_all(tmp);
+    if (!a.csv.empty()) writeCsv(a.csv, runs, kColumns);
+    if (a.json)
+        printResult(json{{"width", a.width},
+                         {"height", a.height},
+                         {"hud", a.hud},
+                         {"video", a.video},
+                         {"mode", a.serial ? "serial" : "pipelined"},
+                         {"sets", a.sets},
+                         {"runs", runs}},
+                    machine);
     return status;
 }
 
@@ -128,6 +191,8 @@ void captureOptions(CLI::App& c, CaptureArgs& a) {
     c.add_option("--runs", a.runs, "Runs of each scene")->check(CLI::Range(1, 1000))->capture_default_str();
     threadsOption(c, a.threads, "Physics threads (0: chosen by measuring)", 0);
     c.add_option("--keep", a.keep, "Keep the last run's output folder (frames, video, report.json) here");
+    jsonFlag(c, a.json, "{width, height, hud, video, mode, sets, runs: [...]} instead of the CSV", true);
+    csvOption(c, a.csv, "runs");
 }
 
 }  // namespace
@@ -136,7 +201,7 @@ void addCaptureBench() {
     addSubcommand("capture",
                   "Capture in real runs: each scene run to its end with its frames, deformation and cuts; per "
                   "frame the snapshot, draw (with the HUD), read-back and hand-off to the PNG and video "
-                  "writers, the physics stages, and how much the pipeline overlapped them (CSV)",
+                  "writers, the physics stages, and how much the pipeline overlapped them (CSV, or --json)",
                   captureOptions, runCapture);
 }
 

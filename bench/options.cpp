@@ -39,10 +39,12 @@ void printResult(nlohmann::json j, const nlohmann::json& machine) {
     printJson(j);
 }
 
-void writeCsv(const std::string& path, const nlohmann::json& rows, const std::vector<std::string>& columns) {
+std::string csvText(const nlohmann::json& rows, const std::vector<std::string>& columns, bool header) {
     std::ostringstream c;
-    for (size_t k = 0; k < columns.size(); ++k) c << (k ? "," : "") << columns[k].substr(columns[k].rfind('/') + 1);
-    c << '\n';
+    if (header) {
+        for (size_t k = 0; k < columns.size(); ++k) c << (k ? "," : "") << columns[k].substr(columns[k].rfind('/') + 1);
+        c << '\n';
+    }
     for (const nlohmann::json& r : rows) {
         for (size_t k = 0; k < columns.size(); ++k) {
             if (k) c << ',';
@@ -56,7 +58,11 @@ void writeCsv(const std::string& path, const nlohmann::json& rows, const std::ve
         }
         c << '\n';
     }
-    writeFileAtomic(path, c.str());
+    return c.str();
+}
+
+void writeCsv(const std::string& path, const nlohmann::json& rows, const std::vector<std::string>& columns) {
+    writeFileAtomic(path, csvText(rows, columns));
 }
 
 }  // namespace cutsim::bench

@@ -45,6 +45,8 @@ void printJson(const nlohmann::json& j);
 // The same with the machine it ran on: machine (machineJson(), taken as the run started) and the
 // load averages at its end (load_average_end).
 void printResult(nlohmann::json j, const nlohmann::json& machine);
+// rows (an array of objects) as CSV lines, with the header line first when header: as writeCsv writes them.
+std::string csvText(const nlohmann::json& rows, const std::vector<std::string>& columns, bool header = true);
 // rows (an array of objects) as CSV into path, written whole or not at all: a header, then a line
 // per row. A column is a key or a path of keys ("stages/cut", headed by its last key "cut"); a
 // string cell is written as it is, any other as JSON, a missing one empty.

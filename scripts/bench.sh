@@ -3,8 +3,9 @@
 # tables drawn from them (scripts/bench_tables.py).
 #   scripts/bench.sh               the short benchmarks (about 15 minutes on 2 cores)
 #   scripts/bench.sh --accuracy    and the default accuracy run (about 3 minutes more)
-#   scripts/bench.sh --long        and the two 1% accuracy runs, the 500 random cut sequences and
-#                                  the thread count on a 40k-tet liver (about 2.5 hours more)
+#   scripts/bench.sh --long        and the two 1% accuracy runs, the 500 random cut sequences, the
+#                                  thread count on a 40k-tet liver and liver_hires.json (about 2.6
+#                                  hours more)
 # Needs a Release build with the benchmarks (scripts/build.sh, or CUTSIM_BUILD=DIR for another
 # build folder). Run it on an otherwise idle machine: every number is a wall time.
 set -euo pipefail
@@ -82,6 +83,11 @@ for s in probe demo_mi demo blade; do
     --csv "$D/cost_$s.csv" > "$D/cost_$s.json"
 done
 "$B/cutsim" bench haptic --json --csv "$D/haptic.csv" > "$D/haptic.json"
+# capture as a user gets it (PNGs, video, HUD), two runs of two scenes
+"$B/cutsim" bench capture assets/scenes/demo.json assets/scenes/blade.json --runs 2 --json \
+  --csv "$D/capture.csv" > "$D/capture.json"
+# cutsim tetra on the data folder's surfaces it was not tuned for (about a minute)
+scripts/bench_runs.py --cutsim "$B/cutsim" --data "$data" tetra > "$D/tetra_heldout.json"
 
 # stepping from Python against the CLI (taking turns, fresh processes)
 cmake --build "$B" --target cutsim_py -j"$(nproc)"
@@ -118,6 +124,9 @@ if [ "$long" = 1 ]; then
   "$B/cutsim" bench threads assets/scenes/probe.json --rounds 2 --busy \
     --set 'object={"mesh": "../../captures/liver_0.004.msh", "scale": 0.0254, "visual": "../meshes/sofa_liver-smooth.obj"}' \
     --json --csv "$D/threads_liver.csv" > "$D/threads_liver.json"
+  # the shipped high-resolution scene with its frames, one thread (about 5 minutes)
+  scripts/bench_runs.py --cutsim "$B/cutsim" run assets/scenes/liver_hires.json --out captures/hires --threads 1 \
+    > "$D/liver_hires.json"
 fi
 # BENCHMARKS.md's tables drawn from the JSON results
 python3 scripts/bench_tables.py

@@ -49,12 +49,21 @@ def ran_on(*results):
     started and ended (the result's "machine"), lowest to highest."""
     loads = [x for j in results for x in (j["machine"]["load_average"][0], j["machine"]["load_average_end"][0])]
     m = results[0]["machine"]
-    span = f"{min(loads):.1f}" if f"{min(loads):.1f}" == f"{max(loads):.1f}" else f"{min(loads):.1f}-{max(loads):.1f}"
-    return f"\n{m['cores']} cores ({m['cpu']}), load average {span} over the run.\n"
+    return f"\n{m['cores']} cores ({m['cpu']}), load average {span(loads, tenths)} over the run.\n"
 
 
 def decimals(v, n):
     return f"{v:.{n}f}"
+
+
+def tenths(v):
+    return decimals(v, 1)
+
+
+def span(values, fmt):
+    """The lowest and highest of values, formatted; one value when the two read the same."""
+    lo, hi = fmt(min(values)), fmt(max(values))
+    return lo if lo == hi else f"{lo}-{hi}"
 
 
 def ms(seconds):
@@ -535,15 +544,20 @@ def cutstep_budget():
 # ---- bench contact and bench cost per scene: docs/bench/contact.json, cost_SCENE.json ----
 
 
+def contact_by_points():
+    """contact.json's projection runs (no penalty stiffness) by contact points: {points: {tool: run}}."""
+    by = {}
+    for r in load("contact.json")["runs"]:
+        if r["stiffness_fraction"] == 0:
+            by.setdefault(r["points"], {})[r["tool"]] = r
+    return by
+
+
 def contact_projection():
     """Projection contact: stage times per step, tool away and pressing, against the contact points."""
     j = load("contact.json")
-    runs = [r for r in j["runs"] if r["stiffness_fraction"] == 0]
-    by = {}
-    for r in runs:
-        by.setdefault(r["points"], {})[r["tool"]] = r
     rows = []
-    for k, (points, r) in enumerate(by.items()):
+    for k, (points, r) in enumerate(contact_by_points().items()):
         a, p = r["away"], r["pressing"]
         us = 1e6
         rows.append([f"{points:,}" + (" (vertices only)" if k == 0 else ""),
@@ -599,6 +613,86 @@ def haptic():
                      decimals(r["real_time_factor"], 3)])
     return table(["threads", "steps/s", "1 kHz", "contact share of the loop", "contact / elastic",
                   "simulated s per wall s"], rows) + ran_on(j)
+
+
+# ---- bench capture: docs/bench/capture.json ----
+
+
+def capture():
+    """Per scene, each run's wall, physics, capture per frame and its parts, how much the pipeline hid,
+    and the CPU per frame; beneath, the ranges the text quotes."""
+    j = load("capture.json")
+    by = {}
+    for r in j["runs"]:
+        by.setdefault(r["scene"], []).append(r)
+    rows = []
+    for scene, runs in by.items():
+        def each(f):
+            return ", ".join(f(r) for r in runs)
+
+        rows.append([f"{scene} ({runs[0]['frames']} frames)", each(lambda r: decimals(r["wall_s"], 2)),
+                     each(lambda r: decimals(r["physics_s"], 2)),
+                     each(lambda r: decimals(r["capture_ms_per_frame"], 1)) + " ms",
+                     each(lambda r: " / ".join(decimals(r[k], 1) for k in ("draw_ms", "read_ms", "handoff_ms"))),
+                     each(lambda r: decimals(r["wall_over_max"], 2)),
+                     each(lambda r: f"{r['cpu_ms_per_frame']:.1f} + {r['ffmpeg_cpu_ms_per_frame']:.1f}")])
+    what = f"{j['width']}x{j['height']}" + (", HUD" if j["hud"] else "") + (", video" if j["video"] else "") + ", PNGs"
+    runs = j["runs"]
+    cores = j["machine"]["cores"]
+    cpu = [r["cpu_ms_per_frame"] + r["ffmpeg_cpu_ms_per_frame"] for r in runs]
+    reached = "Not reached" if min(r["capture_ms_per_frame"] for r in runs) > 1e3 / 60 else "Reached"
+
+    def hundredths(v):
+        return decimals(v, 2)
+
+    def whole(v):
+        return decimals(v, 0)
+
+    return table([what, "wall [s]", "physics [s]", "(render + encode) / frame",
+                  "of which draw / read-back / hand-off [ms]", "wall / max(physics, render + encode)",
+                  "CPU / frame, cutsim + ffmpeg [ms]"], rows) + ran_on(j) + (
+        f"\n{reached}: 1/60 s a frame. The wall time is {span([r['wall_over_max'] for r in runs], hundredths)} "
+        f"times the larger of the physics and the capture (set-up, {span([r['setup_s'] for r in runs], hundredths)} "
+        f"s, counts in neither); the capture's CPU, cutsim's and ffmpeg's, is {span(cpu, whole)} ms a frame: on "
+        f"{cores} cores about {span([c / cores for c in cpu], whole)} ms a frame at best.\n")
+
+
+# ---- scripts/bench_runs.py: docs/bench/tetra_heldout.json, liver_hires.json ----
+
+
+def tetra_heldout():
+    """`cutsim tetra` per surface: the mesh it made, its volume and boundary against the surface, the
+    exact step before and after the improvement, and the wall time."""
+    j = load("tetra_heldout.json")
+    rows = []
+    for r in j["runs"]:
+        t = r["seconds"]["total"]
+        rows.append([Path(r["surface"]).name, f"{r['size']:g}", f"{r['elements']:,}",
+                     f"{100 * r['volume_error']:+.4f}%", f"{100 * r['boundary_distance_rel']:.2f}%", str(r["inverted"]),
+                     f"{1e3 * r['dt_before']:#.4g} -> {1e3 * r['dt_after']:#.4g} ms", decimals(r["step_quality"], 2),
+                     f"{t:.1f} ({t * 1e4 / r['elements']:.1f})"])
+    return table(["surface", "--size", "elements", "volume", "boundary / diagonal", "inverted",
+                  "exact step before -> after", "step quality", "wall [s] (per 10k elements)"], rows) + ran_on(j)
+
+
+RUN_STAGES = [("forces", "forces"), ("integrate", "integrate"), ("contact", "contact"), ("cut", "cut"),
+              ("timestep", "time step"), ("render", "render"), ("encode", "encode")]
+
+
+def liver_hires():
+    """The high-resolution scene's run: its result and pieces, elements at load and at the end, wall time, and
+    stages."""
+    j = load("liver_hires.json")
+    st = j["stages"]
+    result = j["status"] if j["status"] == "ok" else f"{j['status']} at t = {j['sim_time']:.3f} s"
+    pieces = ", ".join(f"{1e6 * v:.0f}" for v in sorted(j["piece_volumes"], reverse=True))
+    return table(["scene", "result", "pieces [cm^3]", "elements at load / at the end", "frames",
+                  f"wall [s] for {j['sim_time']:.1f} s", "per simulated second [s]",
+                  " / ".join(label for _, label in RUN_STAGES) + " [s]"],
+                 [[f"{j['name']}.json", result, pieces,
+                   f"{j['mesh']['elements']:,} / {j['mesh']['elements_final']:,}", str(j["frames"]),
+                   decimals(j["wall_time"], 1), f"{j['wall_time'] / j['sim_time']:.0f}",
+                   " / ".join(decimals(st[k], 1) for k, _ in RUN_STAGES)]]) + ran_on(j)
 
 
 # ---- bench threads: docs/bench/threads.json, threads_liver.json ----
@@ -661,17 +755,13 @@ def python_step():
                 medians.setdefault(key, []).append(float(f[0]))
                 over.setdefault(key, []).append(f[1])
 
-    def span(values):
-        lo, hi = f"{min(values):.1f}", f"{max(values):.1f}"
-        return lo if lo == hi else f"{lo}-{hi}"
-
     rows = []
     for key, label in PYTHON_SIDES:
         pct = sorted(over[key], key=lambda v: float(v.rstrip("%")))
-        rows.append([label, span(medians[key]),
+        rows.append([label, span(medians[key], tenths),
                      "" if key == "cli" else (pct[0] if pct[0] == pct[-1] else f"{pct[0]} to {pct[-1]}")])
     return table(["side", "median [ms]", "over the CLI"], rows) + \
-        f"\n{len(loads)} runs, load average {span(loads)} as they started.\n"
+        f"\n{len(loads)} runs, load average {span(loads, tenths)} as they started.\n"
 
 
 # ---- bench cost: docs/bench/cost.json ----
@@ -687,7 +777,167 @@ def cost():
                   "timestep"], rows) + ran_on(j)
 
 
+# ---- the summary at the top of the page: its numbers from the results above ----
+
+
+def x_span(values, n=0):
+    """A range of ratios: "13-21x", or "2.2x" when its ends agree."""
+    return span(values, lambda v: decimals(v, n)) + "x"
+
+
+def summary_step():
+    rotated = [r["ratio_cutsim_double_to_bullet"] for r in load("bullet_step.json")["runs"]]
+    rest = [r["ratio_cutsim_double_to_bullet"] for r in load("bullet_step_unrotated.json")["runs"]]
+    return (f"**{x_span(rotated)}** Bullet's explicit deformable solver on the same meshes, one thread "
+            f"({x_span(rest)} from the rest shape)")
+
+
+def summary_accuracy():
+    paired = load("accuracy_1pct_paired.json")
+    implicit = paired["summary"]["cantilever_frequency"]["paired_implicit"]
+    c = next(p for p in paired["paired"] if p["implicit"] == implicit)
+    ratio = {" single " in e["config"]: e["ratio"] for e in c["explicit"]}
+    ldlt = load("accuracy_1pct.json")["summary"]["cantilever_frequency"]["speedup_at_1pct_projected"]
+    return (f"at 1% tip-frequency error, **{ratio[True]:.1f}x** cheaper than backward Euler with CG "
+            f"(single-precision forces; {ratio[False]:.1f}x double), ~{5 * round(ldlt / 5)}x than backward Euler "
+            "with LDL^T")
+
+
+def summary_scale():
+    j = load("scale.json")
+    one = [r for r in j["runs"] if r["threads"] == 1 and "stages" in r]
+    fits = {(f["mesh"], f["scene"]): f["exponents"] for f in j["exponents"] if f["threads"] == 1}
+
+    def exps(scene, stage):
+        return span([fits[(k, scene)][stage] for k, _ in SCALE_KINDS], lambda v: decimals(v, 1))
+
+    largest = max(r["elements"] for r in one if r["mesh"] == "tetgen")
+    blade = next(r for r in one if r["mesh"] == "tetgen" and r["elements"] == largest and r["scene"] == "blade")
+
+    def kb(kind):
+        r = max((r for r in one if r["mesh"] == kind and r["scene"] == "sag"), key=lambda r: r["elements"])
+        return f"{r['bytes_per_element'] / 1e3:.1f} kB"
+
+    def k(n):
+        return f"{n / 1e3:.1f}k" if n < 1e4 else f"{n / 1e3:.0f}k"
+
+    return (f"per step, on one thread, from {k(min(r['elements'] for r in one))} to {k(largest)} elements: the elastic "
+            f"step ~ n^{exps('sag', 'step')}, a blade step's cut stage **~ n^{fits[('tetgen', 'blade')]['cut']:.2f}** "
+            f"({1e3 * blade['stages']['cut']:.0f} ms at {k(largest)} tets), the four plane cuts' exact step after "
+            f"them ~ n^{exps('cuts', 'timestep')}; {kb('tetgen')} per TetGen element, {kb('mi')} per MI element")
+
+
+def summary_cut():
+    rows, _ = google_benchmark("cutsim_bench.txt")
+    wall = rows["BM_CutBladeStep/50/repeats:5/manual_time_median"][0]
+    j = load("liver_cuts.json")
+    return (f"a blade step crossing 50 liver elements, with the local update of the time-step analysis: "
+            f"**{1e3 * wall:.1f} ms**; after the thesis's four liver cuts the exact step is still "
+            f"{j['dt_final']['exact'] / j['dt_initial']['exact']:.3f} of the uncut one")
+
+
+def summary_improve():
+    meshes = load("improve.json")["meshes"]
+
+    def gains(method):
+        return [m["methods"][method]["gain"] for m in meshes if "gain" in m["methods"].get(method, {})]
+
+    liver = next(m for m in meshes if m["mesh"] == "liver")
+    speed = load("improve_speed.json")
+    per10k = {}
+    for r in speed["runs"]:
+        if r["threads"] == 2 and r["load"] == "idle":
+            per10k.setdefault(r["mesh"], []).append(r["seconds"] * 1e4 / r["tets"])
+    per10k = [statistics.median(v) for v in per10k.values()]
+    tetgen = "leaves it unchanged" if all(f"{g:.2f}" == "1.00" for g in gains("tetgen -rO10/7")) else \
+        f"gains {x_span(gains('tetgen -rO10/7'), 1)}"
+    return (f"the exact step of the data meshes **{x_span(gains('cutsim'), 1)}** larger in "
+            f"{span(per10k, lambda v: decimals(v, 2))} s per 10,000 tets on 2 cores idle (SOFA liver "
+            f"{1e3 * liver['dt_exact']:.3f} -> {1e3 * liver['methods']['cutsim']['dt_exact']:.3f} ms, thesis 0.713 in "
+            f"minutes); TetGen's optimiser {tetgen}, Gmsh's gains {x_span(gains('gmsh'), 1)}, CGAL's remesher "
+            f"{x_span(gains('cgal remesh'), 1)} with other element counts")
+
+
+def summary_cutstep():
+    liver = next(o for o in load("cutstep.json")["objects"] if o["name"] == "liver")
+    last = {m["name"]: m["cuts"][-1] for m in liver["methods"]}
+    budget = load("cutstep_budget.json")
+
+    def setting(method, problems):
+        """A budget setting's liver: the step after cut 4 (the same in each run) and the median
+        improvement time per cut, as the budget table gives them."""
+        js = [j for j in budget if j["objects"][0]["methods"][0]["name"] == method and j["problems"] == problems]
+        o = next(k for k, o in enumerate(js[0]["objects"]) if o["name"] == "liver")
+        cuts = js[0]["objects"][o]["methods"][0]["cuts"]
+        per_cut = [statistics.median(j["objects"][o]["methods"][0]["cuts"][c]["improve_seconds"] for j in js)
+                   for c in range(len(cuts))]
+        return f"{cuts[-1]['dt_ratio']:.2f} in {1e3 * statistics.median(per_cut):.0f} ms"
+
+    problems = sorted({j["problems"] for j in budget if j["problems"]})
+    loads = [x for j in budget for x in (j["machine"]["load_average"][0], j["machine"]["load_average_end"][0])]
+    return (f"XFEM keeps **{last['xfem']['dt_ratio']:.2f}** of the liver's uncut exact step "
+            f"({last['xfem+floor']['dt_ratio']:.3f} with the floor, {percent(last['xfem+floor']['added_mass'])} mass "
+            f"added; {last['xfem+hybrid']['dt_ratio']:.2f} with the hybrid), conforming subdivision "
+            f"{last['subdivision']['dt_ratio']:.2f}, subdivision with a local improvement "
+            f"{setting('subdivision+improve', 0)} a cut ({setting('subdivision+improve-full', 0)} at the full setting, "
+            f"{setting('subdivision+improve', problems[-1])} with four times the budget; load {min(loads):.1f})")
+
+
+def summary_stability():
+    j = load("stability.json")
+    plain = [s["largest_stable_fraction"] for s in j["sweeps"] if s["scheme"] == "plain"] + \
+        [s["largest_stable_fraction"] for s in j["after_cuts"]]
+    return f"plain explicit schemes are stable to **{min(plain):.3f}** of the exact limit, before and after cuts"
+
+
+def summary_random_cuts():
+    j = load("random_cuts_500.json")
+    hybrid = [r for r in j["runs"] if r["floor"] == "hybrid"]
+    ok = all(r["failures"] == 0 and r["inverted_runs"] == 0 for r in hybrid)
+    mass = percent(max(r["max_added_mass"] for r in hybrid))
+    return (f"with the floor ({j['step_floor']:g} of the uncut step) and matching first, {j['sequences']} random "
+            f"sequences hold it on the liver and a bar for at most **{mass}** of the mass" +
+            (", no blow-up, no inverted element" if ok else ""))
+
+
+def summary_contact():
+    scenes = {}
+    for name, _ in COST_SCENES:
+        st = next(v for v in load(f"cost_{name}.json")["variants"] if v["name"] == "as given")["stages"]
+        scenes[name] = st["contact"] / (st["forces"] + st["integrate"])
+    away = [r["away"] for r in contact_by_points().values()]
+    away = [a["contact_seconds_per_step"] / a["elastic_seconds_per_step"] for a in away]
+    h = load("haptic.json")
+    rate = {r["threads"]: r["steps_per_second"] for r in h["runs"]}
+    return (f"**{span([v for k, v in scenes.items() if k != 'blade'], lambda v: decimals(v, 2))}** of the elastic "
+            f"step on the probe and demo scenes, {scenes['blade']:.2f} on blade.json; a tool away "
+            f"{span(away, lambda v: decimals(100 * v, 1))}%; a {h['runs'][0]['tets'] / 1e3:.0f}k-tet liver under a "
+            f"probe at **{rate[1]:,.0f}** steps/s on one thread, {rate[2]:,.0f} on two "
+            f"(load {h['machine']['load_average'][0]:.0f})")
+
+
+SUMMARY = [("step throughput against Bullet", summary_step,
+            "[Step](#step-throughput-cutsim-bench-step-and-cutsim_bullet_bench)"),
+           ("explicit against the implicit reference", summary_accuracy,
+            "[Accuracy](#accuracy-against-cost-cutsim-bench-accuracy)"),
+           ("how cost grows with the mesh", summary_scale, "[How cost grows](#how-cost-grows-cutsim-bench-scale)"),
+           ("what a cut costs", summary_cut, "[Cutting](#cutting-latency-and-the-step-after-cuts)"),
+           ("how much step a mesh improvement buys", summary_improve,
+            "[Improvement](#mesh-improvement-cutsim-bench-improve-table-51)"),
+           ("the step through four cuts", summary_cutstep,
+            "[Step through cuts](#step-through-cuts-thesis-tables-55-and-56-cutsim-bench-cutstep)"),
+           ("how close to the limit it steps", summary_stability, "[Stability](#stability-cutsim-bench-stability)"),
+           ("the step through random cuts", summary_random_cuts, "[Stability](#stability-cutsim-bench-stability)"),
+           ("what contact costs", summary_contact, "[Contact](#contact)")]
+
+
+def summary():
+    """The page's summary: per question the answer its section's results give."""
+    return table(["question", "answer", "section"], [[q, f(), link] for q, f, link in SUMMARY])
+
+
 TABLES = {
+    "summary": summary,
     "scale-step": scale_step,
     "scale-exponents": scale_exponents,
     "accuracy-paired": accuracy_paired,
@@ -713,6 +963,9 @@ TABLES = {
     "haptic": haptic,
     "cost": cost,
     "python-step": python_step,
+    "capture": capture,
+    "tetra-heldout": tetra_heldout,
+    "liver-hires": liver_hires,
     "threads-box": threads_box,
     "threads-liver": threads_liver,
 }

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -487,6 +488,55 @@ TEST(BenchHaptic, TinyRunContract) {
         EXPECT_GT(r["final_force"].get<double>(), 0);
     }
     EXPECT_EQ(j["runs"][0]["steps"], j["runs"][1]["steps"]);
+}
+
+// `bench capture --json`: a run per scene and round, each with the parts its report.json gives and
+// the ratios made of them; --csv holds the same runs; the result names the machine.
+TEST(BenchCapture, JsonRunsCsvAndMachine) {
+    const std::string dir = workDir("capture");
+    const json j = runJson("bench capture " + test::source("assets/scenes/bar_sag.json") +
+                           " --set duration=0.1 --width 64 --height 48 --no-video --runs 2 --json --csv " + dir +
+                           "/runs.csv --keep " + dir + "/last");
+    EXPECT_EQ(j["width"], 64);
+    EXPECT_EQ(j["height"], 48);
+    EXPECT_EQ(j["video"], false);
+    EXPECT_EQ(j["mode"], "pipelined");
+    ASSERT_EQ(j["runs"].size(), 2u);
+    std::ifstream in(dir + "/last/report.json");
+    const json rep = json::parse(in);
+    for (size_t k = 0; k < 2; ++k) {
+        const json& r = j["runs"][k];
+        EXPECT_EQ(r["status"], "ok");
+        EXPECT_EQ(r["run"].get<int>(), static_cast<int>(k));
+        EXPECT_EQ(r["frames"], rep["frames"]);  // the same scene: the kept run's frames
+        const double wall = r["wall_s"].get<double>(), physics = r["physics_s"].get<double>();
+        const double capture = r["render_s"].get<double>() + r["encode_s"].get<double>();
+        EXPECT_GT(physics, 0);
+        EXPECT_GT(capture, 0);
+        EXPECT_NEAR(r["capture_ms_per_frame"].get<double>(), 1e3 * capture / r["frames"].get<double>(), 1e-9);
+        EXPECT_NEAR(r["wall_over_max"].get<double>(), wall / std::max(physics, capture), 1e-9);
+        EXPECT_NEAR(r["wall_over_sum"].get<double>(), wall / (physics + capture), 1e-9);
+        EXPECT_GE(r["cpu_ms_per_frame"].get<double>(), 0);
+    }
+    EXPECT_NEAR(j["runs"][1]["wall_s"].get<double>(), rep["wall_time"].get<double>(), 1e-9);
+    EXPECT_TRUE(j["machine"].contains("load_average_end"));
+    std::ifstream f(dir + "/runs.csv");
+    std::vector<std::string> lines;
+    for (std::string l; std::getline(f, l);) lines.push_back(l);
+    ASSERT_EQ(lines.size(), 3u);
+    EXPECT_EQ(lines[0].substr(0, 39), "scene,run,mode,width,height,frames,wall");
+    EXPECT_EQ(lines[2].substr(0, 24), "bar_sag,1,pipelined,64,4");
+}
+
+TEST(BenchCapture, BadOptionsExitTwo) {
+    const std::string scene = test::source("assets/scenes/bar_sag.json");
+    for (const std::string& args :
+         std::vector<std::string>{"bench capture " + scene + " --runs 0", "bench capture " + scene + " --width 8",
+                                  "bench capture " + scene + " --threads -1", "bench capture no_such_scene.json",
+                                  "bench capture " + scene + " --set capture.enabled=false --json"}) {
+        std::string err;
+        EXPECT_EQ(test::runCutsim(args, nullptr, &err), 2) << args << "\n" << err;
+    }
 }
 
 // `bench threads`: per round, each count once idle and once with another core busy, the order

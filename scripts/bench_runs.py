@@ -1,0 +1,96 @@
+#!/usr/bin/env python3
+"""Results for BENCHMARKS.md from runs of the cutsim program itself (not `cutsim bench`), as JSON on
+stdout with the machine they ran on, in the form `cutsim bench --json` gives it (scripts/bench_tables.py
+draws the tables). From the checkout:
+
+    scripts/bench_runs.py tetra > docs/bench/tetra_heldout.json
+        `cutsim tetra` on the data folder's surfaces it was not tuned for, one after the other
+    scripts/bench_runs.py run SCENE --out DIR [cutsim run options] > docs/bench/NAME.json
+        `cutsim run SCENE --out DIR ...` once; its report.json without the run's per-step records
+
+machine: {cpu, cores, load_average, load_average_end}, the 1, 5 and 15 minute load averages as the
+runs started and as they ended.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# The held-out surfaces (DATA/surface, in their own units) and the edge length asked of each.
+TETRA_SURFACES = [("sofa_liver2.obj", 0.11), ("sofa_Armadillo_verysimplified.obj", 0.545),
+                  ("igl_decimated-knight.off", 0.026), ("sofa_Bunny.stl", 0.535), ("igl_bunny.off", 0.011)]
+TETRA_MATERIAL = ["--E", "30000", "--nu", "0.3", "--rho", "1000"]
+
+# What a run's report keeps here: the result, its size and its times (no per-step records, no paths).
+REPORT_KEYS = ["name", "status", "pieces", "piece_volumes", "sim_time", "steps", "threads", "wall_time",
+               "real_time_factor", "stages", "frames", "state_hash", "capture"]
+MESH_KEYS = ["elements", "elements_final", "nodes", "nodes_final"]
+
+
+def machine():
+    """The CPU's model name, the cores, the load averages now (as bench/machine.cpp records them)."""
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            cpu = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), "")
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "load_average": list(os.getloadavg())}
+
+
+def tetra(args):
+    runs = []
+    for name, size in TETRA_SURFACES:
+        surface = f"{args.data}/surface/{name}"
+        cmd = [args.cutsim, "tetra", surface, "--size", str(size), "--json"] + TETRA_MATERIAL
+        start = time.perf_counter()
+        out = subprocess.run(cmd, cwd=ROOT, check=True, capture_output=True, text=True).stdout
+        r = json.loads(out)
+        r["surface"] = name  # the data folder's file, not this machine's path to it
+        r["process_seconds"] = time.perf_counter() - start
+        runs.append(r)
+    return {"command": "cutsim tetra SURFACE --size H --json " + " ".join(TETRA_MATERIAL), "runs": runs}
+
+
+def run(args, rest):
+    cmd = [args.cutsim, "run", args.scene, "--out", args.out, "--quiet"] + rest
+    code = subprocess.run(cmd, cwd=ROOT).returncode
+    with open(ROOT / args.out / "report.json", encoding="utf-8") as f:
+        rep = json.load(f)
+    j = {k: rep[k] for k in REPORT_KEYS if k in rep}
+    j["mesh"] = {k: rep["mesh"][k] for k in MESH_KEYS if k in rep.get("mesh", {})}
+    j["cuts"] = len(rep.get("cuts", []))
+    j["command"] = " ".join(["cutsim run", args.scene, "--out", args.out] + rest)
+    j["exit_code"] = code
+    return j
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cutsim", default="build/cutsim", help="the program, relative to the checkout")
+    ap.add_argument("--data", default="../shared/data", help="the third-party meshes' folder, relative to the checkout")
+    sub = ap.add_subparsers(dest="what", required=True)
+    sub.add_parser("tetra", help="cutsim tetra on the held-out surfaces")
+    r = sub.add_parser("run", help="cutsim run SCENE once (other options go to cutsim run)")
+    r.add_argument("scene")
+    r.add_argument("--out", required=True)
+    args, rest = ap.parse_known_args()
+    if args.what == "tetra" and rest:
+        ap.error(f"unknown arguments: {' '.join(rest)}")
+    m = machine()
+    j = tetra(args) if args.what == "tetra" else run(args, rest)
+    j["machine"] = m
+    j["machine"]["load_average_end"] = list(os.getloadavg())
+    json.dump(j, sys.stdout, indent=2)
+    sys.stdout.write("\n")
+    return 0 if j.get("exit_code", 0) == 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
