@@ -146,6 +146,13 @@ void CutEngine::prepare(const Model& m) {
     std::iota(parent_.begin(), parent_.end(), 0);
     origNode_.resize(static_cast<size_t>(nn));
     std::iota(origNode_.begin(), origNode_.end(), 0);
+    // Room for a stroke's elements and nodes now: grown during a cut, these would copy (and
+    // rehash) the whole mesh's worth in one blade step.
+    const size_t roomE = static_cast<size_t>(ne) + ne / 4 + 16, roomN = static_cast<size_t>(nn) + nn / 4 + 16;
+    parent_.reserve(roomE);
+    origNode_.reserve(roomN);
+    gluedOf_.reserve(roomE);
+    virt_.reserve(static_cast<size_t>(ne / 8 + 64));
     prepared_ = true;
 }
 
