@@ -29,6 +29,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <cstring>
 #include <vector>
 
@@ -130,8 +131,15 @@ GmshOutcome runGmsh(const std::string& program, const SurfaceMesh& s, double siz
         std::vector<char*> argv;
         for (const std::string* a : {&program, &in, &out, &h}) argv.push_back(const_cast<char*>(a->c_str()));
         argv.push_back(nullptr);
+        // one OpenMP thread: Gmsh's mesh depends on the count, and must not depend on the machine
+        std::vector<char*> env;
+        for (char** e = environ; *e; ++e)
+            if (!std::string_view(*e).starts_with("OMP_NUM_THREADS=")) env.push_back(*e);
+        char oneThread[] = "OMP_NUM_THREADS=1";
+        env.push_back(oneThread);
+        env.push_back(nullptr);
         pid_t pid = 0;
-        const int rc = posix_spawn(&pid, program.c_str(), &fa, nullptr, argv.data(), environ);
+        const int rc = posix_spawn(&pid, program.c_str(), &fa, nullptr, argv.data(), env.data());
         posix_spawn_file_actions_destroy(&fa);
         int status = 0;
         if (rc != 0)
