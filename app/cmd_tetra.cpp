@@ -10,6 +10,7 @@
 
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <memory>
 
 namespace cutsim::app {
@@ -49,7 +50,15 @@ int runTetra(const TetraArgs& a) {
         j["scale"] = a.scale;
         j["surface_triangles"] = r.surfaceTriangles;
         j["degenerate_triangles"] = r.degenerateTriangles;
-        j["tets_tetgen"] = r.tetsMeshed;
+        j["mesher"] = r.mesher;
+        if (!r.mesherNote.empty()) j["mesher_note"] = r.mesherNote;
+        if (r.mesher == "gmsh") {
+            j["crease_angle"] = r.creaseAngle;
+            j["gmsh_volume_error"] = r.meshedVolume / r.volumeSurface - 1;
+            j["gmsh_boundary_distance_rel"] = r.meshedDistance / r.diagonal;
+        }
+        j["improver_creases"] = r.improverCreases;
+        j["tets_meshed"] = r.tetsMeshed;
         j["elements"] = r.tets;
         j["nodes"] = r.nodes;
         j["dt_before"] = r.dtBefore;
@@ -70,15 +79,22 @@ int runTetra(const TetraArgs& a) {
         return 0;
     }
     std::printf("surface:           %s (%d triangles)\n", a.surface.c_str(), r.surfaceTriangles);
-    std::printf("elements:          %d (TetGen %d), nodes %d\n", r.tets, r.tetsMeshed, r.nodes);
-    std::printf("exact dt:          %.4g ms -> %.4g ms (%.2fx)\n", r.dtBefore * 1e3, r.dtAfter * 1e3,
-                r.dtAfter / r.dtBefore);
+    if (r.mesher == "gmsh")
+        std::printf(
+            "mesher:            Gmsh (creases over %g deg kept; volume %+.3f %%, boundary %.3f %% of the diagonal)\n",
+            r.creaseAngle, 100 * (r.meshedVolume / r.volumeSurface - 1), 100 * r.meshedDistance / r.diagonal);
+    else
+        std::printf("mesher:            TetGen%s%s\n", r.mesherNote.empty() ? "" : ": ", r.mesherNote.c_str());
+    std::printf("elements:          %d (%s %d), nodes %d\n", r.tets, r.mesher == "gmsh" ? "Gmsh" : "TetGen",
+                r.tetsMeshed, r.nodes);
+    std::printf("exact dt:          %.4g ms -> %.4g ms (%.2fx)%s\n", r.dtBefore * 1e3, r.dtAfter * 1e3,
+                r.dtAfter / r.dtBefore, r.improverCreases < 180 ? " (improved again, creases kept)" : "");
     std::printf("step quality:      %.3f (exact dt over a / c_p, a = %.3g m: the regular tet of the median volume)\n",
                 r.dtAfter / r.dtScale, r.regularEdge);
     std::printf("volume:            %.6g m^3 (surface %.6g, %+.3f %%)\n", r.volumeMesh, r.volumeSurface,
                 100 * volumeError);
-    std::printf("boundary distance: %.3g m (%.3f %% of the diagonal)\n", r.boundaryDistance,
-                100 * r.boundaryDistance / r.diagonal);
+    std::printf("boundary distance: %.3g m (%.3f %% of the diagonal%s)\n", r.boundaryDistance,
+                100 * r.boundaryDistance / r.diagonal, r.mesher == "gmsh" ? ", both ways" : "");
     std::printf("inverted:          %d\n", r.inverted);
     std::printf("seconds:          ");
     for (const auto& [k, v] : r.seconds) std::printf(" %s %.3f", k.c_str(), v);
@@ -93,15 +109,23 @@ void addTetraCommand(CLI::App& app) {
     auto args = std::make_shared<TetraArgs>();
     CLI::App* cmd = app.add_subcommand(
         "tetra", "A closed surface to a simulation-ready tet mesh: checked (open, non-manifold, misoriented, "
-                 "duplicated or self-intersecting input refused, exit 2), filled by TetGen to a target edge "
-                 "length, improved for the stable step (as `cutsim improve`), put in spatial order");
+                 "duplicated or self-intersecting input refused, exit 2), remeshed and filled by Gmsh (or filled by "
+                 "TetGen) to a target edge length, improved for the stable step (as `cutsim improve`), put in "
+                 "spatial order");
     cmd->add_option("SURFACE", args->surface, "Closed surface (.obj, .off, .stl)")->required();
     cmd->add_option("--size", args->opts.size, "Target edge length H [m, after --scale]")
         ->required()
         ->check(CLI::PositiveNumber);
     cmd->add_option("--scale", args->scale, "Multiply every coordinate by S to get meters")->check(CLI::PositiveNumber);
     cmd->add_option("--out", args->out, "Write the mesh (.msh: Gmsh 2.2, .vtu)");
-    cmd->add_flag("--no-improve", args->noImprove, "TetGen's mesh in spatial order, not improved");
+    cmd->add_option("--mesher", args->opts.mesher,
+                    "gmsh: the surface remeshed at the size (creases kept), the volume by HXT (cutsim-gmsh-tetra); "
+                    "tetgen: the surface's triangles kept; auto: Gmsh when installed and its mesh keeps the "
+                    "volume and boundary within 0.6 %, else TetGen")
+        ->transform(CLI::CheckedTransformer(
+            std::map<std::string, Mesher>{{"auto", Mesher::Auto}, {"gmsh", Mesher::Gmsh}, {"tetgen", Mesher::TetGen}}))
+        ->capture_default_str();
+    cmd->add_flag("--no-improve", args->noImprove, "The mesher's mesh in spatial order, not improved");
     cmd->add_option("--threads", args->opts.threads, "Improver threads (the result depends on the count)")
         ->check(CLI::Range(1, 1024))
         ->capture_default_str();

@@ -661,18 +661,26 @@ def capture():
 
 
 def tetra_heldout():
-    """`cutsim tetra` per surface: the mesh it made, its volume and boundary against the surface, the
-    exact step before and after the improvement, and the wall time."""
+    """`cutsim tetra` per surface and mesher: the mesh it made, the step quality before and after the
+    improvement, its volume and boundary against the surface, and the wall time."""
     j = load("tetra_heldout.json")
     rows = []
     for r in j["runs"]:
         t = r["seconds"]["total"]
-        rows.append([Path(r["surface"]).name, f"{r['size']:g}", f"{r['elements']:,}",
-                     f"{100 * r['volume_error']:+.4f}%", f"{100 * r['boundary_distance_rel']:.2f}%", str(r["inverted"]),
-                     f"{1e3 * r['dt_before']:#.4g} -> {1e3 * r['dt_after']:#.4g} ms", decimals(r["step_quality"], 2),
-                     f"{t:.1f} ({t * 1e4 / r['elements']:.1f})"])
-    return table(["surface", "--size", "elements", "volume", "boundary / diagonal", "inverted",
-                  "exact step before -> after", "step quality", "wall [s] (per 10k elements)"], rows) + ran_on(j)
+        made = "Gmsh" if r["mesher"] == "gmsh" else "TetGen"
+        if r["mesher"] == "gmsh":
+            made += f" ({r['crease_angle']:g})"
+            if r.get("improver_creases", 180) < 180:
+                made += ", improved again with creases"
+        elif r["mesher_option"] == "auto":
+            made += " (Gmsh's mesh out of bounds)"
+        before = r["step_quality"] * r["dt_before"] / r["dt_after"]
+        rows.append([r["surface"], r["mesher_option"], f"{r['size']:g}", made, f"{r['elements']:,}",
+                     f"{before:.2f} -> {r['step_quality']:.2f}", f"{100 * r['volume_error']:+.2f}%",
+                     f"{100 * r['boundary_distance_rel']:.2f}%", str(r["inverted"]),
+                     f"{t:.1f} ({t * 1e4 / r['elements']:.2f})"])
+    return table(["surface", "--mesher", "--size", "mesher (crease angle)", "elements", "step quality",
+                  "volume", "boundary / diagonal", "inverted", "wall [s] (per 10k elements)"], rows) + ran_on(j)
 
 
 RUN_STAGES = [("forces", "forces"), ("integrate", "integrate"), ("contact", "contact"), ("cut", "cut"),

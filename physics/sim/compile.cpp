@@ -152,6 +152,7 @@ TetMesh tetraMesh(SimSetup& s, SimData& d) {
     TetraOptions o;
     o.size = sc.tetraSize;
     o.improve = sc.tetraImprove;
+    o.mesher = sc.tetraMesher;
     o.material = sc.material;
     o.sizeKey = sc.file + ": object.tetra.size";
     bool cached = false;
@@ -171,11 +172,14 @@ TetMesh tetraMesh(SimSetup& s, SimData& d) {
                {"cache_file", file},
                {"seconds", sw.seconds()}};
     if (!cached)
-        s.tetra.update({{"dt_before", r.dtBefore},
+        s.tetra.update({{"mesher", r.mesher},
+                        {"tets", r.tets},
+                        {"dt_before", r.dtBefore},
                         {"dt_after", r.dtAfter},
                         {"step_quality", r.dtAfter / r.dtScale},
                         {"volume_error", (r.volumeMesh - r.volumeSurface) / r.volumeSurface},
                         {"boundary_distance_rel", r.boundaryDistance / r.diagonal}});
+    if (!cached && !r.mesherNote.empty()) s.tetra["mesher_note"] = r.mesherNote;
     if (!r.cacheError.empty())
         d.record.warnings.raise(Warning::TetraNotCached,
                                 sc.tetraSurface + ": the mesh is not cached (" + r.cacheError + ")");

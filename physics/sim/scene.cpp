@@ -380,6 +380,8 @@ void readObjectSection(ObjectReader& root, SceneDef& s) {
         if (!te.has("size")) te.fail("size", "required: the target edge length [m]");
         s.tetraSize = te.number("size", 0, 0, 1e300, true);
         s.tetraImprove = te.boolean("improve", true);
+        const std::string mesher = te.string("mesher", "auto", {"auto", "gmsh", "tetgen"});
+        s.tetraMesher = mesher == "gmsh" ? Mesher::Gmsh : mesher == "tetgen" ? Mesher::TetGen : Mesher::Auto;
         te.finish();
     } else if (o.has("surface")) {
         // Mesh intersection (thesis ch. 6): a surface embedded in a regular lattice.

@@ -9,6 +9,7 @@
 #include "fem/model.hpp"
 #include "improve/improve.hpp"
 #include "sim/step_policy.hpp"
+#include "sim/tetra.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -149,15 +150,16 @@ struct SceneDef {
     std::string mesh;                         // tet mesh path (resolved); empty when a box is generated
     std::shared_ptr<const TetMesh> meshData;  // object.mesh given inline ({nodes, tets}); null otherwise
     std::string surface;                      // surface path (resolved) embedded by mesh intersection; empty otherwise
-    std::string tetraSurface;        // object.tetra.surface: surface path (resolved) meshed at load (sim/tetra.hpp)
-    double tetraSize = 0;            // object.tetra.size: target edge length [m] (after scale)
-    bool tetraImprove = true;        // object.tetra.improve
-    int surfaceCells = 0;            // MI lattice cells across the surface's longest side (when surfaceH is 0)
-    double surfaceH = 0;             // MI lattice cell edge [m] (after scale); > 0 takes precedence
-    bool surfaceFixOutside = false;  // MI: fix the outside corners of interface tets (thesis sec. 6.3)
-    bool surfaceKeepStep = true;     // MI: add mass where needed so the step is at least the lattice's
-    std::string visual;              // object.visual: surface path (resolved) drawn on a tet mesh object; empty: none
-    double visualScale = 1;          // its coordinates times this give meters (default: scale)
+    std::string tetraSurface;           // object.tetra.surface: surface path (resolved) meshed at load (sim/tetra.hpp)
+    double tetraSize = 0;               // object.tetra.size: target edge length [m] (after scale)
+    bool tetraImprove = true;           // object.tetra.improve
+    Mesher tetraMesher = Mesher::Auto;  // object.tetra.mesher: auto, gmsh or tetgen
+    int surfaceCells = 0;               // MI lattice cells across the surface's longest side (when surfaceH is 0)
+    double surfaceH = 0;                // MI lattice cell edge [m] (after scale); > 0 takes precedence
+    bool surfaceFixOutside = false;     // MI: fix the outside corners of interface tets (thesis sec. 6.3)
+    bool surfaceKeepStep = true;        // MI: add mass where needed so the step is at least the lattice's
+    std::string visual;      // object.visual: surface path (resolved) drawn on a tet mesh object; empty: none
+    double visualScale = 1;  // its coordinates times this give meters (default: scale)
     Eigen::Vector3d boxSize = Eigen::Vector3d::Zero();    // generated box [0,size] (before scale) [m]
     Eigen::Vector3i boxCells = Eigen::Vector3i::Zero();   // cubes along each axis, 6 tets each
     double scale = 1;                                     // coordinates times scale give meters

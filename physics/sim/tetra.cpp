@@ -5,12 +5,20 @@
 #include "improve/improve.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
+#include "mesh/surface_distance.hpp"
 #include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
+#include <atomic>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -20,6 +28,12 @@
 #include <iterator>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
+#include <string_view>
+#include <cstring>
+#include <vector>
+
+extern char** environ;
 
 namespace cutsim {
 
@@ -27,11 +41,17 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kMaxTets = 2e7;          // TetGen's estimated output, at most (as object.box.cells)
-constexpr double kBytesPerTet = 1000;     // meshing and improving, per element (as a run's)
-constexpr double kBoundaryShare = 0.009;  // the improver's boundary bound, of the diagonal: under the 1% promised
-constexpr int kCacheVersion = 2;          // bump when the pipeline's result changes
-constexpr double kBoundOverMedian = 2;    // TetGen's volume bound over the median tet it makes
+constexpr double kMaxTets = 2e7;           // TetGen's estimated output, at most (as object.box.cells)
+constexpr double kBytesPerTet = 1000;      // meshing and improving, per element (as a run's)
+constexpr double kBoundaryShare = 0.009;   // the improver's boundary bound, of the diagonal: under the 1% promised
+constexpr int kCacheVersion = 3;           // bump when the pipeline's result changes
+constexpr double kBoundOverMedian = 2;     // TetGen's volume bound over the median tet it makes
+constexpr double kMesherShare = 0.0075;    // Gmsh's share of the volume and boundary bounds (Auto: TetGen beyond)
+constexpr double kFinalShare = 0.0095;     // Gmsh's result from the surface (both ways), at most, of the diagonal
+constexpr double kKeptCreases = 60;        // the improver's second pass keeps edges turning more [deg]
+constexpr double kVolumeShare = 0.009;     // the volume bound the pipeline keeps: under the 1% promised
+constexpr double kDistanceSpacing = 2e-4;  // the distances' sampling, of the diagonal (their error at most
+                                           // a 1/sqrt(3) of it)
 
 std::string fmt(const char* f, auto... args) {
     char buf[512];
@@ -74,7 +94,111 @@ fs::path cacheFolder() {
     return fs::temp_directory_path() / "cutsim-cache";
 }
 
+std::string readText(const fs::path& p) {
+    std::ifstream in(p);
+    std::string t((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+    return t;
+}
+
+struct GmshOutcome {
+    TetMesh mesh;
+    double angle = 0;   // crease angle Gmsh used [deg]
+    std::string error;  // empty: the mesh was made
+};
+
+// cutsim-gmsh-tetra on s at the target edge `size`, through files in a folder of its own.
+GmshOutcome runGmsh(const std::string& program, const SurfaceMesh& s, double size) {
+    static std::atomic<int> runs{0};
+    const fs::path dir = fs::temp_directory_path() / fmt("cutsim-gmsh-%ld-%d", long(::getpid()), runs++);
+    fs::create_directories(dir);
+    GmshOutcome g;
+    {
+        std::ofstream obj(dir / "in.obj");
+        obj.precision(17);
+        for (int v = 0; v < s.vertices(); ++v) obj << "v " << s.V(0, v) << ' ' << s.V(1, v) << ' ' << s.V(2, v) << '\n';
+        for (int f = 0; f < s.faces(); ++f)
+            obj << "f " << s.F(0, f) + 1 << ' ' << s.F(1, f) + 1 << ' ' << s.F(2, f) + 1 << '\n';
+        if (!obj) g.error = "cannot write " + (dir / "in.obj").string();
+    }
+    const std::string in = (dir / "in.obj").string(), out = (dir / "out.msh").string(),
+                      log = (dir / "out.txt").string(), err = (dir / "err.txt").string(), h = fmt("%.17g", size);
+    if (g.error.empty()) {
+        posix_spawn_file_actions_t fa;
+        posix_spawn_file_actions_init(&fa);
+        posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        posix_spawn_file_actions_addopen(&fa, 2, err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        std::vector<char*> argv;
+        for (const std::string* a : {&program, &in, &out, &h}) argv.push_back(const_cast<char*>(a->c_str()));
+        argv.push_back(nullptr);
+        // one OpenMP thread: Gmsh's mesh depends on the count, and must not depend on the machine
+        std::vector<char*> env;
+        for (char** e = environ; *e; ++e)
+            if (!std::string_view(*e).starts_with("OMP_NUM_THREADS=")) env.push_back(*e);
+        char oneThread[] = "OMP_NUM_THREADS=1";
+        env.push_back(oneThread);
+        env.push_back(nullptr);
+        pid_t pid = 0;
+        const int rc = posix_spawn(&pid, program.c_str(), &fa, nullptr, argv.data(), env.data());
+        posix_spawn_file_actions_destroy(&fa);
+        int status = 0;
+        if (rc != 0)
+            g.error = "cannot start " + program + ": " + std::strerror(rc);
+        else if (::waitpid(pid, &status, 0) < 0)
+            g.error = "lost " + program;
+        else if (WIFSIGNALED(status))
+            g.error = fmt("cutsim-gmsh-tetra was killed by signal %d", WTERMSIG(status));
+        else if (WEXITSTATUS(status) != 0) {
+            g.error = readText(err);
+            if (g.error.starts_with("error: ")) g.error.erase(0, 7);
+            if (g.error.empty()) g.error = fmt("cutsim-gmsh-tetra exited with %d", WEXITSTATUS(status));
+        }
+    }
+    if (g.error.empty()) {
+        try {
+            g.angle = nlohmann::json::parse(readText(log)).at("angle").get<double>();
+            g.mesh = readTetMesh(out);
+        } catch (const std::exception& e) {
+            g.error = std::string("cutsim-gmsh-tetra's output: ") + e.what();
+        }
+    }
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    return g;
+}
+
+// The boundary triangles of a tet mesh as a surface (over all its nodes).
+SurfaceMesh boundaryOf(const TetMesh& m) {
+    SurfaceMesh b;
+    b.V = m.X;
+    b.F = boundaryFaces(m);
+    return b;
+}
+
 }  // namespace
+
+const char* mesherName(Mesher m) {
+    switch (m) {
+    case Mesher::Gmsh: return "gmsh";
+    case Mesher::TetGen: return "tetgen";
+    case Mesher::Auto: break;
+    }
+    return "auto";
+}
+
+std::string gmshTetraProgram() {
+    const char* name = "cutsim-gmsh-tetra";
+    std::error_code ec;
+    if (const char* e = std::getenv("CUTSIM_GMSH_TETRA"); e && *e) return fs::exists(e, ec) ? e : "";
+    std::vector<fs::path> dirs;
+    if (const fs::path self = fs::read_symlink("/proc/self/exe", ec); !ec) dirs.push_back(self.parent_path());
+#ifdef CUTSIM_PROGRAM_DIRS
+    for (const char* d : {CUTSIM_PROGRAM_DIRS}) dirs.emplace_back(d);
+#endif
+    for (const fs::path& d : dirs)
+        if (fs::exists(d / name, ec)) return (d / name).string();
+    return "";
+}
 
 TetraResult tetraFromSurface(SurfaceMesh surface, const TetraOptions& opts) {
     const std::string src = surface.source;
@@ -124,43 +248,99 @@ TetraResult tetraFromSurface(SurfaceMesh surface, const TetraOptions& opts) {
     checkMemory(opts.sizeKey.empty() ? src : opts.sizeKey + " (surface " + src + ")", estimate * kBytesPerTet);
     r.seconds.emplace_back("check", sw.seconds());
 
-    // 2. TetGen (Si 2015): the surface kept (p), radius-edge ratio at most 1.4 (q), the volume bound
-    // above (a); 0-based, quiet.
-    sw = Stopwatch();
+    // 2. Gmsh (Geuzaine and Remacle 2009): the surface remeshed at the target edge, filled by HXT;
+    // kept when its volume and boundary stay within a share of the bounds (Auto; else TetGen).
     TetMesh mesh;
-    try {
-        mesh = tetgenSurface(s, fmt("pq1.4a%.17gzQ", tetVolume));
-    } catch (const RemeshError& e) {
-        throw InputError(src, 0,
-                         std::string("TetGen could not fill the surface (a self-intersecting surface is the "
-                                     "usual cause): ") +
-                             e.what());
+    if (opts.mesher != Mesher::TetGen) {
+        sw = Stopwatch();
+        const std::string program = gmshTetraProgram();
+        if (program.empty() && opts.mesher == Mesher::Gmsh)
+            throw std::runtime_error("the Gmsh mesher, cutsim-gmsh-tetra, is not installed (libgmsh-dev)");
+        if (program.empty()) r.mesherNote = "cutsim-gmsh-tetra not installed";
+        GmshOutcome g;
+        if (!program.empty()) g = runGmsh(program, s, opts.size);
+        if (!program.empty() && !g.error.empty()) {
+            if (opts.mesher == Mesher::Gmsh)
+                throw std::runtime_error(src + ": Gmsh could not mesh the surface: " + g.error);
+            r.mesherNote = "Gmsh failed: " + g.error;
+        }
+        r.seconds.emplace_back("gmsh", sw.seconds());
+        if (!program.empty() && g.error.empty()) {
+            sw = Stopwatch();
+            r.meshedVolume = totalVolume(g.mesh);
+            r.meshedDistance = hausdorffDistance(s, boundaryOf(g.mesh), kDistanceSpacing * r.diagonal);
+            r.seconds.emplace_back("measure_gmsh", sw.seconds());
+            const double dv = r.meshedVolume / r.volumeSurface - 1;
+            if (opts.mesher == Mesher::Gmsh ||
+                (std::abs(dv) <= kMesherShare && r.meshedDistance <= kMesherShare * r.diagonal)) {
+                mesh = std::move(g.mesh);
+                r.mesher = "gmsh";
+                r.creaseAngle = g.angle;
+            } else {
+                r.mesherNote = fmt("Gmsh's mesh left the bounds (volume %+.2f %%, boundary %.2f %% of the diagonal)",
+                                   100 * dv, 100 * r.meshedDistance / r.diagonal);
+            }
+        }
+    }
+
+    // 3. TetGen (Si 2015): the surface kept (p), radius-edge ratio at most 1.4 (q), the volume bound
+    // above (a); 0-based, quiet.
+    if (r.mesher.empty()) {
+        sw = Stopwatch();
+        try {
+            mesh = tetgenSurface(s, fmt("pq1.4a%.17gzQ", tetVolume));
+        } catch (const RemeshError& e) {
+            throw InputError(src, 0,
+                             std::string("TetGen could not fill the surface (a self-intersecting surface is the "
+                                         "usual cause): ") +
+                                 e.what());
+        }
+        r.mesher = "tetgen";
+        r.seconds.emplace_back("tetgen", sw.seconds());
     }
     mesh.source = src;
     r.tetsMeshed = mesh.elements();
-    r.seconds.emplace_back("tetgen", sw.seconds());
 
-    // 3. The improver (thesis sec. 5.1) within 0.9% of the diagonal of the surface, on its work
+    // 4. The improver (thesis sec. 5.1) within 0.9% of the diagonal of the surface, on its work
     // budget (no wall limit: the result, and so the cache, must not depend on the machine's load).
-    sw = Stopwatch();
+    // Gmsh's share of the bounds is taken off the improver's. Its distance bound holds one way,
+    // the new boundary from the old: a boundary node sliding off a sharp tip keeps the boundary on
+    // the old surface but cuts the tip. When the result then lies over kFinalShare from the surface,
+    // the improver runs again from Gmsh's mesh with creases and corners kept (kKeptCreases).
     ImproveOptions io;
     io.material = opts.material;
     io.threads = opts.threads;
-    io.maxBoundaryDistance = kBoundaryShare;
-    if (opts.improve) {
-        const ImproveReport ir = improveMesh(mesh, io);
-        r.dtBefore = ir.before.dtExact;
-        r.dtAfter = ir.after.dtExact;
-        r.boundaryDistance = ir.boundaryDistance;  // from TetGen's boundary, which is the surface
-    } else {
-        r.dtBefore = r.dtAfter = meshStepStats(mesh, opts.material).dtExact;
-    }
-    r.seconds.emplace_back("improve", sw.seconds());
+    io.maxBoundaryDistance = std::max(0.0, kBoundaryShare - r.meshedDistance / r.diagonal);
+    if (r.mesher == "gmsh")
+        io.maxVolumeChange = std::max(0.0, kVolumeShare - std::abs(r.meshedVolume / r.volumeSurface - 1));
+    const TetMesh meshed = r.mesher == "gmsh" && opts.improve ? mesh : TetMesh{};
+    for (int pass = 0; pass < 2; ++pass) {
+        sw = Stopwatch();
+        if (opts.improve) {
+            const ImproveReport ir = improveMesh(mesh, io);
+            r.dtBefore = ir.before.dtExact;
+            r.dtAfter = ir.after.dtExact;
+            r.boundaryDistance = ir.boundaryDistance;  // from the mesher's boundary: TetGen's is the surface
+        } else {
+            r.dtBefore = r.dtAfter = meshStepStats(mesh, opts.material).dtExact;
+        }
+        r.seconds.emplace_back(pass == 0 ? "improve" : "improve_creases", sw.seconds());
 
-    // 4. Spatial order: threads taking ranges of elements then share few nodes.
-    sw = Stopwatch();
-    mesh = spatialOrder(mesh);
-    r.seconds.emplace_back("order", sw.seconds());
+        // 5. Spatial order: threads taking ranges of elements then share few nodes.
+        sw = Stopwatch();
+        mesh = spatialOrder(mesh);
+        r.seconds.emplace_back("order", sw.seconds());
+        if (r.mesher != "gmsh") break;
+
+        // Gmsh's boundary is not the surface: the result's, measured against it both ways.
+        sw = Stopwatch();
+        r.boundaryDistance = hausdorffDistance(s, boundaryOf(mesh), kDistanceSpacing * r.diagonal);
+        r.seconds.emplace_back("measure", sw.seconds());
+        if (!opts.improve || pass == 1 || r.boundaryDistance <= kFinalShare * r.diagonal) break;
+        mesh = meshed;
+        io.featureAngleDeg = kKeptCreases;
+        r.improverCreases = kKeptCreases;
+    }
 
     std::vector<double> vol(static_cast<size_t>(mesh.elements()));
     for (int e = 0; e < mesh.elements(); ++e) vol[static_cast<size_t>(e)] = tetSignedVolume(mesh, e);
@@ -182,7 +362,12 @@ TetMesh tetraCached(const std::string& path, double scale, const TetraOptions& o
     if (!in) throw InputError(path, 0, "cannot open the surface file");
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     std::uint64_t h = fnv1a(1469598103934665603ULL, bytes.data(), bytes.size());
+    // the mesher that will run (Auto: Gmsh when its program is there)
+    const Mesher mesher = opts.mesher != Mesher::Auto  ? opts.mesher
+                          : gmshTetraProgram().empty() ? Mesher::TetGen
+                                                       : Mesher::Gmsh;
     const double key[] = {scale,
+                          double(int(mesher)),
                           opts.size,
                           opts.material.E,
                           opts.material.nu,

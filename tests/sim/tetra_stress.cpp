@@ -20,12 +20,12 @@ namespace {
 
 TetraResult hiresLiver() {
     TetraOptions o;
-    o.size = 0.0055;  // liver_hires.json's
+    o.size = 0.0038;  // liver_hires.json's
     o.material = Material{30000, 0.3, 1000};
     return tetraFromSurface(readSurfaceMesh(test::source("assets/meshes/sofa_liver.obj"), 0.0254), o);
 }
 
-// Over 40k tets, the surface's volume and boundary, nothing inverted, a larger step than TetGen's.
+// Over 40k tets, the surface's volume and boundary, nothing inverted, a larger step than the mesher's.
 TEST(TetraStress, TheHighResolutionLiver) {
     const TetraResult r = hiresLiver();
     const TetraReport& t = r.report;
