@@ -173,6 +173,7 @@ json meshObject(const MeshDef& m, const std::string& surface, double scale, bool
     TetraOptions to;
     to.size = m.size;
     to.material = Material{30000, 0.3, 1000};
+    to.mesher = Mesher::TetGen;  // the sizes above are TetGen's
     bool cached = false;
     TetraReport rep;
     std::string file;
@@ -180,7 +181,7 @@ json meshObject(const MeshDef& m, const std::string& surface, double scale, bool
     tetraCached(surface, scale, to, cached, rep, file);
     if (!quiet)
         std::fprintf(stderr, "tetra --size %g: %s in %.1f s\n", m.size, cached ? "cached" : "built", sw.seconds());
-    return {{"tetra", {{"surface", surface}, {"size", m.size}}}, {"scale", scale}};
+    return {{"tetra", {{"surface", surface}, {"size", m.size}, {"mesher", "tetgen"}}}, {"scale", scale}};
 }
 
 // One run in a process of its own (`bench scale --one`), so that its peak memory is its own: its

@@ -5,7 +5,7 @@
 #include "improve/improve.hpp"
 #include "mesh/generate.hpp"
 #include "mesh/io.hpp"
-#include "mesh/surface_distance.hpp"
+#include "embed/surface_distance.hpp"
 #include "util/memory.hpp"
 #include "util/stopwatch.hpp"
 

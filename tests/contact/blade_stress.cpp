@@ -134,7 +134,9 @@ TEST(BladeStress, RandomStrokesThroughTheLiverInAThirtyTwoCellLattice) {
 }
 
 TEST(BladeStress, RandomStrokesThroughATetraLiver) {
-    runStrokes(R"({"tetra": {"surface": "../meshes/sofa_liver.obj", "size": 0.0075}, "scale": 0.0254})", 20, 3);
+    runStrokes(
+        R"({"tetra": {"surface": "../meshes/sofa_liver.obj", "size": 0.0075, "mesher": "tetgen"}, "scale": 0.0254})",
+        20, 3);
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-#include "mesh/surface_distance.hpp"
+#include "embed/surface_distance.hpp"
 
 #include "embed/clip.hpp"
 

@@ -1,6 +1,6 @@
 // The Hausdorff distance between surfaces (mesh/surface_distance.hpp) on nested cubes, whose
 // distances follow from the geometry.
-#include "mesh/surface_distance.hpp"
+#include "embed/surface_distance.hpp"
 
 #include <gtest/gtest.h>
 
