@@ -33,8 +33,6 @@
 #include <cstring>
 #include <vector>
 
-extern char** environ;
-
 namespace cutsim {
 
 namespace fs = std::filesystem;
@@ -44,7 +42,7 @@ namespace {
 constexpr double kMaxTets = 2e7;           // TetGen's estimated output, at most (as object.box.cells)
 constexpr double kBytesPerTet = 1000;      // meshing and improving, per element (as a run's)
 constexpr double kBoundaryShare = 0.009;   // the improver's boundary bound, of the diagonal: under the 1% promised
-constexpr int kCacheVersion = 3;           // bump when the pipeline's result changes
+constexpr int kCacheVersion = 4;           // bump when the pipeline's result changes
 constexpr double kBoundOverMedian = 2;     // TetGen's volume bound over the median tet it makes
 constexpr double kMesherShare = 0.0075;    // Gmsh's share of the volume and boundary bounds (Auto: TetGen beyond)
 constexpr double kFinalShare = 0.0095;     // Gmsh's result from the surface (both ways), at most, of the diagonal
@@ -110,7 +108,7 @@ struct GmshOutcome {
 // cutsim-gmsh-tetra on s at the target edge `size`, through files in a folder of its own.
 GmshOutcome runGmsh(const std::string& program, const SurfaceMesh& s, double size) {
     static std::atomic<int> runs{0};
-    const fs::path dir = fs::temp_directory_path() / fmt("cutsim-gmsh-%ld-%d", long(::getpid()), runs++);
+    const fs::path dir = fs::temp_directory_path() / fmt("cutsim-gmsh-%010ld-%06d", long(::getpid()), runs++);
     fs::create_directories(dir);
     GmshOutcome g;
     {
@@ -131,13 +129,11 @@ GmshOutcome runGmsh(const std::string& program, const SurfaceMesh& s, double siz
         std::vector<char*> argv;
         for (const std::string* a : {&program, &in, &out, &h}) argv.push_back(const_cast<char*>(a->c_str()));
         argv.push_back(nullptr);
-        // one OpenMP thread: Gmsh's mesh depends on the count, and must not depend on the machine
-        std::vector<char*> env;
-        for (char** e = environ; *e; ++e)
-            if (!std::string_view(*e).starts_with("OMP_NUM_THREADS=")) env.push_back(*e);
-        char oneThread[] = "OMP_NUM_THREADS=1";
-        env.push_back(oneThread);
-        env.push_back(nullptr);
+        // A fixed environment: Gmsh's mesh depends on the OpenMP thread count, and on the
+        // environment the program starts with (its heap's layout orders some of its sets), neither
+        // of which may depend on the caller.
+        char oneThread[] = "OMP_NUM_THREADS=1", locale[] = "LC_ALL=C";
+        std::vector<char*> env{oneThread, locale, nullptr};
         pid_t pid = 0;
         const int rc = posix_spawn(&pid, program.c_str(), &fa, nullptr, argv.data(), env.data());
         posix_spawn_file_actions_destroy(&fa);
