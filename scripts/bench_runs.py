@@ -33,6 +33,12 @@ TETRA_SURFACES = [("DATA/surface/sofa_liver2.obj", 1, 0.06, 0.11),
                   ("assets/meshes/sofa_liver.obj", 0.0254, 0.0046, 0.0055)]
 TETRA_MATERIAL = ["--E", "30000", "--nu", "0.3", "--rho", "1000"]
 
+# What a run's report keeps here: the result, its size and its times (no per-step records, no paths).
+REPORT_KEYS = ["name", "status", "pieces", "piece_volumes", "sim_time", "steps", "threads", "wall_time",
+               "real_time_factor", "stages", "frames", "state_hash", "capture"]
+MESH_KEYS = ["elements", "elements_final", "nodes", "nodes_final"]
+
+
 def machine():
     """The CPU's model name, the cores, the load averages now (as bench/machine.cpp records them)."""
     cpu = ""
