@@ -103,13 +103,6 @@ GmshRun meshAt(const SurfaceMesh& s, double size, double angle) {
 }  // namespace
 }  // namespace cutsim
 
-#if defined(__SANITIZE_ADDRESS__)
-// Under the sanitizer build: Gmsh's library (not instrumented) keeps allocations until exit, which
-// LeakSanitizer would report as this program's failure. The program starts with a fixed
-// environment (physics/sim/tetra.cpp), so this default is the one that applies.
-extern "C" const char* __lsan_default_options() { return "detect_leaks=0"; }
-#endif
-
 int main(int argc, char** argv) {
     if (argc != 4) {
         std::fprintf(stderr, "usage: cutsim-gmsh-tetra SURFACE OUT SIZE\n");
