@@ -142,6 +142,9 @@ void addImproveCommand(CLI::App& app) {
     cmd->add_option("--max-boundary-distance", args->opts.maxBoundaryDistance,
                     "New boundary from the old surface at most, over the bounding-box diagonal [-]")
         ->capture_default_str();
+    cmd->add_flag("--both-ways", args->opts.boundaryBothWays,
+                  "The boundary distance bound holds both ways: the old surface also stays near the new "
+                  "boundary (no crease or tip cut away)");
     cmd->add_option(
            "--feature-angle", args->opts.featureAngleDeg,
            "Boundary edges whose faces turn more than this are kept as features (creases slide, corners stay) [deg]")

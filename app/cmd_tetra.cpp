@@ -12,6 +12,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <string>
 
 namespace cutsim::app {
 namespace {
@@ -54,6 +55,7 @@ int runTetra(const TetraArgs& a) {
         if (!r.mesherNote.empty()) j["mesher_note"] = r.mesherNote;
         if (r.mesher == "gmsh") {
             j["crease_angle"] = r.creaseAngle;
+            j["gmsh_refinements"] = r.gmshRefinements;
             j["gmsh_volume_error"] = r.meshedVolume / r.volumeSurface - 1;
             j["gmsh_boundary_distance_rel"] = r.meshedDistance / r.diagonal;
         }
@@ -81,8 +83,12 @@ int runTetra(const TetraArgs& a) {
     std::printf("surface:           %s (%d triangles)\n", a.surface.c_str(), r.surfaceTriangles);
     if (r.mesher == "gmsh")
         std::printf(
-            "mesher:            Gmsh (creases over %g deg kept; volume %+.3f %%, boundary %.3f %% of the diagonal)\n",
-            r.creaseAngle, 100 * (r.meshedVolume / r.volumeSurface - 1), 100 * r.meshedDistance / r.diagonal);
+            "mesher:            Gmsh (creases over %g deg kept%s; volume %+.3f %%, boundary %.3f %% of the diagonal)\n",
+            r.creaseAngle,
+            r.gmshRefinements > 0
+                ? (", refined " + std::to_string(r.gmshRefinements) + "x where it left the surface").c_str()
+                : "",
+            100 * (r.meshedVolume / r.volumeSurface - 1), 100 * r.meshedDistance / r.diagonal);
     else
         std::printf("mesher:            TetGen%s%s\n", r.mesherNote.empty() ? "" : ": ", r.mesherNote.c_str());
     std::printf("elements:          %d (%s %d), nodes %d\n", r.tets, r.mesher == "gmsh" ? "Gmsh" : "TetGen",

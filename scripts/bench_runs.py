@@ -7,6 +7,9 @@ draws the tables). From the checkout:
         `cutsim tetra` on the data folder's surfaces it was not tuned for, one after the other
     scripts/bench_runs.py run SCENE --out DIR [cutsim run options] > docs/bench/NAME.json
         `cutsim run SCENE --out DIR ...` once; its report.json without the run's per-step records
+    scripts/bench_runs.py blade-scale --out DIR > docs/bench/blade_scale.json
+        blade.json's stroke on finer livers (TetGen meshes of the shipped surface, 16k to 106k tets)
+        and on lattices, one thread, without frames (about 15 minutes)
 
 machine: {cpu, cores, load_average, load_average_end}, the 1, 5 and 15 minute load averages as the
 runs started and as they ended.
@@ -15,6 +18,7 @@ runs started and as they ended.
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -29,7 +33,7 @@ TETRA_SURFACES = [("DATA/surface/sofa_liver2.obj", 1, 0.06, 0.11),
                   ("DATA/surface/sofa_Armadillo_verysimplified.obj", 1, 0.38, 0.545),
                   ("DATA/surface/igl_decimated-knight.off", 1, 0.018, 0.026),
                   ("DATA/surface/sofa_Bunny.stl", 1, 0.336, 0.535),
-                  ("DATA/surface/igl_bunny.off", 1, 0.0054, 0.011),
+                  ("DATA/surface/igl_bunny.off", 1, 0.0056, 0.011),
                   ("assets/meshes/sofa_liver.obj", 0.0254, 0.0046, 0.0055)]
 TETRA_MATERIAL = ["--E", "30000", "--nu", "0.3", "--rho", "1000"]
 
@@ -37,6 +41,20 @@ TETRA_MATERIAL = ["--E", "30000", "--nu", "0.3", "--rho", "1000"]
 REPORT_KEYS = ["name", "status", "pieces", "piece_volumes", "sim_time", "steps", "threads", "wall_time",
                "real_time_factor", "stages", "frames", "state_hash", "capture"]
 MESH_KEYS = ["elements", "elements_final", "nodes", "nodes_final"]
+
+# blade.json's object swapped: TetGen livers of the shipped surface made at load (object.tetra, the
+# sizes in m after the scale; about 16k, 40k and 106k tets), the liver in MI lattices, and a box.
+BLADE_LIVER = '"scale": 0.0254, "visual": "../meshes/sofa_liver-smooth.obj"'
+BLADE_OBJECTS = [
+    ("liver, TetGen 0.0112", '{"tetra": {"surface": "../meshes/sofa_liver.obj", "size": 0.0112, '
+     '"mesher": "tetgen"}, ' + BLADE_LIVER + '}'),
+    ("liver, TetGen 0.0065", '{"tetra": {"surface": "../meshes/sofa_liver.obj", "size": 0.0065, '
+     '"mesher": "tetgen"}, ' + BLADE_LIVER + '}'),
+    ("liver, TetGen 0.0041", '{"tetra": {"surface": "../meshes/sofa_liver.obj", "size": 0.0041, '
+     '"mesher": "tetgen"}, ' + BLADE_LIVER + '}'),
+    ("liver, MI 16 cells", '{"surface": {"path": "../meshes/sofa_liver.obj", "cells": 16}, "scale": 0.0254}'),
+    ("liver, MI 32 cells", '{"surface": {"path": "../meshes/sofa_liver.obj", "cells": 32}, "scale": 0.0254}'),
+]
 
 
 def machine():
@@ -72,14 +90,49 @@ def tetra(args):
 def run(args, rest):
     cmd = [args.cutsim, "run", args.scene, "--out", args.out, "--quiet"] + rest
     code = subprocess.run(cmd, cwd=ROOT).returncode
-    with open(ROOT / args.out / "report.json", encoding="utf-8") as f:
-        rep = json.load(f)
-    j = {k: rep[k] for k in REPORT_KEYS if k in rep}
-    j["mesh"] = {k: rep["mesh"][k] for k in MESH_KEYS if k in rep.get("mesh", {})}
+    _, j = report_of(args.out, REPORT_KEYS)
     j["cuts"] = len(rep.get("cuts", []))
     j["command"] = " ".join(["cutsim run", args.scene, "--out", args.out] + rest)
     j["exit_code"] = code
     return j
+
+
+def report_of(out_dir, keys):
+    with open(ROOT / out_dir / "report.json", encoding="utf-8") as f:
+        rep = json.load(f)
+    j = {k: rep[k] for k in keys if k in rep}
+    j["mesh"] = {k: rep["mesh"][k] for k in MESH_KEYS if k in rep.get("mesh", {})}
+    return rep, j
+
+
+def blade_scale(args):
+    """Each object twice: once to build its mesh (object.tetra's cache; not timed), then the run."""
+    runs = []
+    # a cache of its own: each mesh is built here, so its report is there to keep
+    env = dict(os.environ, CUTSIM_CACHE=str(ROOT / args.out / "cache"))
+    shutil.rmtree(ROOT / args.out / "cache", ignore_errors=True)
+    for name, obj in BLADE_OBJECTS:
+        out = f"{args.out}/{len(runs)}"
+        common = [args.cutsim, "run", "assets/scenes/blade.json", "--out", out, "--quiet", "--no-render",
+                  "--threads", "1", "--set", "object=" + obj]
+        tetra = None
+        if "tetra" in obj:  # the mesh built (or found in the cache) by a run of one step
+            subprocess.run(common[:4] + [out + "-mesh"] + common[5:] + ["--set", "duration=0.0001"], cwd=ROOT,
+                           check=True, env=env)
+            with open(ROOT / (out + "-mesh") / "report.json", encoding="utf-8") as f:
+                t = json.load(f)["tetra"]
+            tetra = {k: t[k] for k in ("mesher", "size", "tets", "dt_after", "step_quality", "seconds") if k in t}
+        code = subprocess.run(common, cwd=ROOT, env=env).returncode
+        rep, j = report_of(out, REPORT_KEYS + ["strokes"])
+        if tetra:
+            j["tetra"] = tetra
+        energy = rep.get("energy", [])
+        j["kinetic_end"] = energy[-1]["kinetic"] if energy else None
+        j["object"] = name
+        j["exit_code"] = code
+        runs.append(j)
+    return {"command": "cutsim run assets/scenes/blade.json --no-render --threads 1 --set object=OBJECT",
+            "runs": runs}
 
 
 def main():
@@ -91,11 +144,15 @@ def main():
     r = sub.add_parser("run", help="cutsim run SCENE once (other options go to cutsim run)")
     r.add_argument("scene")
     r.add_argument("--out", required=True)
+    b = sub.add_parser("blade-scale", help="blade.json's stroke on finer livers and on lattices")
+    b.add_argument("--out", required=True)
     args, rest = ap.parse_known_args()
-    if args.what == "tetra" and rest:
+    if args.what != "run" and rest:
         ap.error(f"unknown arguments: {' '.join(rest)}")
     m = machine()
-    j = tetra(args) if args.what == "tetra" else run(args, rest)
+    j = {"tetra": tetra, "blade-scale": blade_scale}[args.what](args) if args.what != "run" else run(args, rest)
+    if args.what == "blade-scale":
+        j["exit_code"] = max(r.get("exit_code", 0) for r in j["runs"])
     j["machine"] = m
     j["machine"]["load_average_end"] = list(os.getloadavg())
     json.dump(j, sys.stdout, indent=2)

@@ -670,6 +670,9 @@ def tetra_heldout():
         made = "Gmsh" if r["mesher"] == "gmsh" else "TetGen"
         if r["mesher"] == "gmsh":
             made += f" ({r['crease_angle']:g})"
+            n = r.get("gmsh_refinements", 0)
+            if n:
+                made += ", refined " + ("once" if n == 1 else f"{n} times") + " where it left the surface"
             if r.get("improver_creases", 180) < 180:
                 made += ", improved again with creases"
         elif r["mesher_option"] == "auto":

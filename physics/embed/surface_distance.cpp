@@ -176,6 +176,17 @@ double farthestDistance(const SurfaceMesh& from, const SurfaceMesh& to, double s
     return std::max(low, up);
 }
 
+std::vector<double> pointDistances(const Eigen::Matrix3Xd& points, const SurfaceMesh& to) {
+    std::vector<double> d(static_cast<size_t>(points.cols()), std::numeric_limits<double>::infinity());
+    if (to.faces() == 0 || points.cols() == 0) return d;
+    const Eigen::Vector3d lo = points.rowwise().minCoeff().cwiseMin(to.V.rowwise().minCoeff());
+    const Eigen::Vector3d hi = points.rowwise().maxCoeff().cwiseMax(to.V.rowwise().maxCoeff());
+    TriangleGrid grid(to, lo, hi);
+    int which = 0;
+    for (Eigen::Index i = 0; i < points.cols(); ++i) d[static_cast<size_t>(i)] = grid.nearest(points.col(i), which);
+    return d;
+}
+
 double hausdorffDistance(const SurfaceMesh& a, const SurfaceMesh& b, double spacing) {
     return std::max(farthestDistance(a, b, spacing), farthestDistance(b, a, spacing));
 }

@@ -115,9 +115,18 @@ Eigen::Vector3d ReferenceBoundary::projectToRing(int i, const Eigen::Vector3d& p
     return best;
 }
 
-double ReferenceBoundary::movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0) const {
+double ReferenceBoundary::movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0, bool bothWays) const {
     double worst = 0;
     std::vector<int> patch;
+    // the distance from p to the nearest face of `patch` at positions X
+    auto toNew = [&](const Eigen::Vector3d& p) {
+        double best = std::numeric_limits<double>::infinity();
+        for (int g : patch) {
+            const auto& u = faces[static_cast<size_t>(g)];
+            best = std::min(best, (closestPointOnTriangle(p, X.col(u[0]), X.col(u[1]), X.col(u[2])) - p).squaredNorm());
+        }
+        return std::sqrt(best);
+    };
     for (const auto& t : faces) {
         if (X.col(t[0]) == X0.col(t[0]) && X.col(t[1]) == X0.col(t[1]) && X.col(t[2]) == X0.col(t[2])) continue;
         patch.clear();
@@ -127,6 +136,11 @@ double ReferenceBoundary::movedDistance(const Eigen::Matrix3Xd& X, const Eigen::
         const Eigen::Vector3d samples[7] = {
             p0, p1, p2, (p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
         for (const auto& s : samples) worst = std::max(worst, distance(s, patch));
+        if (!bothWays) continue;
+        const auto& o = tris[static_cast<size_t>(&t - faces.data())];
+        const Eigen::Vector3d old[7] = {
+            o[0], o[1], o[2], (o[0] + o[1]) / 2, (o[1] + o[2]) / 2, (o[2] + o[0]) / 2, (o[0] + o[1] + o[2]) / 3};
+        for (const auto& s : old) worst = std::max(worst, toNew(s));
     }
     return worst;
 }

@@ -32,7 +32,8 @@ struct ReferenceBoundary {
     // Largest distance from a sample of the boundary at positions X (vertices, edge midpoints,
     // centroids) to the old faces around its face's vertices: a bound on the distance to the old
     // surface (X0: original positions). Faces whose vertices did not move are at distance 0.
-    double movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0) const;
+    // bothWays: also from a sample of each moved face's original to the new faces around it.
+    double movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0, bool bothWays = false) const;
 };
 
 }  // namespace cutsim

@@ -118,7 +118,9 @@ public:
     TetMesh mesh() const { return liveMesh(X_, T_, alive_); }
 
     // How far the boundary at positions X is from the old surface, at most (boundary.hpp).
-    double boundaryDistance(const Eigen::Matrix3Xd& X) const { return b0_.movedDistance(X, X0_); }
+    double boundaryDistance(const Eigen::Matrix3Xd& X) const {
+        return b0_.movedDistance(X, X0_, opts_.boundaryBothWays);
+    }
     const Eigen::Matrix3Xd& positions() const { return X_; }
     // The live mesh's M^-1/2 K M^-1/2 from the kept rows: what the mesh's model would assemble,
     // to round-off, without assembling it.
@@ -412,9 +414,27 @@ private:
             const Vec3 samples[4] = {(p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
             for (const Vec3& s : samples)
                 if (!b0_.within(s, patch, tol)) return false;
+            // Both ways: the old face near the new boundary too. A node sliding off a crease or a
+            // tip keeps the new boundary on the old surface but cuts the old one away.
+            if (!opts_.boundaryBothWays) continue;
+            const auto& o = b0_.tris[f];
+            const Vec3 old[7] = {
+                o[0], o[1], o[2], (o[0] + o[1]) / 2, (o[1] + o[2]) / 2, (o[2] + o[0]) / 2, (o[0] + o[1] + o[2]) / 3};
+            for (const Vec3& s : old)
+                if (!nearNew(s, patch, tol)) return false;
         }
         // Each of k threads may use 1/k of what is left (then all of them together stay within).
         return std::abs(volume_ + w.share * w.dV - volume0_) <= opts_.maxVolumeChange * volume0_;
+    }
+
+    // Whether p lies within tol of one of the boundary faces `of` at their current positions.
+    bool nearNew(const Vec3& p, const std::vector<int>& of, double tol) const {
+        for (int f : of) {
+            const auto& t = b0_.faces[f];
+            if ((closestPointOnTriangle(p, X_.col(t[0]), X_.col(t[1]), X_.col(t[2])) - p).squaredNorm() <= tol * tol)
+                return true;
+        }
+        return false;
     }
 
     // ---- smoothing ------------------------------------------------------------------------------

@@ -27,6 +27,9 @@ struct ImproveOptions {
     bool moveBoundary = true;            // boundary nodes slide within their original boundary faces
     double maxVolumeChange = 0.008;      // |enclosed volume change| / volume, at most [-]
     double maxBoundaryDistance = 0.015;  // new boundary from the old surface, over the bbox diagonal [-]
+    bool boundaryBothWays = false;       // the distance bound holds both ways: the old surface also
+                                         // stays near the new boundary (a Hausdorff bound; a node
+                                         // cannot slide off a crease or a tip and cut it away)
     double featureAngleDeg = 180;        // boundary edges whose faces turn by more than this are
                                          // features: a node between two slides along them, a node on
                                          // one or on three or more (a corner) stays put. 180: none,

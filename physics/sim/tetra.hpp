@@ -37,6 +37,8 @@ struct TetraReport {
     std::string mesher;            // "gmsh" or "tetgen": which one made the mesh
     std::string mesherNote;        // Auto: why TetGen ran (Gmsh absent, failed or out of bounds); empty else
     double creaseAngle = 0;        // Gmsh: edges turning by more than this were kept as creases [deg]
+    int gmshRefinements = 0;       // Gmsh: times its mesh was made again with smaller elements where
+                                   // the surface lay past its share of the boundary bound
     double meshedVolume = 0;       // Gmsh: the volume of its mesh, before the improver [m^3]
     double meshedDistance = 0;     // Gmsh: its boundary's Hausdorff distance to the surface [m]
     double improverCreases = 180;  // the improver kept edges turning more than this as creases [deg]

@@ -36,5 +36,22 @@ TEST(SurfaceDistance, NestedCubes) {
     EXPECT_LE(farthestDistance(a, a, spacing), slack);
 }
 
+// Points at distances from the cube [-0.5, 0.5]^3 that the geometry gives: its centre 0.5 from
+// every face, a point past a face, past an edge and past a corner, and one on a face.
+TEST(SurfaceDistance, PointDistancesToACube) {
+    const SurfaceMesh c = cube(0.5);
+    Eigen::Matrix3Xd p(3, 5);
+    p << 0, 1, 1, 1, 0.5,  //
+        0, 0, 1, 1, 0.2,   //
+        0, 0, 0, 1, -0.1;
+    const std::vector<double> d = pointDistances(p, c);
+    ASSERT_EQ(d.size(), 5u);
+    EXPECT_NEAR(d[0], 0.5, 1e-12);
+    EXPECT_NEAR(d[1], 0.5, 1e-12);
+    EXPECT_NEAR(d[2], 0.5 * std::sqrt(2.0), 1e-12);
+    EXPECT_NEAR(d[3], 0.5 * std::sqrt(3.0), 1e-12);
+    EXPECT_NEAR(d[4], 0, 1e-12);
+}
+
 }  // namespace
 }  // namespace cutsim

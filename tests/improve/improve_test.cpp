@@ -336,6 +336,30 @@ TEST(Improve, ReportedBoundaryDistanceBoundsTheTrueOne) {
     EXPECT_GT(r.after.dtExact, 1.5 * r.before.dtExact);
 }
 
+TEST(Improve, BothWaysKeepsTheOldSurfaceNearTheNewOne) {
+    // The decimated knight's creases and tips: sliding its boundary nodes within their faces keeps
+    // the new boundary on the old surface (one way) but cuts tips and creases away, so the old
+    // surface lies past the bound from the new one. Both ways, it stays within it too.
+    const TetMesh input = readTetMesh(test::data("tet/igltests_decimated-knight.mesh"));
+    ImproveOptions o = untimed();
+    o.maxRounds = 8;
+    o.maxBoundaryDistance = 0.004;
+    TetMesh oneWay = input;
+    const ImproveReport r1 = improveMesh(oneWay, o);
+    const double tol = o.maxBoundaryDistance * r1.diagonal;
+    EXPECT_LE(surfaceDistance(input, oneWay), tol * (1 + 1e-9));
+    EXPECT_GT(surfaceDistance(oneWay, input), 1.2 * tol);  // the old surface's samples, from the new
+
+    o.boundaryBothWays = true;
+    TetMesh both = input;
+    const ImproveReport r2 = improveMesh(both, o);
+    EXPECT_LE(r2.boundaryDistance, tol * (1 + 1e-9));
+    EXPECT_LE(surfaceDistance(input, both), r2.boundaryDistance * (1 + 1e-12));
+    EXPECT_LE(surfaceDistance(both, input), r2.boundaryDistance * (1 + 1e-12));
+    EXPECT_GT(r2.after.dtExact, 1.5 * r2.before.dtExact);
+    EXPECT_GT(minFlatness(both), 0);
+}
+
 TEST(CmdBenchImprove, TinyRunGivesEveryMethodARow) {
     std::string out, err;
     ASSERT_EQ(test::runCutsim("bench improve --tiny --json", &out, &err), 0) << err;

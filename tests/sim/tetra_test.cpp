@@ -118,6 +118,30 @@ TEST(Tetra, GmshRemeshesAnEllipsoidWithPolarSlivers) {
     EXPECT_LT(tg.dtAfter / tg.dtScale, t.dtAfter / t.dtScale / 3);
 }
 
+// igl_bunny's ears are 2.7-4 mm thick under 5.6 mm edges. At the first crease angle Gmsh can
+// split it by, a tip becomes a sliver patch meshed with sub-millimetre triangles (a step quality
+// near 0.1); past it, the ears' rims are cut off, 1.2% of the diagonal from the surface, and auto
+// fell back to TetGen (about 200k tets, quality 0.03). Passing over the sliver split and refining
+// where the boundary leaves the bound gives a Gmsh mesh within both bounds and a step quality
+// over 0.2 (the mesh varies with Gmsh's memory layout, so the bounds are the check).
+TEST(Tetra, GmshRefinesWhereThinEarsLeaveTheBound) {
+    if (gmshTetraProgram().empty()) GTEST_SKIP() << "cutsim-gmsh-tetra not built (libgmsh-dev)";
+    TetraOptions o;
+    o.size = 0.0056;
+    o.material = Material{30000, 0.3, 1000};
+    const TetraReport t = tetraFromSurface(readSurfaceMesh(test::data("surface/igl_bunny.off")), o).report;
+    EXPECT_EQ(t.mesher, "gmsh") << t.mesherNote;
+    EXPECT_GE(t.creaseAngle, 70);
+    EXPECT_GE(t.gmshRefinements, 1);
+    EXPECT_LE(t.meshedDistance, 0.0075 * t.diagonal);
+    EXPECT_GT(t.tets, 20000);
+    EXPECT_LT(t.tets, 50000);
+    EXPECT_EQ(t.inverted, 0);
+    EXPECT_LT(std::abs(t.volumeMesh - t.volumeSurface), 0.01 * t.volumeSurface);
+    EXPECT_LE(t.boundaryDistance, 0.01 * t.diagonal);
+    EXPECT_GE(t.dtAfter / t.dtScale, 0.2);
+}
+
 TEST(Tetra, BrokenSurfacesAreRefusedWithTheirDefect) {
     EXPECT_NE(refusal("broken/igl_camelhead.off").find("the surface is open: 56 edges"), std::string::npos)
         << refusal("broken/igl_camelhead.off");
