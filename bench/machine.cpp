@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -29,6 +30,22 @@ std::string cpuModel() {
     return "";
 }
 
+// The widest vector instructions of /proc/cpuinfo's flags ("AVX-512", "AVX2", "SSE4.2"): the
+// step's kernels run on them, so timings of two machines compare only at the same width.
+std::string vectorWidth() {
+    std::ifstream f("/proc/cpuinfo");
+    std::string line;
+    while (std::getline(f, line))
+        if (line.rfind("flags", 0) == 0) {
+            const std::string flags = line + ' ';
+            for (const auto& [flag, name] :
+                 {std::pair{" avx512f ", "AVX-512"}, {" avx2 ", "AVX2"}, {" sse4_2 ", "SSE4.2"}})
+                if (flags.find(flag) != std::string::npos) return name;
+            return "";
+        }
+    return "";
+}
+
 }  // namespace
 
 nlohmann::json loadAverage() {
@@ -40,7 +57,10 @@ nlohmann::json loadAverage() {
 }
 
 nlohmann::json machineJson() {
-    return {{"cpu", cpuModel()}, {"cores", std::thread::hardware_concurrency()}, {"load_average", loadAverage()}};
+    return {{"cpu", cpuModel()},
+            {"vector", vectorWidth()},
+            {"cores", std::thread::hardware_concurrency()},
+            {"load_average", loadAverage()}};
 }
 
 BusyCore::BusyCore() {

@@ -127,6 +127,11 @@ if [ "$long" = 1 ]; then
   # the shipped high-resolution scene with its frames, one thread (about 5 minutes)
   scripts/bench_runs.py --cutsim "$B/cutsim" run assets/scenes/liver_hires.json --out captures/hires --threads 1 \
     > "$D/liver_hires.json"
+  # the same scene at three mesh sizes without frames (about 6 minutes), and blade.json's stroke on
+  # finer livers and lattices (about 17 minutes on an AVX2 machine; a diverged run is recorded, not fatal)
+  scripts/bench_runs.py --cutsim "$B/cutsim" runs assets/scenes/liver_hires.json --out captures/hires_sizes \
+    --vary object.tetra.size=0.0046,0.0038,0.0030 --no-render --threads 1 > "$D/liver_hires_sizes.json" || true
+  scripts/bench_runs.py --cutsim "$B/cutsim" blade-scale --out captures/blade_scale > "$D/blade_scale.json" || true
 fi
 # BENCHMARKS.md's tables drawn from the JSON results
 python3 scripts/bench_tables.py

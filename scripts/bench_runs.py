@@ -7,6 +7,9 @@ draws the tables). From the checkout:
         `cutsim tetra` on the data folder's surfaces it was not tuned for, one after the other
     scripts/bench_runs.py run SCENE --out DIR [cutsim run options] > docs/bench/NAME.json
         `cutsim run SCENE --out DIR ...` once; its report.json without the run's per-step records
+    scripts/bench_runs.py runs SCENE --out DIR --vary KEY=V1,V2,... [cutsim run options] > docs/bench/NAME.json
+        `cutsim run SCENE --set KEY=V ...` once per value, in turn (DIR/0, DIR/1, ...); with each run
+        of an object.tetra scene, the report of its mesh (built in a cache of its own, not timed)
     scripts/bench_runs.py blade-scale --out DIR > docs/bench/blade_scale.json
         blade.json's stroke on finer livers (TetGen meshes of the shipped surface, 16k to 106k tets)
         and on lattices, one thread, without frames (about 15 minutes)
@@ -58,14 +61,19 @@ BLADE_OBJECTS = [
 
 
 def machine():
-    """The CPU's model name, the cores, the load averages now (as bench/machine.cpp records them)."""
-    cpu = ""
+    """The CPU's model name and widest vector instructions, the cores, the load averages now (as
+    bench/machine.cpp records them)."""
+    cpu, vector = "", ""
     try:
         with open("/proc/cpuinfo", encoding="utf-8") as f:
-            cpu = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), "")
+            lines = f.readlines()
+        cpu = next((line.split(":", 1)[1].strip() for line in lines if line.startswith("model name")), "")
+        flags = next((line.split(":", 1)[1].split() for line in lines if line.startswith("flags")), [])
+        vector = next((name for flag, name in (("avx512f", "AVX-512"), ("avx2", "AVX2"), ("sse4_2", "SSE4.2"))
+                       if flag in flags), "")
     except OSError:
         pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "load_average": list(os.getloadavg())}
+    return {"cpu": cpu, "vector": vector, "cores": os.cpu_count(), "load_average": list(os.getloadavg())}
 
 
 def tetra(args):
@@ -90,11 +98,39 @@ def tetra(args):
 def run(args, rest):
     cmd = [args.cutsim, "run", args.scene, "--out", args.out, "--quiet"] + rest
     code = subprocess.run(cmd, cwd=ROOT).returncode
-    _, j = report_of(args.out, REPORT_KEYS)
+    rep, j = report_of(args.out, REPORT_KEYS)
     j["cuts"] = len(rep.get("cuts", []))
     j["command"] = " ".join(["cutsim run", args.scene, "--out", args.out] + rest)
     j["exit_code"] = code
     return j
+
+
+def runs(args, rest):
+    key, _, values = args.vary.partition("=")
+    if not key or not values:
+        raise SystemExit("--vary: KEY=V1,V2,... expected")
+    env = dict(os.environ, CUTSIM_CACHE=str(ROOT / args.out / "cache"))
+    shutil.rmtree(ROOT / args.out / "cache", ignore_errors=True)
+    out = []
+    for i, v in enumerate(values.split(",")):
+        d = f"{args.out}/{i}"
+        cmd = [args.cutsim, "run", args.scene, "--out", d, "--quiet", "--set", f"{key}={v}"] + rest
+        tetra = None
+        with open(ROOT / args.scene, encoding="utf-8") as f:
+            if "tetra" in json.load(f).get("object", {}):  # the mesh first, so its making is not timed
+                subprocess.run(cmd[:4] + [d + "-mesh"] + cmd[5:] + ["--no-render", "--set", "duration=0.002"],
+                               cwd=ROOT, check=True, env=env)
+                with open(ROOT / (d + "-mesh") / "report.json", encoding="utf-8") as g:
+                    t = json.load(g)["tetra"]
+                tetra = {k: t[k] for k in ("mesher", "size", "tets", "dt_after", "step_quality", "seconds") if k in t}
+        code = subprocess.run(cmd, cwd=ROOT, env=env).returncode
+        rep, j = report_of(d, REPORT_KEYS + ["inverted"])
+        if tetra:
+            j["tetra"] = tetra
+        j["value"] = v
+        j["exit_code"] = code
+        out.append(j)
+    return {"command": " ".join(["cutsim run", args.scene, "--set", f"{key}=V"] + rest), "key": key, "runs": out}
 
 
 def report_of(out_dir, keys):
@@ -105,8 +141,9 @@ def report_of(out_dir, keys):
     return rep, j
 
 
-def blade_scale(args):
-    """Each object twice: once to build its mesh (object.tetra's cache; not timed), then the run."""
+def blade_scale(args, rest):
+    """Each object twice: once to build its mesh (object.tetra's cache; not timed), then the run (other
+    options go to cutsim run)."""
     runs = []
     # a cache of its own: each mesh is built here, so its report is there to keep
     env = dict(os.environ, CUTSIM_CACHE=str(ROOT / args.out / "cache"))
@@ -117,12 +154,12 @@ def blade_scale(args):
                   "--threads", "1", "--set", "object=" + obj]
         tetra = None
         if "tetra" in obj:  # the mesh built (or found in the cache) by a run of one step
-            subprocess.run(common[:4] + [out + "-mesh"] + common[5:] + ["--set", "duration=0.0001"], cwd=ROOT,
+            subprocess.run(common[:4] + [out + "-mesh"] + common[5:] + ["--set", "duration=0.002"], cwd=ROOT,
                            check=True, env=env)
             with open(ROOT / (out + "-mesh") / "report.json", encoding="utf-8") as f:
                 t = json.load(f)["tetra"]
             tetra = {k: t[k] for k in ("mesher", "size", "tets", "dt_after", "step_quality", "seconds") if k in t}
-        code = subprocess.run(common, cwd=ROOT, env=env).returncode
+        code = subprocess.run(common + rest, cwd=ROOT, env=env).returncode
         rep, j = report_of(out, REPORT_KEYS + ["strokes"])
         if tetra:
             j["tetra"] = tetra
@@ -131,7 +168,8 @@ def blade_scale(args):
         j["object"] = name
         j["exit_code"] = code
         runs.append(j)
-    return {"command": "cutsim run assets/scenes/blade.json --no-render --threads 1 --set object=OBJECT",
+    return {"command": " ".join(["cutsim run assets/scenes/blade.json --no-render --threads 1 --set object=OBJECT"]
+                                + rest),
             "runs": runs}
 
 
@@ -144,14 +182,20 @@ def main():
     r = sub.add_parser("run", help="cutsim run SCENE once (other options go to cutsim run)")
     r.add_argument("scene")
     r.add_argument("--out", required=True)
-    b = sub.add_parser("blade-scale", help="blade.json's stroke on finer livers and on lattices")
+    v = sub.add_parser("runs", help="cutsim run SCENE once per value of a key (other options go to cutsim run)")
+    v.add_argument("scene")
+    v.add_argument("--out", required=True)
+    v.add_argument("--vary", required=True, help="KEY=V1,V2,...")
+    b = sub.add_parser("blade-scale", help="blade.json's stroke on finer livers and on lattices (other options "
+                                           "go to cutsim run)")
     b.add_argument("--out", required=True)
     args, rest = ap.parse_known_args()
-    if args.what != "run" and rest:
+    if args.what == "tetra" and rest:
         ap.error(f"unknown arguments: {' '.join(rest)}")
     m = machine()
-    j = {"tetra": tetra, "blade-scale": blade_scale}[args.what](args) if args.what != "run" else run(args, rest)
-    if args.what == "blade-scale":
+    j = {"tetra": lambda: tetra(args), "blade-scale": lambda: blade_scale(args, rest), "runs": lambda: runs(args, rest),
+         "run": lambda: run(args, rest)}[args.what]()
+    if "runs" in j and args.what != "tetra":
         j["exit_code"] = max(r.get("exit_code", 0) for r in j["runs"])
     j["machine"] = m
     j["machine"]["load_average_end"] = list(os.getloadavg())

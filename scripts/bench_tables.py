@@ -49,7 +49,8 @@ def ran_on(*results):
     started and ended (the result's "machine"), lowest to highest."""
     loads = [x for j in results for x in (j["machine"]["load_average"][0], j["machine"]["load_average_end"][0])]
     m = results[0]["machine"]
-    return f"\n{m['cores']} cores ({m['cpu']}), load average {span(loads, tenths)} over the run.\n"
+    cpu = m["cpu"] + (f", {m['vector']}" if m.get("vector") else "")
+    return f"\n{m['cores']} cores ({cpu}), load average {span(loads, tenths)} over the run.\n"
 
 
 def decimals(v, n):
@@ -686,6 +687,51 @@ def tetra_heldout():
                   "volume", "boundary / diagonal", "inverted", "wall [s] (per 10k elements)"], rows) + ran_on(j)
 
 
+def liver_hires_sizes():
+    """The high-resolution scene at several sizes of object.tetra: the mesh made, the result, and the run's
+    times."""
+    j = load("liver_hires_sizes.json")
+    rows = []
+    for r in j["runs"]:
+        st, m, t = r["stages"], r["mesh"], r["tetra"]
+        result = r["status"] if r["status"] == "ok" else f"{r['status'].split(':')[0]} at t = {r['sim_time']:.3f} s"
+        inv = r.get("inverted", {})
+        rows.append([r["value"], f"{m['elements']:,} ({m['elements_final']:,})", f"{t['step_quality']:.2f}",
+                     f"{1e3 * t['dt_after']:.3f}", f"{result}, {r['pieces']} pieces", f"{r['steps']:,}",
+                     f"{r['wall_time']:.1f}", f"{t['seconds']:.1f}",
+                     " / ".join(f"{st[k]:.1f}" for k in ("forces", "integrate", "contact", "cut", "timestep")),
+                     f"{inv.get('steps', 0)} ({inv.get('max_elements', 0)})"])
+    return table(["object.tetra.size", "tets (after the cuts)", "step quality", "exact step [ms]", "result",
+                  "steps", "wall [s]", "meshing [s]", "forces / integrate / contact / cut / time step [s]",
+                  "steps with an inverted element (most at once)"], rows) + ran_on(j)
+
+
+def blade_scale():
+    """blade.json's stroke per object: elements, result and pieces, the stroke's blade steps and their
+    latency, the cut and time-step stages and the contact stage against the elastic step, and the wall."""
+    j = load("blade_scale.json")
+    rows = []
+    for r in j["runs"]:
+        st, m = r["stages"], r["mesh"]
+        fi = st["forces"] + st["integrate"]
+        result = r["status"] if r["status"] == "ok" else f"{r['status'].split(':')[0]} at t = {r['sim_time']:.3f} s"
+        pieces = ", ".join(f"{1e6 * v:.1f}" if v < 1e-6 else f"{1e6 * v:.0f}"
+                           for v in sorted(r.get("piece_volumes", []), reverse=True))
+        strokes = r.get("strokes", [])
+        steps = sum(k["blade_steps"] for k in strokes)
+        lat = strokes[0]["latency"] if strokes else None
+        quality = f"{r['tetra']['step_quality']:.2f}" if "tetra" in r else ""
+        rows.append([r["object"], f"{m['elements']:,} / {m['elements_final']:,}", quality, result, pieces,
+                     f"{steps:,}", f"{ms(lat['median'])} / {ms(lat['p99'])} / {ms(lat['max'])}" if lat else "",
+                     f"{st['cut']:.1f} / {st['timestep']:.1f}", f"{(st['cut'] + st['timestep']) / fi:.2f}",
+                     f"{st['contact'] / fi:.2f}", f"{r['kinetic_end']:.2g}" if r.get("kinetic_end") is not None else "",
+                     f"{r['wall_time']:.0f}"])
+    return table(["object", "elements at load / at the end", "step quality", "result", "pieces [cm^3]",
+                  "blade steps", "latency median / p99 / max [ms]", "cut / time step [s]",
+                  "(cut + time step) / (forces + integrate)", "contact / (forces + integrate)",
+                  "kinetic energy at the end [J]", "wall [s]"], rows) + ran_on(j)
+
+
 RUN_STAGES = [("forces", "forces"), ("integrate", "integrate"), ("contact", "contact"), ("cut", "cut"),
               ("timestep", "time step"), ("render", "render"), ("encode", "encode")]
 
@@ -977,6 +1023,8 @@ TABLES = {
     "capture": capture,
     "tetra-heldout": tetra_heldout,
     "liver-hires": liver_hires,
+    "blade-scale": blade_scale,
+    "liver-hires-sizes": liver_hires_sizes,
     "threads-box": threads_box,
     "threads-liver": threads_liver,
 }
