@@ -38,10 +38,14 @@ constexpr double kCreaseAngles[] = {40, 20, 10, 60, 70, 80, 90};
 // (a sliver patch at a tip, its curves meshed finely) makes the step small; the next angle is
 // tried, and the split whose smallest triangle is largest kept when none passes.
 constexpr double kSmallestEdge = 0.3;
+// Splits that give a surface mesh tried at most (their meshing is the costly part of a failed try).
+constexpr int kMaxSplits = 2;
 // Refinement where the surface lies past the bound: the local edge there shrinks by this factor
 // per pass, down to this share of the target edge, and grows away from it by this slope.
 constexpr double kShrink = 0.6, kMinShare = 0.35, kGrading = 0.5;
 constexpr int kRefinements = 3;
+// At most this share of the samples is refined in a pass (else the mesh is kept as it is).
+constexpr double kMaxRefinedShare = 0.05;
 // Points farther apart than this share of the bound are refined: Gmsh places its points anew in
 // each pass, so a place just inside the bound in one pass may lie past it in the next.
 constexpr double kRefineAt = 0.6;
@@ -324,7 +328,9 @@ GmshRun refinedAt(const SurfaceMesh& s, double size, double angle, double bound,
         };
         for (Eigen::Index i = 0; i < samples.cols(); ++i) refine(samples.col(i), d[static_cast<size_t>(i)]);
         for (Eigen::Index i = 0; i < back.cols(); ++i) refine(back.col(i), e[static_cast<size_t>(i)]);
-        if (far == 0) break;
+        // refinement is for a few thin places: past this share, the target edge is too coarse
+        // for the surface, and Gmsh's remeshing of that much would cost more than the fill
+        if (far == 0 || far > kMaxRefinedShare * static_cast<double>(samples.cols() + back.cols())) break;
         run = surfaceAt(s, size, angle, field);
         run.refinements = refinements + 1;
         run.refinedPoints = refined + far;
@@ -359,23 +365,31 @@ int main(int argc, char** argv) {
             gmsh::option::setNumber(o, 1);
         std::string errors;
         std::optional<GmshRun> run;
-        double fallback = 0, fallbackEdge = -1;  // the angle whose smallest surface edge is largest
+        double fallback = 0, fallbackEdge = -1, last = 0;  // the angle whose smallest edge is largest
+        int made = 0;
+        GmshRun kept;  // the fallback's surface
         const SizeField uniform(size);
         for (const double angle : kCreaseAngles) {
             try {
                 GmshRun r = surfaceAt(s, size, angle, uniform);
+                last = angle;
                 if (r.smallestEdge >= kSmallestEdge) {
                     run = std::move(r);
                     break;
                 }
-                if (r.smallestEdge > fallbackEdge) fallback = angle, fallbackEdge = r.smallestEdge;
+                if (r.smallestEdge > fallbackEdge) {
+                    fallback = angle, fallbackEdge = r.smallestEdge;
+                    kept = std::move(r);
+                }
+                if (++made == kMaxSplits) break;
             } catch (const std::string& e) {  // Gmsh 4.8 throws its last error message
                 errors += (errors.empty() ? "" : "; ") + std::to_string(int(angle)) + " deg: " + e;
             } catch (const std::runtime_error& e) {
                 errors += (errors.empty() ? "" : "; ") + std::to_string(int(angle)) + " deg: " + e.what();
             }
         }
-        if (!run && fallbackEdge >= 0) run = surfaceAt(s, size, fallback, uniform);
+        // Gmsh holds the last split made: the fallback is made again unless it is that one
+        if (!run && fallbackEdge >= 0) run = fallback == last ? std::move(kept) : surfaceAt(s, size, fallback, uniform);
         if (run) {
             const double angle = run->angle;
             run = refinedAt(s, size, angle, bound, std::move(*run));
