@@ -32,7 +32,7 @@ namespace {
 
 // Gmsh 4.8's split of a surface into patches it can parametrize fails on some surfaces at some
 // crease angles ("wrong topology of boundary mesh"); the angles are tried in this order, the
-// first that gives a mesh is kept. Smaller angles keep more creases.
+// first whose surface mesh passes kSmallestEdge is kept. Smaller angles keep more creases.
 constexpr double kCreaseAngles[] = {40, 20, 10, 60, 70, 80, 90};
 // A split that leaves a surface triangle whose longest edge is under this share of the target edge
 // (a sliver patch at a tip, its curves meshed finely) makes the step small; the next angle is

@@ -91,6 +91,26 @@ bool ReferenceBoundary::within(const Eigen::Vector3d& p, const std::vector<int>&
     return false;
 }
 
+double ReferenceBoundary::distanceMoved(const Eigen::Vector3d& p, const std::vector<int>& of,
+                                        const Eigen::Matrix3Xd& X) const {
+    double best = std::numeric_limits<double>::infinity();
+    for (int f : of) {
+        const auto& u = faces[static_cast<size_t>(f)];
+        best = std::min(best, (closestPointOnTriangle(p, X.col(u[0]), X.col(u[1]), X.col(u[2])) - p).squaredNorm());
+    }
+    return std::sqrt(best);
+}
+
+bool ReferenceBoundary::withinMoved(const Eigen::Vector3d& p, const std::vector<int>& of, const Eigen::Matrix3Xd& X,
+                                    double tol) const {
+    for (int f : of) {
+        const auto& u = faces[static_cast<size_t>(f)];
+        if ((closestPointOnTriangle(p, X.col(u[0]), X.col(u[1]), X.col(u[2])) - p).squaredNorm() <= tol * tol)
+            return true;
+    }
+    return false;
+}
+
 Eigen::Vector3d ReferenceBoundary::projectToCrease(int i, const Eigen::Vector3d& p, const Eigen::Matrix3Xd& X0) const {
     Eigen::Vector3d best = p;
     double bd = std::numeric_limits<double>::infinity();
@@ -118,29 +138,16 @@ Eigen::Vector3d ReferenceBoundary::projectToRing(int i, const Eigen::Vector3d& p
 double ReferenceBoundary::movedDistance(const Eigen::Matrix3Xd& X, const Eigen::Matrix3Xd& X0, bool bothWays) const {
     double worst = 0;
     std::vector<int> patch;
-    // the distance from p to the nearest face of `patch` at positions X
-    auto toNew = [&](const Eigen::Vector3d& p) {
-        double best = std::numeric_limits<double>::infinity();
-        for (int g : patch) {
-            const auto& u = faces[static_cast<size_t>(g)];
-            best = std::min(best, (closestPointOnTriangle(p, X.col(u[0]), X.col(u[1]), X.col(u[2])) - p).squaredNorm());
-        }
-        return std::sqrt(best);
-    };
     for (const auto& t : faces) {
         if (X.col(t[0]) == X0.col(t[0]) && X.col(t[1]) == X0.col(t[1]) && X.col(t[2]) == X0.col(t[2])) continue;
         patch.clear();
         for (int v : t)
             for (int g : ring[v]) patch.push_back(g);
-        const Eigen::Vector3d p0 = X.col(t[0]), p1 = X.col(t[1]), p2 = X.col(t[2]);
-        const Eigen::Vector3d samples[7] = {
-            p0, p1, p2, (p0 + p1) / 2, (p1 + p2) / 2, (p2 + p0) / 2, (p0 + p1 + p2) / 3};
-        for (const auto& s : samples) worst = std::max(worst, distance(s, patch));
+        for (const auto& s : samples(X.col(t[0]), X.col(t[1]), X.col(t[2])))
+            worst = std::max(worst, distance(s, patch));
         if (!bothWays) continue;
         const auto& o = tris[static_cast<size_t>(&t - faces.data())];
-        const Eigen::Vector3d old[7] = {
-            o[0], o[1], o[2], (o[0] + o[1]) / 2, (o[1] + o[2]) / 2, (o[2] + o[0]) / 2, (o[0] + o[1] + o[2]) / 3};
-        for (const auto& s : old) worst = std::max(worst, toNew(s));
+        for (const auto& s : samples(o[0], o[1], o[2])) worst = std::max(worst, distanceMoved(s, patch, X));
     }
     return worst;
 }

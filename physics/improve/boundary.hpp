@@ -25,6 +25,15 @@ struct ReferenceBoundary {
     double distance(const Eigen::Vector3d& p, const std::vector<int>& of) const;
     // distance(p, of) <= tol, stopping at the first face that is near enough.
     bool within(const Eigen::Vector3d& p, const std::vector<int>& of, double tol) const;
+    // Distance from p to the nearest of the faces `of` at positions X (the new boundary) [m].
+    double distanceMoved(const Eigen::Vector3d& p, const std::vector<int>& of, const Eigen::Matrix3Xd& X) const;
+    // distanceMoved(p, of, X) <= tol, stopping at the first face that is near enough.
+    bool withinMoved(const Eigen::Vector3d& p, const std::vector<int>& of, const Eigen::Matrix3Xd& X, double tol) const;
+    // Where a triangle is sampled against a surface: its corners, edge midpoints and centroid.
+    static std::array<Eigen::Vector3d, 7> samples(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                                  const Eigen::Vector3d& c) {
+        return {a, b, c, (a + b) / 2, (b + c) / 2, (c + a) / 2, (a + b + c) / 3};
+    }
     // Closest point on node i's original crease segments (X0: original positions).
     Eigen::Vector3d projectToCrease(int i, const Eigen::Vector3d& p, const Eigen::Matrix3Xd& X0) const;
     // Closest point on node i's original faces.

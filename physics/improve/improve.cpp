@@ -418,23 +418,11 @@ private:
             // tip keeps the new boundary on the old surface but cuts the old one away.
             if (!opts_.boundaryBothWays) continue;
             const auto& o = b0_.tris[f];
-            const Vec3 old[7] = {
-                o[0], o[1], o[2], (o[0] + o[1]) / 2, (o[1] + o[2]) / 2, (o[2] + o[0]) / 2, (o[0] + o[1] + o[2]) / 3};
-            for (const Vec3& s : old)
-                if (!nearNew(s, patch, tol)) return false;
+            for (const Vec3& s : ReferenceBoundary::samples(o[0], o[1], o[2]))
+                if (!b0_.withinMoved(s, patch, X_, tol)) return false;
         }
         // Each of k threads may use 1/k of what is left (then all of them together stay within).
         return std::abs(volume_ + w.share * w.dV - volume0_) <= opts_.maxVolumeChange * volume0_;
-    }
-
-    // Whether p lies within tol of one of the boundary faces `of` at their current positions.
-    bool nearNew(const Vec3& p, const std::vector<int>& of, double tol) const {
-        for (int f : of) {
-            const auto& t = b0_.faces[f];
-            if ((closestPointOnTriangle(p, X_.col(t[0]), X_.col(t[1]), X_.col(t[2])) - p).squaredNorm() <= tol * tol)
-                return true;
-        }
-        return false;
     }
 
     // ---- smoothing ------------------------------------------------------------------------------

@@ -86,6 +86,16 @@ TEST(Tetra, TheLiverSurfaceGivesAMeshOfItsVolume) {
     EXPECT_TRUE(again.tets == r.mesh.tets && again.X == r.mesh.X);
 }
 
+// A made mesh of tets in (low, high), nothing inverted, its volume and boundary within 1% of the
+// surface's volume and diagonal (the bounds cutsim tetra promises).
+void expectMeshWithinBounds(const TetraReport& t, int low, int high) {
+    EXPECT_GT(t.tets, low);
+    EXPECT_LT(t.tets, high);
+    EXPECT_EQ(t.inverted, 0);
+    EXPECT_LT(std::abs(t.volumeMesh - t.volumeSurface), 0.01 * t.volumeSurface);
+    EXPECT_LE(t.boundaryDistance, 0.01 * t.diagonal);
+}
+
 // Gmsh remeshes the ellipsoid's surface at the size, so its polar needles do not reach the tets:
 // the volume and boundary of the surface within 1% (the boundary measured both ways), nothing
 // inverted, and a step quality TetGen's mesh of the same surface does not reach. The surface is a
@@ -104,11 +114,7 @@ TEST(Tetra, GmshRemeshesAnEllipsoidWithPolarSlivers) {
     // the polyhedron's, 0.71% under the ellipsoid's
     EXPECT_NEAR(t.volumeSurface, (1 - 0.0071) * 4 / 3.0 * M_PI * 0.04 * 0.03 * 0.025, 1e-4 * t.volumeSurface);
     // about the volume over the regular tet of edge 0.004 (1.25e-4 / 7.5e-6 = 16.6k)
-    EXPECT_GT(t.tets, 5000);
-    EXPECT_LT(t.tets, 20000);
-    EXPECT_EQ(t.inverted, 0);
-    EXPECT_LT(std::abs(t.volumeMesh - t.volumeSurface), 0.01 * t.volumeSurface);
-    EXPECT_LE(t.boundaryDistance, 0.01 * t.diagonal);
+    expectMeshWithinBounds(t, 5000, 20000);
     EXPECT_GT(t.dtAfter / t.dtScale, 0.3);
     // TetGen keeps the needles: several times the tets and a step quality under a third of Gmsh's
     o.mesher = Mesher::TetGen;
@@ -134,11 +140,7 @@ TEST(Tetra, GmshRefinesWhereThinEarsLeaveTheBound) {
     EXPECT_GE(t.creaseAngle, 70);
     EXPECT_GE(t.gmshRefinements, 1);
     EXPECT_LE(t.meshedDistance, 0.0075 * t.diagonal);
-    EXPECT_GT(t.tets, 20000);
-    EXPECT_LT(t.tets, 50000);
-    EXPECT_EQ(t.inverted, 0);
-    EXPECT_LT(std::abs(t.volumeMesh - t.volumeSurface), 0.01 * t.volumeSurface);
-    EXPECT_LE(t.boundaryDistance, 0.01 * t.diagonal);
+    expectMeshWithinBounds(t, 20000, 50000);
     EXPECT_GE(t.dtAfter / t.dtScale, 0.2);
 }
 
